@@ -1,0 +1,49 @@
+# dejag: the two quick-start commands and their helpers. Everything goes through CMake presets.
+#   make test    install what is missing, configure, build, run every test
+#   make bench   build and run the benchmarks
+#   make build   configure and build (Release)
+# PRESET=debug|asan|tsan selects another build; CI=true turns warnings into errors.
+
+PRESET ?= release
+BUILD_DIR := build/$(PRESET)
+JOBS ?= $(shell nproc)
+CMAKE_FLAGS ?=
+ifneq ($(CI),)
+CMAKE_FLAGS += -DDEJAG_WERROR=ON
+endif
+
+.PHONY: all deps configure build test test-asan test-tsan bench golden format clean
+
+all: build
+
+deps:
+	@scripts/install-deps
+
+configure: deps
+	cmake --preset $(PRESET) $(CMAKE_FLAGS) --log-level=WARNING
+
+build: configure
+	cmake --build $(BUILD_DIR) -j $(JOBS)
+
+test: build
+	cd $(BUILD_DIR) && ctest --output-on-failure -j $(JOBS)
+
+test-asan:
+	$(MAKE) test PRESET=asan
+
+test-tsan:
+	$(MAKE) test PRESET=tsan
+
+bench: build
+	$(BUILD_DIR)/dejag bench metrics
+
+# Regenerates the committed golden files from the Python references (needs Debian's python3-skimage).
+golden:
+	@scripts/install-deps --golden
+	/usr/bin/python3 tests/golden/make_metrics_golden.py
+
+format:
+	clang-format -i $$(git ls-files '*.cpp' '*.h')
+
+clean:
+	rm -rf build

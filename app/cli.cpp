@@ -1,0 +1,34 @@
+#include "app/cli.h"
+
+#include <regex>
+
+#include "base/error.h"
+#include "base/simd.h"
+#include "base/thread_pool.h"
+
+namespace dejag::cli {
+
+void addRuntimeOptions(CLI::App* command, RuntimeOptions& options) {
+    command->add_option("--threads", options.threads, "Worker threads (default: DEJAG_THREADS or all cores)")
+        ->check(CLI::Range(1, 1024));
+    command->add_option("--simd", options.simd, "Force a SIMD path: scalar, avx2 or avx512 (default: best)")
+        ->check(CLI::IsMember({"scalar", "avx2", "avx512"}));
+}
+
+void applyRuntimeOptions(const RuntimeOptions& options) {
+    if (!options.simd.empty()) setSimdLevel(*parseSimdLevel(options.simd));
+    setThreadCount(options.threads);
+}
+
+Size parseSize(const std::string& text, const std::string& what) {
+    static const std::regex pattern(R"(^(\d{1,6})[xX](\d{1,6})$)");
+    std::smatch match;
+    if (!std::regex_match(text, match, pattern))
+        throw Error(what + " '" + text + "' is not WIDTHxHEIGHT (e.g. 1920x1080)");
+    Size size{std::stoi(match[1]), std::stoi(match[2])};
+    if (size.width < 1 || size.height < 1 || size.width > 16384 || size.height > 16384)
+        throw Error(what + " '" + text + "' must have sides from 1 to 16384");
+    return size;
+}
+
+}  // namespace dejag::cli

@@ -1,0 +1,24 @@
+// dejag/app: helpers shared by the subcommands of the `dejag` binary.
+#pragma once
+
+#include <CLI/CLI.hpp>
+#include <string>
+
+namespace dejag::cli {
+
+// Adds --threads N (default: DEJAG_THREADS or the core count) and --simd LEVEL to a subcommand; call
+// applyRuntimeOptions() at the start of its callback.
+struct RuntimeOptions {
+    int threads = 0;
+    std::string simd;
+};
+void addRuntimeOptions(CLI::App* command, RuntimeOptions& options);
+void applyRuntimeOptions(const RuntimeOptions& options);
+
+struct Size {
+    int width = 0, height = 0;
+};
+// "1920x1080" -> {1920, 1080}; throws dejag::Error naming `what` on anything else or a side outside 1..16384.
+Size parseSize(const std::string& text, const std::string& what);
+
+}  // namespace dejag::cli

@@ -1,0 +1,103 @@
+// dejag bench TARGET: benchmarks that print figures next to the machine's measured peak.
+#include <cstdio>
+#include <memory>
+#include <nlohmann/json.hpp>
+#include <sstream>
+
+#include "app/cli.h"
+#include "app/commands.h"
+#include "base/error.h"
+#include "bench/bench.h"
+
+namespace dejag::cli {
+namespace {
+
+struct BenchArguments {
+    std::string size = "1920x1080";
+    int repeat = 15;
+    std::string threads = "1,2";
+    bool json = false;
+    RuntimeOptions runtime;
+};
+
+std::vector<int> parseThreadList(const std::string& text) {
+    std::vector<int> threads;
+    std::stringstream stream(text);
+    std::string item;
+    while (std::getline(stream, item, ',')) {
+        try {
+            size_t used = 0;
+            int value = std::stoi(item, &used);
+            if (used != item.size() || value < 1 || value > 1024) throw std::invalid_argument(item);
+            threads.push_back(value);
+        } catch (const std::exception&) {
+            throw Error("--threads '" + text + "' is not a comma-separated list of thread counts (e.g. 1,2)");
+        }
+    }
+    if (threads.empty()) throw Error("--threads is empty");
+    return threads;
+}
+
+void printRows(const std::vector<bench::Row>& rows, bool json) {
+    if (json) {
+        for (const bench::Row& row : rows) {
+            nlohmann::json out = {{"name", row.name},
+                                  {"threads", row.threads},
+                                  {"simd", row.simd},
+                                  {"ms", row.ms},
+                                  {"gmacs", row.gmacs},
+                                  {"peak_gmacs", row.peakGmacs},
+                                  {"peak_fraction", row.peakFraction}};
+            if (row.targetMs > 0) {
+                out["target_ms"] = row.targetMs;
+                out["target_met"] = row.ms <= row.targetMs;
+            }
+            std::printf("%s\n", out.dump().c_str());
+        }
+        return;
+    }
+    std::printf("%-44s %7s %7s %10s %9s %11s %7s  %s\n", "case", "threads", "simd", "median ms", "GMAC/s",
+                "peak GMAC/s", "% peak", "target");
+    for (const bench::Row& row : rows) {
+        std::string target = "-";
+        if (row.targetMs > 0)
+            target = "<= " + std::to_string(int(row.targetMs)) +
+                     " ms: " + (row.ms <= row.targetMs ? "met" : "NOT met");
+        std::printf("%-44s %7d %7s %10.2f %9.2f %11.2f %6.1f%%  %s\n", row.name.c_str(), row.threads,
+                    row.simd.c_str(), row.ms, row.gmacs, row.peakGmacs, 100.0 * row.peakFraction,
+                    target.c_str());
+    }
+}
+
+}  // namespace
+
+void registerBenchCommand(CLI::App& app) {
+    CLI::App* bench =
+        app.add_subcommand("bench", "Benchmarks: median times, throughput and the measured peak");
+    bench->require_subcommand(1);
+
+    auto args = std::make_shared<BenchArguments>();
+    CLI::App* metrics = bench->add_subcommand(
+        "metrics",
+        "SSIM and full metrics of two RGB images (issue target: SSIM at 1920x1080 <= 30 ms on 2 cores)");
+    metrics->add_option("--size", args->size, "Image size WIDTHxHEIGHT")->capture_default_str();
+    metrics->add_option("--repeat", args->repeat, "Timed runs per case (median reported)")
+        ->check(CLI::Range(1, 10000))
+        ->capture_default_str();
+    metrics->add_option("--threads", args->threads, "Comma-separated thread counts")->capture_default_str();
+    metrics->add_option("--simd", args->runtime.simd, "Force a SIMD path: scalar, avx2 or avx512")
+        ->check(CLI::IsMember({"scalar", "avx2", "avx512"}));
+    metrics->add_flag("--json", args->json, "One JSON object per case");
+    metrics->callback([args] {
+        applyRuntimeOptions(args->runtime);
+        bench::Options options;
+        const Size size = parseSize(args->size, "--size");
+        options.width = size.width;
+        options.height = size.height;
+        options.repeat = args->repeat;
+        options.threads = parseThreadList(args->threads);
+        printRows(bench::benchMetrics(options), args->json);
+    });
+}
+
+}  // namespace dejag::cli

@@ -1,0 +1,139 @@
+// dejag metrics REF TEST: MSE, RMSE, PSNR, SNR and SSIM of a test image against its reference.
+#include <cmath>
+#include <cstdio>
+#include <memory>
+#include <nlohmann/json.hpp>
+#include <optional>
+
+#include "app/cli.h"
+#include "app/commands.h"
+#include "base/error.h"
+#include "data/image.h"
+#include "data/metrics.h"
+
+namespace dejag::cli {
+namespace {
+
+struct MetricsArguments {
+    std::string reference, test, mask, ssimMap;
+    double dataRange = 0.0;
+    bool json = false;
+    RuntimeOptions runtime;
+};
+
+Image readScoredImage(const std::string& path) {
+    Image image = readImage(path);
+    if (auto bad = findNonFinite(image))
+        throw Error("'" + path + "' has a non-finite value (" +
+                    std::to_string(image.at(bad->x, bad->y, bad->channel)) + ") at pixel (" +
+                    std::to_string(bad->x) + ", " + std::to_string(bad->y) + "), channel " +
+                    image.channelNames[bad->channel]);
+    return image;
+}
+
+std::string formatDecibels(double value) {
+    if (std::isinf(value)) return value > 0 ? "inf" : "-inf";
+    char text[64];
+    std::snprintf(text, sizeof text, "%.4f dB", value);
+    return text;
+}
+
+void runMetrics(const MetricsArguments& args) {
+    applyRuntimeOptions(args.runtime);
+    const Image reference = readScoredImage(args.reference);
+    const Image test = readScoredImage(args.test);
+    if (reference.width != test.width || reference.height != test.height)
+        throw Error("'" + args.test + "' is " + std::to_string(test.width) + "x" +
+                    std::to_string(test.height) + " but '" + args.reference + "' is " +
+                    std::to_string(reference.width) + "x" + std::to_string(reference.height));
+    if (reference.channels() != test.channels())
+        throw Error("'" + args.test + "' has " + std::to_string(test.channels()) + " channels but '" +
+                    args.reference + "' has " + std::to_string(reference.channels()));
+    std::optional<Image> mask;
+    if (!args.mask.empty()) {
+        mask = readImage(args.mask);
+        if (mask->width != reference.width || mask->height != reference.height)
+            throw Error("mask '" + args.mask + "' is " + std::to_string(mask->width) + "x" +
+                        std::to_string(mask->height) + " but the images are " +
+                        std::to_string(reference.width) + "x" + std::to_string(reference.height));
+    }
+
+    MetricOptions options;
+    options.dataRange = args.dataRange;
+    options.mask = mask ? &*mask : nullptr;
+    options.wantSsimMap = !args.ssimMap.empty();
+    const ImageMetrics metrics = compareImages(reference, test, options);
+    if (options.wantSsimMap)
+        writeSsimMapPng(args.ssimMap, metrics.ssimMap, reference.width, reference.height);
+
+    if (args.json) {
+        nlohmann::json out;
+        out["reference"] = args.reference;
+        out["test"] = args.test;
+        out["width"] = reference.width;
+        out["height"] = reference.height;
+        out["channels"] = reference.channelNames;
+        out["pixel_type"] = pixelTypeName(reference.storage);
+        out["value_scale"] = metrics.valueScale;
+        out["data_range"] = metrics.dataRange;
+        out["mse"] = metrics.mse;
+        out["rmse"] = metrics.rmse;
+        // Identical images: PSNR and SNR are infinite, which JSON cannot hold; null plus "identical".
+        out["psnr"] = std::isinf(metrics.psnr) ? nlohmann::json(nullptr) : nlohmann::json(metrics.psnr);
+        out["snr"] = std::isinf(metrics.snr) ? nlohmann::json(nullptr) : nlohmann::json(metrics.snr);
+        out["identical"] = metrics.mse == 0.0;
+        out["ssim"] = metrics.ssim;
+        nlohmann::json perChannel = nlohmann::json::object();
+        for (int c = 0; c < reference.channels(); ++c)
+            perChannel[reference.channelNames[c]] = metrics.ssimPerChannel[c];
+        out["ssim_channels"] = perChannel;
+        out["pixels"] = metrics.scoredPixels;
+        out["ssim_pixels"] = metrics.ssimScoredPixels;
+        out["mask"] = args.mask.empty() ? nlohmann::json(nullptr) : nlohmann::json(args.mask);
+        out["ssim_map"] = args.ssimMap.empty() ? nlohmann::json(nullptr) : nlohmann::json(args.ssimMap);
+        std::printf("%s\n", out.dump().c_str());
+        return;
+    }
+    std::printf("reference  %s  (%s)\n", args.reference.c_str(), reference.describe().c_str());
+    std::printf("test       %s  (%s)\n", args.test.c_str(), test.describe().c_str());
+    std::printf(
+        "scale      0-%g, data range %g%s\n", metrics.valueScale, metrics.dataRange,
+        mask ? (", masked by " + args.mask + " (" + std::to_string(metrics.scoredPixels) + " pixels)").c_str()
+             : "");
+    std::printf("MSE        %.6f\n", metrics.mse);
+    std::printf("RMSE       %.6f\n", metrics.rmse);
+    std::printf("PSNR       %s\n", formatDecibels(metrics.psnr).c_str());
+    std::printf("SNR        %s\n", formatDecibels(metrics.snr).c_str());
+    std::printf("SSIM       %.6f  (", metrics.ssim);
+    for (int c = 0; c < reference.channels(); ++c)
+        std::printf("%s%s %.6f", c ? ", " : "", reference.channelNames[c].c_str(), metrics.ssimPerChannel[c]);
+    std::printf(")\n");
+    if (!args.ssimMap.empty()) std::printf("SSIM map   %s\n", args.ssimMap.c_str());
+}
+
+}  // namespace
+
+void registerMetricsCommand(CLI::App& app) {
+    auto args = std::make_shared<MetricsArguments>();
+    CLI::App* command = app.add_subcommand(
+        "metrics",
+        "Score TEST against REF: MSE, RMSE, PSNR, SNR, SSIM (spec/metrics.md).\n"
+        "8-bit images are scored on the 0-255 scale (data range 255), 16-bit on 0-65535, float on their raw\n"
+        "values with data range 1 unless --data-range is given. SSIM: 11x11 Gaussian window (sigma 1.5),\n"
+        "K1 0.01, K2 0.03, mean over pixels 5 or more from the border, colour = mean of per-channel SSIM.\n"
+        "Identical images: PSNR and SNR are infinite (printed 'inf'; in JSON null, with \"identical\": "
+        "true).");
+    command->add_option("REF", args->reference, "Reference image (the truth)")->required();
+    command->add_option("TEST", args->test, "Image to score")->required();
+    command->add_flag("--json", args->json, "Print one JSON object (keys mse, rmse, psnr, snr, ssim, ...)");
+    command->add_option("--ssim-map", args->ssimMap, "Write the per-pixel SSIM map as a colour-mapped PNG");
+    command->add_option("--mask", args->mask,
+                        "Score only pixels whose mask value is above 0.5 (first channel)");
+    command
+        ->add_option("--data-range", args->dataRange, "Data range L on the reported scale (default: by type)")
+        ->check(CLI::PositiveNumber);
+    addRuntimeOptions(command, args->runtime);
+    command->callback([args] { runMetrics(*args); });
+}
+
+}  // namespace dejag::cli

@@ -1,0 +1,11 @@
+// dejag/app: each subcommand registers itself on the top-level CLI::App.
+#pragma once
+
+#include <CLI/CLI.hpp>
+
+namespace dejag::cli {
+
+void registerMetricsCommand(CLI::App& app);
+void registerBenchCommand(CLI::App& app);
+
+}  // namespace dejag::cli

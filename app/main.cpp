@@ -1,0 +1,63 @@
+// dejag: one binary, a subcommand per stage. Every error is one line on stderr and exit code 2.
+#include <cstdio>
+#include <exception>
+#include <iostream>
+#include <string>
+
+#include "app/cli.h"
+#include "app/commands.h"
+#include "base/error.h"
+#include "base/thread_pool.h"
+
+namespace {
+
+std::string commandPath(const CLI::App& app) {
+    std::string path = "dejag";
+    const CLI::App* current = &app;
+    while (true) {
+        auto selected = current->get_subcommands();
+        if (selected.empty()) break;
+        current = selected.front();
+        path += " " + current->get_name();
+    }
+    return path;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+    dejag::flushDenormalsOnThisThread();
+    CLI::App app{
+        "dejag: learns to remove aliasing from rendered frames.\n"
+        "Each subcommand has --help. Errors: one line on stderr, exit code 2."};
+    app.name("dejag");
+    app.require_subcommand(1);
+    app.set_version_flag("--version", "dejag 0.1.0");
+    dejag::cli::registerMetricsCommand(app);
+    dejag::cli::registerBenchCommand(app);
+
+    try {
+        app.parse(argc, argv);
+    } catch (const CLI::Success& success) {
+        return app.exit(success);  // --help, --version
+    } catch (const CLI::ParseError& error) {
+        std::string message = error.what();
+        if (app.get_subcommands().empty()) {
+            std::string names;
+            for (const CLI::App* command : app.get_subcommands([](const CLI::App*) { return true; }))
+                names += (names.empty() ? "" : ", ") + command->get_name();
+            const bool named = argc > 1 && argv[1][0] != '-';
+            message = named ? "unknown subcommand '" + std::string(argv[1]) + "'; choose one of: " + names
+                            : "choose a subcommand: " + names;
+        }
+        std::fprintf(stderr, "%s: %s (see --help)\n", commandPath(app).c_str(), message.c_str());
+        return 2;
+    } catch (const dejag::Error& error) {
+        std::fprintf(stderr, "%s: %s\n", commandPath(app).c_str(), error.what());
+        return 2;
+    } catch (const std::exception& error) {
+        std::fprintf(stderr, "%s: internal error: %s\n", commandPath(app).c_str(), error.what());
+        return 3;
+    }
+    return 0;
+}

@@ -1,0 +1,297 @@
+#include "data/image.h"
+
+#include <OpenImageIO/imageio.h>
+#include <fcntl.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <mutex>
+
+#include "base/error.h"
+#include "base/files.h"
+
+namespace dejag {
+namespace {
+
+// Refuse headers that would need absurd memory: a corrupt file must not become a 100 GB allocation.
+constexpr int64_t kMaxSide = 65536;
+constexpr int64_t kMaxSamples = int64_t(1) << 31;
+
+// libpng and libjpeg print their own complaints to stderr, then OpenImageIO reports the same failure
+// through its error queue, which becomes dejag's one error line. While any codec runs, stderr points at
+// /dev/null (reference-counted, so concurrent reads do not serialise).
+class QuietStderr {
+  public:
+    QuietStderr() {
+        std::lock_guard<std::mutex> lock(mutex_);
+        if (users_++ > 0) return;
+        std::fflush(stderr);
+        saved_ = ::dup(STDERR_FILENO);
+        const int devNull = ::open("/dev/null", O_WRONLY | O_CLOEXEC);
+        if (saved_ >= 0 && devNull >= 0) ::dup2(devNull, STDERR_FILENO);
+        if (devNull >= 0) ::close(devNull);
+    }
+    ~QuietStderr() {
+        std::lock_guard<std::mutex> lock(mutex_);
+        if (--users_ > 0) return;
+        std::fflush(stderr);
+        if (saved_ >= 0) {
+            ::dup2(saved_, STDERR_FILENO);
+            ::close(saved_);
+        }
+        saved_ = -1;
+    }
+    QuietStderr(const QuietStderr&) = delete;
+    QuietStderr& operator=(const QuietStderr&) = delete;
+
+  private:
+    static inline std::mutex mutex_;
+    static inline int users_ = 0;
+    static inline int saved_ = -1;
+};
+
+std::string oneLine(std::string text) {
+    std::replace(text.begin(), text.end(), '\n', ' ');
+    while (!text.empty() && (text.back() == ' ' || text.back() == '.')) text.pop_back();
+    return text.empty() ? "unknown error" : text;
+}
+
+PixelType pixelTypeOf(const OIIO::TypeDesc& format) {
+    switch (format.basetype) {
+        case OIIO::TypeDesc::UINT8:
+        case OIIO::TypeDesc::INT8:
+            return PixelType::UInt8;
+        case OIIO::TypeDesc::UINT16:
+        case OIIO::TypeDesc::INT16:
+            return PixelType::UInt16;
+        case OIIO::TypeDesc::HALF:
+            return PixelType::Half;
+        default:
+            return PixelType::Float;
+    }
+}
+
+OIIO::TypeDesc typeDescOf(PixelType type) {
+    switch (type) {
+        case PixelType::UInt8:
+            return OIIO::TypeDesc::UINT8;
+        case PixelType::UInt16:
+            return OIIO::TypeDesc::UINT16;
+        case PixelType::Half:
+            return OIIO::TypeDesc::HALF;
+        case PixelType::Float:
+            return OIIO::TypeDesc::FLOAT;
+    }
+    return OIIO::TypeDesc::FLOAT;
+}
+
+std::string lowerExtension(const std::string& path) {
+    std::string ext = std::filesystem::path(path).extension().string();
+    std::transform(ext.begin(), ext.end(), ext.begin(),
+                   [](unsigned char c) { return char(std::tolower(c)); });
+    return ext;
+}
+
+// The pixel type a format can hold that is closest to `wanted`.
+PixelType storableType(const std::string& extension, PixelType wanted) {
+    const bool integerOnly = extension == ".png" || extension == ".jpg" || extension == ".jpeg" ||
+                             extension == ".ppm" || extension == ".pgm" || extension == ".bmp";
+    if (extension == ".jpg" || extension == ".jpeg" || extension == ".bmp") return PixelType::UInt8;
+    if (integerOnly) return wanted == PixelType::UInt8 ? PixelType::UInt8 : PixelType::UInt16;
+    if (extension == ".exr") {
+        // EXR stores half, float or uint32: 8-bit values survive half exactly enough to round back.
+        if (wanted == PixelType::UInt8) return PixelType::Half;
+        if (wanted == PixelType::UInt16) return PixelType::Float;
+    }
+    return wanted;
+}
+
+// "C7". Appending avoids GCC 12's false -Wrestrict on "literal" + std::string (GCC bug 105651).
+std::string numberedChannelName(int channel) {
+    std::string name = "C";
+    name += std::to_string(channel);
+    return name;
+}
+
+std::string_view baseChannelName(std::string_view name) {
+    size_t dot = name.rfind('.');
+    return dot == std::string_view::npos ? name : name.substr(dot + 1);
+}
+
+bool isColourChannel(std::string_view name) {
+    std::string_view base = baseChannelName(name);
+    return base == "R" || base == "G" || base == "B" || base == "Y";
+}
+
+template <class Transfer>
+void convertColourChannels(Image& image, Transfer transfer) {
+    const int channels = image.channels();
+    std::vector<int> colour;
+    for (int c = 0; c < channels; ++c)
+        if (isColourChannel(image.channelNames[c])) colour.push_back(c);
+    for (size_t p = 0; p < image.pixelCount(); ++p)
+        for (int c : colour) image.pixels[p * channels + c] = transfer(image.pixels[p * channels + c]);
+}
+
+}  // namespace
+
+const char* pixelTypeName(PixelType type) {
+    switch (type) {
+        case PixelType::UInt8:
+            return "uint8";
+        case PixelType::UInt16:
+            return "uint16";
+        case PixelType::Half:
+            return "half";
+        case PixelType::Float:
+            return "float";
+    }
+    return "unknown";
+}
+
+double valueScale(PixelType type) {
+    switch (type) {
+        case PixelType::UInt8:
+            return 255.0;
+        case PixelType::UInt16:
+            return 65535.0;
+        default:
+            return 1.0;
+    }
+}
+
+Image::Image(int w, int h, std::vector<std::string> names, PixelType storageType)
+    : width(w), height(h), channelNames(std::move(names)), storage(storageType) {
+    if (w < 0 || h < 0 || channelNames.empty())
+        throw Error("an image needs a size >= 0 and at least one channel");
+    pixels.assign(sampleCount(), 0.0f);
+}
+
+std::vector<std::string> Image::defaultChannelNames(int channels) {
+    switch (channels) {
+        case 1:
+            return {"Y"};
+        case 2:
+            return {"Y", "A"};
+        case 3:
+            return {"R", "G", "B"};
+        case 4:
+            return {"R", "G", "B", "A"};
+        default: {
+            std::vector<std::string> names;
+            for (int c = 0; c < channels; ++c) names.push_back(numberedChannelName(c));
+            return names;
+        }
+    }
+}
+
+int Image::findChannel(std::string_view name) const {
+    for (int c = 0; c < channels(); ++c)
+        if (channelNames[c] == name) return c;
+    return -1;
+}
+
+std::string Image::describe() const {
+    std::string names;
+    for (int c = 0; c < channels(); ++c) names += (c ? "," : "") + channelNames[c];
+    return std::to_string(width) + "x" + std::to_string(height) + ", " + std::to_string(channels()) +
+           (channels() == 1 ? " channel (" : " channels (") + names + "), " + pixelTypeName(storage);
+}
+
+Image readImage(const std::string& path) {
+    requireReadableFile(path);
+    QuietStderr quiet;
+    OIIO::ImageSpec config;
+    config.attribute("oiio:UnassociatedAlpha", 1);  // keep stored values exactly (no premultiplication)
+    auto input = OIIO::ImageInput::open(path, &config);
+    if (!input) throw Error("cannot read '" + path + "': " + oneLine(OIIO::geterror()));
+    const OIIO::ImageSpec& spec = input->spec();
+    if (spec.deep) throw Error("cannot read '" + path + "': deep images are not supported");
+    if (spec.width <= 0 || spec.height <= 0 || spec.nchannels <= 0 || spec.depth > 1)
+        throw Error("cannot read '" + path + "': implausible header (" + std::to_string(spec.width) + "x" +
+                    std::to_string(spec.height) + ", " + std::to_string(spec.nchannels) + " channels)");
+    if (spec.width > kMaxSide || spec.height > kMaxSide ||
+        int64_t(spec.width) * spec.height * spec.nchannels > kMaxSamples)
+        throw Error("cannot read '" + path + "': " + std::to_string(spec.width) + "x" +
+                    std::to_string(spec.height) + "x" + std::to_string(spec.nchannels) +
+                    " is larger than dejag accepts");
+
+    std::vector<std::string> names(spec.channelnames.begin(), spec.channelnames.end());
+    if (int(names.size()) != spec.nchannels) names = Image::defaultChannelNames(spec.nchannels);
+    for (int c = 0; c < spec.nchannels; ++c)
+        if (names[c].empty()) names[c] = numberedChannelName(c);
+
+    Image image(spec.width, spec.height, std::move(names), pixelTypeOf(spec.format));
+    // Per-channel formats (EXR with half colour and float depth): remember the widest.
+    for (const OIIO::TypeDesc& channelFormat : spec.channelformats)
+        if (pixelTypeOf(channelFormat) == PixelType::Float) image.storage = PixelType::Float;
+    if (!input->read_image(0, 0, 0, spec.nchannels, OIIO::TypeDesc::FLOAT, image.pixels.data()))
+        throw Error("cannot read '" + path + "': " + oneLine(input->geterror()));
+    // Some readers report a truncated file only through the error queue.
+    if (input->has_error()) throw Error("cannot read '" + path + "': " + oneLine(input->geterror()));
+    input->close();
+    return image;
+}
+
+void writeImage(const std::string& path, const Image& image, const WriteOptions& options) {
+    if (image.width <= 0 || image.height <= 0 || image.channels() <= 0)
+        throw Error("cannot write '" + path + "': the image is empty");
+    if (image.pixels.size() != image.sampleCount())
+        throw Error("cannot write '" + path + "': pixel buffer does not match " + image.describe());
+    const std::string extension = lowerExtension(path);
+    const PixelType storage = storableType(extension, options.storage.value_or(image.storage));
+    if ((extension == ".png") && image.channels() > 4)
+        throw Error("cannot write '" + path + "': PNG holds 1 to 4 channels, the image has " +
+                    std::to_string(image.channels()) + " (use .exr)");
+    if ((extension == ".jpg" || extension == ".jpeg") && image.channels() != 1 && image.channels() != 3)
+        throw Error("cannot write '" + path + "': JPEG holds 1 or 3 channels, the image has " +
+                    std::to_string(image.channels()));
+
+    writeFileAtomically(path, [&](const std::string& temporary) {
+        auto output = OIIO::ImageOutput::create(path);
+        if (!output) throw Error("cannot write '" + path + "': " + oneLine(OIIO::geterror()));
+        OIIO::ImageSpec spec(image.width, image.height, image.channels(), typeDescOf(storage));
+        spec.channelnames = image.channelNames;
+        spec.alpha_channel = image.findChannel("A");
+        spec.attribute("oiio:UnassociatedAlpha", 1);
+        if (extension == ".jpg" || extension == ".jpeg")
+            spec.attribute("Compression", "jpeg:" + std::to_string(options.jpegQuality));
+        if (!output->open(temporary, spec))
+            throw Error("cannot write '" + path + "': " + oneLine(output->geterror()));
+        if (!output->write_image(OIIO::TypeDesc::FLOAT, image.pixels.data()))
+            throw Error("cannot write '" + path + "': " + oneLine(output->geterror()));
+        if (!output->close()) throw Error("cannot write '" + path + "': " + oneLine(output->geterror()));
+    });
+}
+
+float srgbToLinear(float encoded) {
+    return encoded <= 0.04045f ? encoded / 12.92f : std::pow((encoded + 0.055f) / 1.055f, 2.4f);
+}
+
+float linearToSrgb(float linear) {
+    return linear <= 0.0031308f ? linear * 12.92f : 1.055f * std::pow(linear, 1.0f / 2.4f) - 0.055f;
+}
+
+void convertSrgbToLinear(Image& image) {
+    convertColourChannels(image, srgbToLinear);
+}
+void convertLinearToSrgb(Image& image) {
+    convertColourChannels(image, linearToSrgb);
+}
+
+std::optional<SamplePosition> findNonFinite(const Image& image) {
+    if (image.storage == PixelType::UInt8 || image.storage == PixelType::UInt16) return std::nullopt;
+    const int channels = image.channels();
+    for (size_t i = 0; i < image.pixels.size(); ++i) {
+        if (!std::isfinite(image.pixels[i])) {
+            size_t pixel = i / channels;
+            return SamplePosition{int(pixel % image.width), int(pixel / image.width), int(i % channels)};
+        }
+    }
+    return std::nullopt;
+}
+
+}  // namespace dejag

@@ -1,0 +1,212 @@
+// The `dejag` binary as a user meets it: outputs, exit codes, one-line errors, nothing half-written.
+#include <gtest/gtest.h>
+
+#include <sys/wait.h>
+
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <nlohmann/json.hpp>
+#include <sstream>
+
+#include "data/image.h"
+#include "tests/test_util.h"
+
+namespace dejag {
+namespace {
+
+struct RunResult {
+    int exitCode = -1;
+    std::string out, err;
+};
+
+std::string slurp(const std::string& path) {
+    std::ifstream in(path);
+    std::stringstream text;
+    text << in.rdbuf();
+    return text.str();
+}
+
+RunResult run(const std::string& arguments, const testing::TempDir& dir,
+              const std::string& environment = "") {
+    const std::string out = dir.file("stdout.txt"), err = dir.file("stderr.txt");
+    const std::string command =
+        environment + " '" + std::string(DEJAG_BINARY) + "' " + arguments + " >'" + out + "' 2>'" + err + "'";
+    const int status = std::system(command.c_str());
+    RunResult result;
+    result.exitCode = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+    result.out = slurp(out);
+    result.err = slurp(err);
+    std::filesystem::remove(out);
+    std::filesystem::remove(err);
+    return result;
+}
+
+std::string golden(const std::string& name) {
+    return testing::sourcePath("tests/golden/metrics/" + name);
+}
+
+void expectOneLineError(const RunResult& result, const std::string& mentions) {
+    EXPECT_EQ(result.exitCode, 2) << result.err;
+    EXPECT_TRUE(result.out.empty()) << result.out;
+    ASSERT_FALSE(result.err.empty());
+    EXPECT_EQ(std::count(result.err.begin(), result.err.end(), '\n'), 1) << "not one line: " << result.err;
+    EXPECT_NE(result.err.find(mentions), std::string::npos)
+        << "error does not mention '" << mentions << "': " << result.err;
+}
+
+size_t filesIn(const std::filesystem::path& folder) {
+    return size_t(
+        std::distance(std::filesystem::directory_iterator(folder), std::filesystem::directory_iterator()));
+}
+
+TEST(Cli, MetricsJsonHasTheDocumentedKeys) {
+    testing::TempDir dir;
+    const RunResult r =
+        run("metrics --json " + golden("colour_ref.png") + " " + golden("colour_test.png"), dir);
+    ASSERT_EQ(r.exitCode, 0) << r.err;
+    const nlohmann::json j = nlohmann::json::parse(r.out);
+    for (const char* key : {"mse", "rmse", "psnr", "snr", "ssim"}) EXPECT_TRUE(j[key].is_number()) << key;
+    EXPECT_EQ(j["data_range"].get<double>(), 255.0);
+    EXPECT_EQ(j["ssim_channels"].size(), 3u);
+    EXPECT_FALSE(j["identical"].get<bool>());
+}
+
+TEST(Cli, IdenticalImagesPrintInfiniteJsonPsnr) {
+    testing::TempDir dir;
+    const RunResult r = run("metrics --json " + golden("noise_ref.png") + " " + golden("noise_ref.png"), dir);
+    ASSERT_EQ(r.exitCode, 0) << r.err;
+    const nlohmann::json j = nlohmann::json::parse(r.out);
+    EXPECT_TRUE(j["psnr"].is_null()) << r.out;
+    EXPECT_TRUE(j["snr"].is_null()) << r.out;
+    EXPECT_TRUE(j["identical"].get<bool>());
+    EXPECT_EQ(j["mse"].get<double>(), 0.0);
+    const RunResult text = run("metrics " + golden("noise_ref.png") + " " + golden("noise_ref.png"), dir);
+    EXPECT_NE(text.out.find("PSNR       inf"), std::string::npos) << text.out;
+}
+
+TEST(Cli, SsimMapAndMaskOptions) {
+    testing::TempDir dir;
+    Image mask(96, 72, {"Y"}, PixelType::UInt8);
+    for (int y = 0; y < 72; ++y)
+        for (int x = 0; x < 48; ++x) mask.at(x, y, 0) = 1.0f;
+    writeImage(dir.file("mask.png"), mask);
+    const RunResult r =
+        run("metrics --json --mask " + dir.file("mask.png") + " --ssim-map " + dir.file("map.png") + " " +
+                golden("edges_ref.png") + " " + golden("edges_test.png"),
+            dir);
+    ASSERT_EQ(r.exitCode, 0) << r.err;
+    const nlohmann::json j = nlohmann::json::parse(r.out);
+    EXPECT_EQ(j["pixels"].get<int>(), 48 * 72);
+    const Image map = readImage(dir.file("map.png"));
+    EXPECT_EQ(map.width, 96);
+    EXPECT_EQ(map.height, 72);
+}
+
+TEST(Cli, MissingFileIsOneLineAndExitTwo) {
+    testing::TempDir dir;
+    expectOneLineError(run("metrics " + golden("edges_ref.png") + " " + dir.file("missing.png"), dir),
+                       "missing.png");
+}
+
+TEST(Cli, DifferentSizesAreOneLineNamingBothFiles) {
+    testing::TempDir dir;
+    const RunResult r = run("metrics " + golden("edges_ref.png") + " " + golden("odd_size_test.png"), dir);
+    expectOneLineError(r, "odd_size_test.png");
+    EXPECT_NE(r.err.find("edges_ref.png"), std::string::npos);
+}
+
+TEST(Cli, DifferentChannelCountsAreAnError) {
+    testing::TempDir dir;
+    expectOneLineError(run("metrics " + golden("rgba_ref.png") + " " + golden("rgba_ref.png") + " --mask " +
+                               golden("edges_ref.png"),
+                           dir),
+                       "mask");
+    Image grey(96, 72, {"Y"}, PixelType::UInt8);
+    writeImage(dir.file("grey.png"), grey);
+    expectOneLineError(run("metrics " + golden("colour_ref.png") + " " + dir.file("grey.png"), dir),
+                       "channels");
+}
+
+TEST(Cli, TruncatedFileIsOneLineAndWritesNothing) {
+    testing::TempDir dir;
+    const auto size = std::filesystem::file_size(golden("noise_ref.png"));
+    std::filesystem::copy_file(golden("noise_ref.png"), dir.file("cut.png"));
+    std::filesystem::resize_file(dir.file("cut.png"), size / 3);
+    expectOneLineError(run("metrics --ssim-map " + dir.file("map.png") + " " + golden("noise_ref.png") + " " +
+                               dir.file("cut.png"),
+                           dir),
+                       "cut.png");
+    EXPECT_FALSE(std::filesystem::exists(dir.file("map.png")));
+    EXPECT_EQ(filesIn(dir.path()), 1u);
+}
+
+TEST(Cli, UnwritableMapFolderIsAnErrorAndLeavesNothing) {
+    testing::TempDir dir;
+    expectOneLineError(run("metrics --ssim-map " + dir.file("no/such/map.png") + " " +
+                               golden("edges_ref.png") + " " + golden("edges_test.png"),
+                           dir),
+                       "no/such");
+    EXPECT_EQ(filesIn(dir.path()), 0u);
+}
+
+TEST(Cli, NanInAFloatImageIsReported) {
+    testing::TempDir dir;
+    Image image(16, 16, {"R", "G", "B"}, PixelType::Float);
+    image.at(3, 4, 1) = std::nanf("");
+    writeImage(dir.file("nan.exr"), image);
+    Image clean(16, 16, {"R", "G", "B"}, PixelType::Float);
+    writeImage(dir.file("clean.exr"), clean);
+    const RunResult r = run("metrics " + dir.file("clean.exr") + " " + dir.file("nan.exr"), dir);
+    expectOneLineError(r, "nan.exr");
+    EXPECT_NE(r.err.find("(3, 4)"), std::string::npos) << r.err;
+}
+
+TEST(Cli, UnknownFlagAndMissingArgumentsAreOneLine) {
+    testing::TempDir dir;
+    expectOneLineError(
+        run("metrics --bogus " + golden("edges_ref.png") + " " + golden("edges_test.png"), dir), "--bogus");
+    expectOneLineError(run("metrics " + golden("edges_ref.png"), dir), "TEST");
+    expectOneLineError(run("frobnicate", dir), "frobnicate");
+    expectOneLineError(run("", dir), "subcommand");
+    expectOneLineError(
+        run("metrics --data-range -3 " + golden("edges_ref.png") + " " + golden("edges_test.png"), dir),
+        "data-range");
+}
+
+TEST(Cli, BadSimdEnvironmentIsOneLine) {
+    testing::TempDir dir;
+    expectOneLineError(
+        run("metrics " + golden("edges_ref.png") + " " + golden("edges_test.png"), dir, "DEJAG_SIMD=sse9"),
+        "DEJAG_SIMD");
+}
+
+TEST(Cli, HelpExitsZeroAndDocumentsTheScale) {
+    testing::TempDir dir;
+    const RunResult top = run("--help", dir);
+    EXPECT_EQ(top.exitCode, 0);
+    EXPECT_NE(top.out.find("metrics"), std::string::npos);
+    const RunResult metrics = run("metrics --help", dir);
+    EXPECT_EQ(metrics.exitCode, 0);
+    EXPECT_NE(metrics.out.find("0-255"), std::string::npos) << metrics.out;
+    EXPECT_NE(metrics.out.find("--json"), std::string::npos);
+}
+
+TEST(Cli, BenchMetricsRunsSmallAndPrintsJson) {
+    testing::TempDir dir;
+    const RunResult r = run("bench metrics --size 64x48 --repeat 1 --threads 1 --json", dir);
+    ASSERT_EQ(r.exitCode, 0) << r.err;
+    std::stringstream lines(r.out);
+    std::string line;
+    int rows = 0;
+    while (std::getline(lines, line)) {
+        const nlohmann::json j = nlohmann::json::parse(line);
+        EXPECT_GT(j["ms"].get<double>(), 0.0);
+        EXPECT_GT(j["peak_gmacs"].get<double>(), 0.0);
+        ++rows;
+    }
+    EXPECT_EQ(rows, 2);
+}
+
+}  // namespace
+}  // namespace dejag
