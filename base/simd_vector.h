@@ -40,9 +40,16 @@ inline void storeu(float* p, V v) {
     std::memcpy(p, &v, sizeof(V));
 }
 
+// Broadcast. (Not V{} + s: adding +0.0 is not an identity for -0.0, so the compiler would keep the add.)
 template <class V>
 inline V splat(float s) {
-    return V{} + s;
+    if constexpr (sizeof(V) == sizeof(float)) {
+        return s;
+    } else {
+        V v;
+        for (int i = 0; i < int(sizeof(V) / sizeof(float)); ++i) v[i] = s;
+        return v;
+    }
 }
 
 // Sum of the lanes, in a fixed order (deterministic).

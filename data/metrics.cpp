@@ -69,54 +69,71 @@ SsimResult structuralSimilarity(const Image& reference, const Image& test, doubl
     if (mask) selected = selectedPixels(*mask, reference);
     const bool needMaps = wantMap || mask;
     std::vector<float> maps(needMaps ? size_t(channels) * reference.pixelCount() : 0);
-    std::vector<double> rowSums(size_t(channels) * height, 0.0);
 
-    // Shift each channel by its mean (estimated from every 4th row of both images) so the float32
-    // moments of flat regions do not lose SSIM to cancellation in E[x^2] - mean^2.
-    std::vector<double> rowMeans(size_t(height) * channels, 0.0);
+    // Shift each channel by its mid-range (estimated from every 4th pixel of every 4th row of both images,
+    // cheap next to SSIM itself): the smallest
+    // worst-case |sample - offset|, which bounds the float32 cancellation in E[x^2] - mean^2, and exact for
+    // flat images.
+    std::vector<float> rowMin(size_t(height) * channels, 0.0f), rowMax(size_t(height) * channels, 0.0f);
     parallelFor(0, (height + 3) / 4, 0, [&](int64_t first, int64_t last) {
         for (int64_t i = first; i < last; ++i) {
             const int y = int(i * 4);
-            const float* r = reference.row(y);
-            const float* t = test.row(y);
-            for (int c = 0; c < channels; ++c) {
-                double sum = 0.0;
-                for (int x = 0; x < width; ++x)
-                    sum += double(r[x * channels + c]) + double(t[x * channels + c]);
-                rowMeans[size_t(y) * channels + c] = sum / (2.0 * width);
+            for (const Image* image : {&reference, &test}) {
+                const float* row = image->row(y);
+                for (int c = 0; c < channels; ++c) {
+                    float low = row[c], high = row[c];
+                    for (int x = 4; x < width; x += 4) {
+                        low = std::min(low, row[x * channels + c]);
+                        high = std::max(high, row[x * channels + c]);
+                    }
+                    float& rowLow = rowMin[size_t(y) * channels + c];
+                    float& rowHigh = rowMax[size_t(y) * channels + c];
+                    rowLow = image == &reference ? low : std::min(rowLow, low);
+                    rowHigh = image == &reference ? high : std::max(rowHigh, high);
+                }
             }
         }
     });
     std::vector<float> offsets(channels, 0.0f);
     for (int c = 0; c < channels; ++c) {
-        double sum = 0.0;
-        for (int y = 0; y < height; y += 4) sum += rowMeans[size_t(y) * channels + c];
-        offsets[c] = float(sum / double((height + 3) / 4));
+        float low = rowMin[c], high = rowMax[c];
+        for (int y = 0; y < height; y += 4) {
+            low = std::min(low, rowMin[size_t(y) * channels + c]);
+            high = std::max(high, rowMax[size_t(y) * channels + c]);
+        }
+        offsets[c] = 0.5f * (low + high);
     }
 
+    // Work items: bands of rows x tiles of columns. Tiles are fixed (independent of the thread count),
+    // and every tile writes its own row sums, added up below in a fixed order: results do not depend on
+    // the number of threads.
     const int rowsPerBand = bandHeight(height);
-    const int bandsPerChannel = (height + rowsPerBand - 1) / rowsPerBand;
-    parallelFor(0, int64_t(channels) * bandsPerChannel, 1, [&](int64_t first, int64_t last) {
+    const int bands = (height + rowsPerBand - 1) / rowsPerBand;
+    const int tiles = (width + kSsimTileWidth - 1) / kSsimTileWidth;
+    std::vector<double> rowSums(size_t(tiles) * channels * height, 0.0);
+    parallelFor(0, int64_t(bands) * tiles, 1, [&](int64_t first, int64_t last) {
         thread_local std::vector<float> scratch;
-        scratch.resize(ssimScratchFloats(width));
         for (int64_t job = first; job < last; ++job) {
-            SsimBand band;
-            band.reference = reference.pixels.data();
-            band.test = test.pixels.data();
-            band.width = width;
-            band.height = height;
-            band.channels = channels;
-            band.channel = int(job / bandsPerChannel);
-            band.offset = offsets[band.channel];
-            band.c1 = float((kK1 * dataRange) * (kK1 * dataRange));
-            band.c2 = float((kK2 * dataRange) * (kK2 * dataRange));
-            band.weights = window.data();
-            band.rowBegin = int(job % bandsPerChannel) * rowsPerBand;
-            band.rowEnd = std::min(height, band.rowBegin + rowsPerBand);
-            band.map = needMaps ? maps.data() + size_t(band.channel) * reference.pixelCount() : nullptr;
-            band.rowSums = rowSums.data() + size_t(band.channel) * height;
-            band.scratch = scratch.data();
-            DEJAG_SIMD_CALL(ssimBand, band);
+            const int band = int(job / tiles), tileIndex = int(job % tiles);
+            SsimTile tile;
+            tile.reference = reference.pixels.data();
+            tile.test = test.pixels.data();
+            tile.width = width;
+            tile.height = height;
+            tile.channels = channels;
+            tile.offsets = offsets.data();
+            tile.c1 = float((kK1 * dataRange) * (kK1 * dataRange));
+            tile.c2 = float((kK2 * dataRange) * (kK2 * dataRange));
+            tile.weights = window.data();
+            tile.rowBegin = band * rowsPerBand;
+            tile.rowEnd = std::min(height, tile.rowBegin + rowsPerBand);
+            tile.columnBegin = tileIndex * kSsimTileWidth;
+            tile.columnEnd = std::min(width, tile.columnBegin + kSsimTileWidth);
+            tile.maps = needMaps ? maps.data() : nullptr;
+            tile.rowSums = rowSums.data() + size_t(tileIndex) * channels * height;
+            scratch.resize(ssimScratchFloats(channels, tile.columnEnd - tile.columnBegin));
+            tile.scratch = scratch.data();
+            DEJAG_SIMD_CALL(ssimTile, tile);
         }
     });
 
@@ -127,7 +144,8 @@ SsimResult structuralSimilarity(const Image& reference, const Image& test, doubl
         result.scoredPixels = int64_t(width - 2 * r) * (height - 2 * r);
         for (int c = 0; c < channels; ++c) {
             double sum = 0.0;
-            for (int y = r; y < height - r; ++y) sum += rowSums[size_t(c) * height + y];
+            for (int y = r; y < height - r; ++y)
+                for (int t = 0; t < tiles; ++t) sum += rowSums[(size_t(t) * channels + c) * height + y];
             result.perChannel[c] = sum / double(result.scoredPixels);
         }
     } else {

@@ -1,6 +1,8 @@
 // SIMD kernels for data/metrics.cpp; compiled once per SIMD level (see data/metrics_kernels.h).
 #include "data/metrics_kernels.h"
 
+#include <algorithm>
+
 #include "base/simd_vector.h"
 
 namespace dejag::DEJAG_SIMD_NAMESPACE {
@@ -12,128 +14,178 @@ inline int reflect(int i, int n) {
     return i < 0 ? -i - 1 : (i >= n ? 2 * n - i - 1 : i);
 }
 
-// Horizontal 11-tap filter of the five moment rows at columns [j, j + lanes of V).
+// The window broadcast once per tile, in registers for the filter loops (the output stores could alias
+// a weights pointer, so loading weights inside the loops would reload them every time).
 template <class V>
-inline void filterRowAt(int j, const float* const padded[kMoments], float* const out[kMoments],
-                        const float* weights) {
-    V sum[kMoments];
-    for (int m = 0; m < kMoments; ++m) sum[m] = splat<V>(0.0f);
-    for (int k = 0; k < kSsimTaps; ++k) {
-        const V w = splat<V>(weights[k]);
-        for (int m = 0; m < kMoments; ++m) sum[m] += w * loadu<V>(padded[m] + j + k);
+struct Window {
+    V taps[kSsimTaps];
+    explicit Window(const float* weights) {
+        for (int k = 0; k < kSsimTaps; ++k) taps[k] = splat<V>(weights[k]);
     }
-    for (int m = 0; m < kMoments; ++m) storeu(out[m] + j, sum[m]);
+};
+
+// 11-tap filter of `rows[k] + j` (vertical: one row per tap) or `row + j + k` (horizontal).
+template <class V>
+inline V filterTaps(const float* const rows[kSsimTaps], int j, const Window<V>& w) {
+    V sum = w.taps[0] * loadu<V>(rows[0] + j);
+#pragma GCC unroll 11
+    for (int k = 1; k < kSsimTaps; ++k) sum += w.taps[k] * loadu<V>(rows[k] + j);
+    return sum;
 }
 
-// Vertical 11-tap filter of the ring rows, then the SSIM of spec/metrics.md, at columns [j, j + lanes).
 template <class V>
-inline void ssimAt(int j, const float* const rows[kMoments][kSsimTaps], const SsimBand& band,
-                   float* ssimRow) {
-    V mu[kMoments];
-    for (int m = 0; m < kMoments; ++m) mu[m] = splat<V>(0.0f);
-    for (int k = 0; k < kSsimTaps; ++k) {
-        const V w = splat<V>(band.weights[k]);
-        for (int m = 0; m < kMoments; ++m) mu[m] += w * loadu<V>(rows[m][k] + j);
-    }
-    // Moments of the shifted samples: variances and covariance are shift-invariant.
-    const V varianceX = mu[2] - mu[0] * mu[0];
-    const V varianceY = mu[3] - mu[1] * mu[1];
-    const V covariance = mu[4] - mu[0] * mu[1];
-    const V meanX = mu[0] + band.offset;
-    const V meanY = mu[1] + band.offset;
-    const V luminanceNum = 2.0f * meanX * meanY + band.c1;
-    const V structureNum = 2.0f * covariance + band.c2;
-    const V luminanceDen = meanX * meanX + meanY * meanY + band.c1;
-    const V structureDen = varianceX + varianceY + band.c2;
-    V ssim = (luminanceNum * structureNum) / (luminanceDen * structureDen);
+inline V filterTaps(const float* row, int j, const Window<V>& w) {
+    V sum = w.taps[0] * loadu<V>(row + j);
+#pragma GCC unroll 11
+    for (int k = 1; k < kSsimTaps; ++k) sum += w.taps[k] * loadu<V>(row + j + k);
+    return sum;
+}
+
+// SSIM of spec/metrics.md from the five filtered moments (of samples shifted by -offset).
+template <class V>
+inline V ssimFromMoments(const float* moments, int stride, int j, float offset, float c1, float c2) {
+    const V meanXs = loadu<V>(moments + j), meanYs = loadu<V>(moments + stride + j);
+    const V varianceX = loadu<V>(moments + 2 * stride + j) - meanXs * meanXs;
+    const V varianceY = loadu<V>(moments + 3 * stride + j) - meanYs * meanYs;
+    const V covariance = loadu<V>(moments + 4 * stride + j) - meanXs * meanYs;
+    const V meanX = meanXs + offset, meanY = meanYs + offset;
+    const V ssim = ((2.0f * meanX * meanY + c1) * (2.0f * covariance + c2)) /
+                   ((meanX * meanX + meanY * meanY + c1) * (varianceX + varianceY + c2));
     // SSIM <= 1 exactly; float rounding (FMA contraction) can overshoot by ~1e-7 on identical inputs.
-    ssim = ssim > 1.0f ? splat<V>(1.0f) : ssim;
-    storeu(ssimRow + j, ssim);
+    return ssim > 1.0f ? splat<V>(1.0f) : ssim;
 }
 
-template <class V>
-inline V accumulateLoad(V acc, const float* p) {
-    return acc + loadu<V>(p);
+// De-interleaves columns [first, first + count) of one row of both images into per-channel rows
+// (x of channel c at out + c * channelStride, y at out + c * channelStride + yOffset), reflecting
+// columns outside the image. The interior is a straight strided copy, specialised for 1 and 3 channels.
+template <int kChannels>
+inline void gatherInterior(const float* x, const float* y, int channels, int first, int last, float* out,
+                           size_t channelStride, size_t yOffset, int outBase) {
+    const int c = kChannels > 0 ? kChannels : channels;
+    for (int column = first; column < last; ++column) {
+        const float* xs = x + size_t(column) * c;
+        const float* ys = y + size_t(column) * c;
+        float* o = out + (column - outBase);
+        for (int k = 0; k < c; ++k) {
+            o[k * channelStride] = xs[k];
+            o[k * channelStride + yOffset] = ys[k];
+        }
+    }
+}
+
+inline void gatherRow(const float* x, const float* y, int width, int channels, int firstColumn, int count,
+                      float* out, size_t channelStride, size_t yOffset) {
+    const int interiorBegin = std::max(firstColumn, 0), interiorEnd = std::min(firstColumn + count, width);
+    if (channels == 3)
+        gatherInterior<3>(x, y, channels, interiorBegin, interiorEnd, out, channelStride, yOffset,
+                          firstColumn);
+    else if (channels == 1)
+        gatherInterior<1>(x, y, channels, interiorBegin, interiorEnd, out, channelStride, yOffset,
+                          firstColumn);
+    else
+        gatherInterior<0>(x, y, channels, interiorBegin, interiorEnd, out, channelStride, yOffset,
+                          firstColumn);
+    for (int j = 0; j < count; ++j) {
+        const int column = firstColumn + j;
+        if (column >= interiorBegin && column < interiorEnd) continue;
+        const size_t source = size_t(reflect(column, width)) * channels;
+        for (int k = 0; k < channels; ++k) {
+            out[k * channelStride + j] = x[source + k];
+            out[k * channelStride + yOffset + j] = y[source + k];
+        }
+    }
 }
 
 }  // namespace
 
-void ssimBand(const SsimBand& band) {
-    const int width = band.width, height = band.height, channels = band.channels;
-    const int paddedWidth = width + 2 * kSsimRadius;
-    float* padded[kMoments];
-    for (int m = 0; m < kMoments; ++m) padded[m] = band.scratch + size_t(m) * paddedWidth;
-    float* ring = band.scratch + size_t(kMoments) * paddedWidth;  // [moment][tap slot][W]
-    float* rowBuffer = ring + size_t(kMoments) * kSsimTaps * width;
-    auto ringRow = [&](int moment, int inputRow) {
-        int slot = ((inputRow % kSsimTaps) + kSsimTaps) % kSsimTaps;
-        return ring + (size_t(moment) * kSsimTaps + slot) * width;
+void ssimTile(const SsimTile& tile) {
+    const int width = tile.width, height = tile.height, channels = tile.channels;
+    const int x0 = tile.columnBegin, tileWidth = tile.columnEnd - tile.columnBegin;
+    const int paddedWidth = tileWidth + 2 * kSsimRadius;
+    const int vectorEnd = tileWidth - tileWidth % kFloatLanes;
+    const Window<VFloat> window(tile.weights);
+    const Window<float> scalarWindow(tile.weights);
+    float* padded = tile.scratch;                                      // [C][moment][paddedWidth]
+    float* ring = padded + size_t(channels) * kMoments * paddedWidth;  // [C][moment][slot][tileWidth]
+    float* moments = ring + size_t(channels) * kMoments * kSsimTaps * tileWidth;  // [moment][tileWidth]
+    float* rowBuffer = moments + size_t(kMoments) * tileWidth;                    // [tileWidth]
+    auto paddedRow = [&](int c, int m) { return padded + (size_t(c) * kMoments + m) * paddedWidth; };
+    auto ringRow = [&](int c, int m, int inputRow) {
+        const int slot = ((inputRow % kSsimTaps) + kSsimTaps) % kSsimTaps;
+        return ring + ((size_t(c) * kMoments + m) * kSsimTaps + slot) * tileWidth;
     };
-    const int vectorEnd = width - width % kFloatLanes;
 
-    for (int inputRow = band.rowBegin - kSsimRadius; inputRow < band.rowEnd + kSsimRadius; ++inputRow) {
+    for (int inputRow = tile.rowBegin - kSsimRadius; inputRow < tile.rowEnd + kSsimRadius; ++inputRow) {
+        // Gather every channel of the tile's columns plus the halo (reflected at the image borders).
         const int sourceRow = reflect(inputRow, height);
-        const float* x = band.reference + size_t(sourceRow) * width * channels + band.channel;
-        const float* y = band.test + size_t(sourceRow) * width * channels + band.channel;
-        // Gather the channel (strided), reflect the borders, then form the products vectorised.
-        float* px = padded[0] + kSsimRadius;
-        float* py = padded[1] + kSsimRadius;
-        for (int j = 0; j < width; ++j) {
-            px[j] = x[size_t(j) * channels];
-            py[j] = y[size_t(j) * channels];
-        }
-        for (int j = 1; j <= kSsimRadius; ++j) {
-            px[-j] = px[j - 1];
-            py[-j] = py[j - 1];
-            px[width - 1 + j] = px[width - j];
-            py[width - 1 + j] = py[width - j];
-        }
-        {
-            const VFloat offset = splat<VFloat>(band.offset);
+        const float* x = tile.reference + size_t(sourceRow) * width * channels;
+        const float* y = tile.test + size_t(sourceRow) * width * channels;
+        gatherRow(x, y, width, channels, x0 - kSsimRadius, paddedWidth, paddedRow(0, 0),
+                  size_t(kMoments) * paddedWidth, paddedWidth);
+        for (int c = 0; c < channels; ++c) {
+            float* xs = paddedRow(c, 0);
+            float* ys = paddedRow(c, 1);
+            float* xx = paddedRow(c, 2);
+            float* yy = paddedRow(c, 3);
+            float* xy = paddedRow(c, 4);
+            const float offset = tile.offsets[c];
             int j = 0;
             for (; j + kFloatLanes <= paddedWidth; j += kFloatLanes) {
-                const VFloat xs = loadu<VFloat>(padded[0] + j) - offset;
-                const VFloat ys = loadu<VFloat>(padded[1] + j) - offset;
-                storeu(padded[0] + j, xs);
-                storeu(padded[1] + j, ys);
-                storeu(padded[2] + j, xs * xs);
-                storeu(padded[3] + j, ys * ys);
-                storeu(padded[4] + j, xs * ys);
+                const VFloat a = loadu<VFloat>(xs + j) - offset, b = loadu<VFloat>(ys + j) - offset;
+                storeu(xs + j, a);
+                storeu(ys + j, b);
+                storeu(xx + j, a * a);
+                storeu(yy + j, b * b);
+                storeu(xy + j, a * b);
             }
             for (; j < paddedWidth; ++j) {
-                const float xs = padded[0][j] - band.offset, ys = padded[1][j] - band.offset;
-                padded[0][j] = xs;
-                padded[1][j] = ys;
-                padded[2][j] = xs * xs;
-                padded[3][j] = ys * ys;
-                padded[4][j] = xs * ys;
+                const float a = xs[j] - offset, b = ys[j] - offset;
+                xs[j] = a;
+                ys[j] = b;
+                xx[j] = a * a;
+                yy[j] = b * b;
+                xy[j] = a * b;
+            }
+            for (int m = 0; m < kMoments; ++m) {
+                const float* in = paddedRow(c, m);
+                float* out = ringRow(c, m, inputRow);
+                for (j = 0; j < vectorEnd; j += kFloatLanes)
+                    storeu(out + j, filterTaps<VFloat>(in, j, window));
+                for (; j < tileWidth; ++j) out[j] = filterTaps<float>(in, j, scalarWindow);
             }
         }
-        float* out[kMoments];
-        for (int m = 0; m < kMoments; ++m) out[m] = ringRow(m, inputRow);
-        int j = 0;
-        for (; j < vectorEnd; j += kFloatLanes) filterRowAt<VFloat>(j, padded, out, band.weights);
-        for (; j < width; ++j) filterRowAt<float>(j, padded, out, band.weights);
 
         const int outputRow = inputRow - kSsimRadius;  // its window is complete once inputRow is filtered
-        if (outputRow < band.rowBegin) continue;
-        const float* rows[kMoments][kSsimTaps];
-        for (int m = 0; m < kMoments; ++m)
-            for (int k = 0; k < kSsimTaps; ++k) rows[m][k] = ringRow(m, outputRow - kSsimRadius + k);
-        float* ssimRow = band.map ? band.map + size_t(outputRow) * width : rowBuffer;
-        for (j = 0; j < vectorEnd; j += kFloatLanes) ssimAt<VFloat>(j, rows, band, ssimRow);
-        for (; j < width; ++j) ssimAt<float>(j, rows, band, ssimRow);
+        if (outputRow < tile.rowBegin) continue;
+        for (int c = 0; c < channels; ++c) {
+            for (int m = 0; m < kMoments; ++m) {
+                const float* rows[kSsimTaps];
+                for (int k = 0; k < kSsimTaps; ++k) rows[k] = ringRow(c, m, outputRow - kSsimRadius + k);
+                float* out = moments + size_t(m) * tileWidth;
+                int j = 0;
+                for (; j < vectorEnd; j += kFloatLanes) storeu(out + j, filterTaps<VFloat>(rows, j, window));
+                for (; j < tileWidth; ++j) out[j] = filterTaps<float>(rows, j, scalarWindow);
+            }
+            float* ssimRow =
+                tile.maps ? tile.maps + (size_t(c) * height + outputRow) * width + x0 : rowBuffer;
+            const float offset = tile.offsets[c];
+            int j = 0;
+            for (; j < vectorEnd; j += kFloatLanes)
+                storeu(ssimRow + j, ssimFromMoments<VFloat>(moments, tileWidth, j, offset, tile.c1, tile.c2));
+            for (; j < tileWidth; ++j)
+                ssimRow[j] = ssimFromMoments<float>(moments, tileWidth, j, offset, tile.c1, tile.c2);
 
-        if (band.rowSums) {
-            // Sum over the columns scikit-image keeps (it crops `radius` pixels on every side).
-            const int begin = kSsimRadius, end = width - kSsimRadius;
-            VFloat vectorSum = splat<VFloat>(0.0f);
-            int c = begin;
-            for (; c + kFloatLanes <= end; c += kFloatLanes)
-                vectorSum = accumulateLoad(vectorSum, ssimRow + c);
-            double sum = horizontalSum(vectorSum);
-            for (; c < end; ++c) sum += ssimRow[c];
-            band.rowSums[outputRow] = sum;
+            if (tile.rowSums) {
+                // Sum over the columns scikit-image keeps (it crops `radius` pixels on every side).
+                const int begin = std::max(x0, kSsimRadius) - x0;
+                const int end = std::min(tile.columnEnd, width - kSsimRadius) - x0;
+                VFloat vectorSum = splat<VFloat>(0.0f);
+                int k = begin;
+                for (; k + kFloatLanes <= end; k += kFloatLanes) vectorSum += loadu<VFloat>(ssimRow + k);
+                double sum = horizontalSum(vectorSum);
+                for (; k < end; ++k) sum += ssimRow[k];
+                tile.rowSums[size_t(c) * height + outputRow] = sum;
+            }
         }
     }
 }

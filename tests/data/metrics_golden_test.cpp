@@ -85,7 +85,13 @@ TEST_P(MetricsGolden, SsimMapMatchesScikitImageIncludingBorders) {
     ASSERT_EQ(got.map.size(), want.size());
     double worst = 0.0;
     for (size_t i = 0; i < want.size(); ++i) worst = std::max(worst, double(std::abs(got.map[i] - want[i])));
-    EXPECT_LE(worst, 1e-4) << "largest per-pixel SSIM difference";
+    // The map is float32: in bright flat regions of a high-contrast image, sigma^2 = E[x^2] - mean^2 keeps
+    // ~1e-7 of absolute error, which C2 = 9e-4 turns into up to ~2e-4 of per-pixel SSIM. Means over many
+    // pixels average it out (the mean SSIM above agrees to 1e-4, in practice ~1e-6).
+    EXPECT_LE(worst, 5e-4) << "largest per-pixel SSIM difference";
+    double meanDifference = 0.0;
+    for (size_t i = 0; i < want.size(); ++i) meanDifference += double(got.map[i]) - double(want[i]);
+    EXPECT_LE(std::abs(meanDifference) / double(want.size()), 1e-5) << "mean per-pixel SSIM difference";
 }
 
 // Every level this CPU can run (all three on the development machine).
