@@ -1,0 +1,163 @@
+// dejag/nn: the layers, forward and backward side by side (the reference kernels).
+//
+// Conventions (after llm.c):
+// - Arguments go outputs, saved values, inputs, weights, then the descriptor of sizes.
+// - Every buffer's layout is in a comment: (N, C, H, W) activations, PyTorch weight layouts
+//   (Conv2D (Cout, Cin, kh, kw); ConvTranspose2D (Cin, Cout, kh, kw)).
+// - BACKWARD ACCUMULATES: every backward adds (+=) into its gradient buffers (dinput, dweight, dbias),
+//   so a tensor used twice (a skip connection) collects both contributions; zero them before a step.
+//   A null gradient pointer skips that gradient.
+// - Kernels are templates instantiated for float (training, inference) and double (gradient checks).
+// - Work is split over output planes (or gradient slices) across the thread pool; each element is
+//   computed by one thread in a fixed order, so results do not depend on the thread count.
+// These are the oracle the fast kernels of nn/ are tested against; keep them simple and correct.
+#pragma once
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+namespace dejag::nn {
+
+// ---- Conv2D ---------------------------------------------------------------------------------------
+struct Conv2dDesc {
+    int64_t batch = 1, inChannels = 1, inHeight = 1, inWidth = 1;
+    int64_t outChannels = 1, kernelHeight = 3, kernelWidth = 3;
+    int strideH = 1, strideW = 1;
+    int padTop = 0, padBottom = 0, padLeft = 0, padRight = 0;
+    int dilationH = 1, dilationW = 1;
+    bool bias = true;
+
+    int64_t outHeight() const;
+    int64_t outWidth() const;
+    int64_t weightCount() const { return outChannels * inChannels * kernelHeight * kernelWidth; }
+    int64_t macs() const {
+        return batch * outChannels * outHeight() * outWidth() * inChannels * kernelHeight * kernelWidth;
+    }
+    void validate() const;  // throws dejag::Error naming the bad field
+    // Keras/TensorFlow 'same' padding: output = ceil(input / stride), the extra pixel after.
+    void setSamePadding();
+};
+
+template <class T>
+void conv2dForward(T* out,           // (N, Cout, OH, OW)
+                   const T* in,      // (N, Cin, H, W)
+                   const T* weight,  // (Cout, Cin, kh, kw)
+                   const T* bias,    // (Cout) or null
+                   const Conv2dDesc& d);
+template <class T>
+void conv2dBackward(T* dinput,        // (N, Cin, H, W) or null
+                    T* dweight,       // (Cout, Cin, kh, kw) or null
+                    T* dbias,         // (Cout) or null
+                    const T* dout,    // (N, Cout, OH, OW)
+                    const T* in,      // (N, Cin, H, W)
+                    const T* weight,  // (Cout, Cin, kh, kw)
+                    const Conv2dDesc& d);
+
+// ---- ConvTranspose2D (PyTorch semantics) ----------------------------------------------------------
+struct ConvTranspose2dDesc {
+    int64_t batch = 1, inChannels = 1, inHeight = 1, inWidth = 1;
+    int64_t outChannels = 1, kernelHeight = 3, kernelWidth = 3;
+    int strideH = 2, strideW = 2;
+    int padH = 0, padW = 0;                      // removed from both sides of the full output
+    int outputPaddingH = 0, outputPaddingW = 0;  // added after (bottom/right)
+    int dilationH = 1, dilationW = 1;
+    bool bias = true;
+
+    // (in - 1) * stride - 2 * pad + dilation * (k - 1) + outputPadding + 1
+    int64_t outHeight() const;
+    int64_t outWidth() const;
+    int64_t weightCount() const { return inChannels * outChannels * kernelHeight * kernelWidth; }
+    int64_t macs() const {
+        return batch * inChannels * inHeight * inWidth * outChannels * kernelHeight * kernelWidth;
+    }
+    void validate() const;
+};
+
+template <class T>
+void convTranspose2dForward(T* out,           // (N, Cout, OH, OW)
+                            const T* in,      // (N, Cin, H, W)
+                            const T* weight,  // (Cin, Cout, kh, kw)
+                            const T* bias,    // (Cout) or null
+                            const ConvTranspose2dDesc& d);
+template <class T>
+void convTranspose2dBackward(T* dinput, T* dweight, T* dbias,  // as the forward's in, weight, bias, or null
+                             const T* dout,                    // (N, Cout, OH, OW)
+                             const T* in, const T* weight, const ConvTranspose2dDesc& d);
+
+// ---- MaxPool2D -------------------------------------------------------------------------------------
+struct MaxPool2dDesc {
+    int64_t batch = 1, channels = 1, inHeight = 1, inWidth = 1;
+    int kernel = 2, stride = 2, padding = 0;  // padded cells never win (-infinity)
+
+    int64_t outHeight() const;  // floor((in + 2 pad - kernel) / stride) + 1
+    int64_t outWidth() const;
+    void validate() const;
+};
+
+// Saves, per output element, the index (h * W + w) of the winning input in its plane. As in PyTorch:
+// ties go to the first in row-major window order, and a NaN wins (the last NaN if several).
+template <class T>
+void maxPool2dForward(T* out,           // (N, C, OH, OW)
+                      int32_t* argmax,  // (N, C, OH, OW)
+                      const T* in,      // (N, C, H, W)
+                      const MaxPool2dDesc& d);
+template <class T>
+void maxPool2dBackward(T* dinput,      // (N, C, H, W)
+                       const T* dout,  // (N, C, OH, OW)
+                       const int32_t* argmax, const MaxPool2dDesc& d);
+
+// ---- Element-wise activations over n values ---------------------------------------------------------
+enum class Activation { None, ReLU, LeakyReLU, Sigmoid, Clamp };
+const char* activationName(Activation activation);
+Activation parseActivation(const std::string& name);  // throws dejag::Error
+
+struct ActivationDesc {
+    Activation kind = Activation::ReLU;
+    float slope = 0.01f;            // LeakyReLU: x < 0 -> slope * x
+    float low = 0.0f, high = 1.0f;  // Clamp
+};
+
+template <class T>
+void activationForward(T* out, const T* in, int64_t n, const ActivationDesc& d);  // out may equal in
+// Needs the forward's input `in` (ReLU, LeakyReLU, Clamp) or its output `out` (Sigmoid).
+template <class T>
+void activationBackward(T* dinput, const T* dout, const T* in, const T* out, int64_t n,
+                        const ActivationDesc& d);
+
+// ---- Add (residual) and Concat (channels) -----------------------------------------------------------
+template <class T>
+void addForward(T* out, const T* a, const T* b, int64_t n);
+template <class T>
+void addBackward(T* da, T* db, const T* dout, int64_t n);  // da += dout, db += dout (either may be null)
+
+// Concatenates inputs[i] (N, C_i, H, W) along channels into out (N, sum C_i, H, W).
+template <class T>
+void concatForward(T* out, const std::vector<const T*>& inputs, const std::vector<int64_t>& channels,
+                   int64_t batch, int64_t planeSize);
+template <class T>
+void concatBackward(const std::vector<T*>& dinputs, const T* dout, const std::vector<int64_t>& channels,
+                    int64_t batch, int64_t planeSize);
+
+// ---- Resampling -------------------------------------------------------------------------------------
+struct ResampleDesc {
+    int64_t batch = 1, channels = 1, inHeight = 1, inWidth = 1;
+    int factor = 2;
+};
+// Nearest: out[y, x] = in[y / f, x / f].
+template <class T>
+void upsampleNearestForward(T* out, const T* in, const ResampleDesc& d);
+template <class T>
+void upsampleNearestBackward(T* dinput, const T* dout, const ResampleDesc& d);
+// Bilinear, PyTorch align_corners=False: source = (dst + 0.5) / f - 0.5, clamped at 0.
+template <class T>
+void upsampleBilinearForward(T* out, const T* in, const ResampleDesc& d);
+template <class T>
+void upsampleBilinearBackward(T* dinput, const T* dout, const ResampleDesc& d);
+// Pixel shuffle: (N, C f^2, H, W) -> (N, C, H f, W f); `channels` is the input's C f^2.
+template <class T>
+void pixelShuffleForward(T* out, const T* in, const ResampleDesc& d);
+template <class T>
+void pixelShuffleBackward(T* dinput, const T* dout, const ResampleDesc& d);
+
+}  // namespace dejag::nn

@@ -1,0 +1,292 @@
+// Losses: value and gradient side by side (see nn/losses.h).
+#include "nn/losses.h"
+
+#include <cmath>
+#include <cstdlib>
+#include <sstream>
+
+#include "base/error.h"
+#include "base/thread_pool.h"
+
+namespace dejag::nn {
+namespace {
+
+constexpr int kRadius = 5, kTaps = 11;
+constexpr double kK1 = 0.01, kK2 = 0.03, kSigma = 1.5;
+
+struct GaussianWindow {
+    double w[kTaps];
+    GaussianWindow() {
+        double sum = 0.0;
+        for (int k = 0; k < kTaps; ++k) {
+            const double x = k - kRadius;
+            w[k] = std::exp(-0.5 * x * x / (kSigma * kSigma));
+            sum += w[k];
+        }
+        for (double& v : w) v /= sum;
+    }
+};
+
+const GaussianWindow& window() {
+    static const GaussianWindow g;
+    return g;
+}
+
+// Valid separable filter of `count` planes of (H, W) into (H - 10, W - 10).
+void filterValid(const double* in, double* tmp, double* out, int64_t H, int64_t W) {
+    const double* w = window().w;
+    const int64_t OH = H - 2 * kRadius, OW = W - 2 * kRadius;
+    for (int64_t y = 0; y < H; ++y)
+        for (int64_t x = 0; x < OW; ++x) {
+            double s = 0.0;
+            for (int k = 0; k < kTaps; ++k) s += w[k] * in[y * W + x + k];
+            tmp[y * OW + x] = s;
+        }
+    for (int64_t y = 0; y < OH; ++y)
+        for (int64_t x = 0; x < OW; ++x) {
+            double s = 0.0;
+            for (int k = 0; k < kTaps; ++k) s += w[k] * tmp[(y + k) * OW + x];
+            out[y * OW + x] = s;
+        }
+}
+
+// Transpose of filterValid: (H - 10, W - 10) -> (H, W), adding.
+void filterValidTransposed(const double* in, double* tmp, double* out, int64_t H, int64_t W) {
+    const double* w = window().w;
+    const int64_t OH = H - 2 * kRadius, OW = W - 2 * kRadius;
+    for (int64_t i = 0; i < H * OW; ++i) tmp[i] = 0.0;
+    for (int64_t y = 0; y < OH; ++y)
+        for (int k = 0; k < kTaps; ++k)
+            for (int64_t x = 0; x < OW; ++x) tmp[(y + k) * OW + x] += w[k] * in[y * OW + x];
+    for (int64_t y = 0; y < H; ++y)
+        for (int64_t x = 0; x < OW; ++x)
+            for (int k = 0; k < kTaps; ++k) out[y * W + x + k] += w[k] * tmp[y * OW + x];
+}
+
+// Per plane: the five moment maps, and the SSIM map (valid region).
+struct PlaneMoments {
+    std::vector<double> x, y, mx, my, exx, eyy, exy, tmp, product, ssim;
+    // x, y: the planes shifted by -shift (moments are shift-invariant; the shift tames cancellation).
+    void compute(const double c1, const double c2, int64_t H, int64_t W, double shift) {
+        const int64_t valid = (H - 2 * kRadius) * (W - 2 * kRadius);
+        mx.resize(valid), my.resize(valid), exx.resize(valid), eyy.resize(valid), exy.resize(valid),
+            ssim.resize(valid);
+        tmp.resize(H * (W - 2 * kRadius));
+        product.resize(H * W);
+        filterValid(x.data(), tmp.data(), mx.data(), H, W);
+        filterValid(y.data(), tmp.data(), my.data(), H, W);
+        for (int64_t i = 0; i < H * W; ++i) product[i] = x[i] * x[i];
+        filterValid(product.data(), tmp.data(), exx.data(), H, W);
+        for (int64_t i = 0; i < H * W; ++i) product[i] = y[i] * y[i];
+        filterValid(product.data(), tmp.data(), eyy.data(), H, W);
+        for (int64_t i = 0; i < H * W; ++i) product[i] = x[i] * y[i];
+        filterValid(product.data(), tmp.data(), exy.data(), H, W);
+        for (int64_t i = 0; i < valid; ++i) {
+            const double vx = exx[i] - mx[i] * mx[i], vy = eyy[i] - my[i] * my[i],
+                         cxy = exy[i] - mx[i] * my[i];
+            const double ux = mx[i] + shift, uy = my[i] + shift;
+            ssim[i] = ((2 * ux * uy + c1) * (2 * cxy + c2)) / ((ux * ux + uy * uy + c1) * (vx + vy + c2));
+        }
+    }
+};
+
+template <class T>
+void loadPlane(std::vector<double>& out, const T* in, int64_t count, double shift) {
+    out.resize(count);
+    for (int64_t i = 0; i < count; ++i) out[i] = double(in[i]) - shift;
+}
+
+}  // namespace
+
+void SsimLossDesc::validate() const {
+    if (batch < 1 || channels < 1) throw Error("SSIM loss: batch and channels must be >= 1");
+    if (height < kTaps || width < kTaps)
+        throw Error("SSIM loss: planes are " + std::to_string(height) + "x" + std::to_string(width) +
+                    ", smaller than the 11x11 window");
+    if (!(dataRange > 0.0) || !std::isfinite(dataRange))
+        throw Error("SSIM loss: the data range must be positive");
+}
+
+template <class T>
+double l1Loss(const T* pred, const T* target, int64_t n) {
+    double sum = 0.0;
+    for (int64_t i = 0; i < n; ++i) sum += std::abs(double(pred[i]) - double(target[i]));
+    return sum / double(n);
+}
+
+template <class T>
+void l1LossBackward(T* dpred, const T* pred, const T* target, int64_t n, double scale) {
+    const double g = scale / double(n);
+    for (int64_t i = 0; i < n; ++i) {
+        const double d = double(pred[i]) - double(target[i]);
+        dpred[i] += T(d > 0 ? g : (d < 0 ? -g : 0.0));
+    }
+}
+
+template <class T>
+double mseLoss(const T* pred, const T* target, int64_t n) {
+    double sum = 0.0;
+    for (int64_t i = 0; i < n; ++i) {
+        const double d = double(pred[i]) - double(target[i]);
+        sum += d * d;
+    }
+    return sum / double(n);
+}
+
+template <class T>
+void mseLossBackward(T* dpred, const T* pred, const T* target, int64_t n, double scale) {
+    const double g = 2.0 * scale / double(n);
+    for (int64_t i = 0; i < n; ++i) dpred[i] += T(g * (double(pred[i]) - double(target[i])));
+}
+
+template <class T>
+double ssimLoss(const T* pred, const T* target, const SsimLossDesc& d) {
+    d.validate();
+    const int64_t planes = d.batch * d.channels, H = d.height, W = d.width;
+    const double c1 = (kK1 * d.dataRange) * (kK1 * d.dataRange),
+                 c2 = (kK2 * d.dataRange) * (kK2 * d.dataRange);
+    std::vector<double> planeSums(planes, 0.0);
+    parallelFor(0, planes, 1, [&](int64_t first, int64_t last) {
+        PlaneMoments m;
+        for (int64_t p = first; p < last; ++p) {
+            // Shift both by the target's first sample.
+            const double shift = double(target[p * H * W]);
+            loadPlane(m.x, target + p * H * W, H * W, shift);
+            loadPlane(m.y, pred + p * H * W, H * W, shift);
+            m.compute(c1, c2, H, W, shift);
+            double sum = 0.0;
+            for (double v : m.ssim) sum += v;
+            planeSums[p] = sum;
+        }
+    });
+    double total = 0.0;
+    for (double s : planeSums) total += s;
+    return 1.0 - total / (double(planes) * double((H - 2 * kRadius) * (W - 2 * kRadius)));
+}
+
+template <class T>
+void ssimLossBackward(T* dpred, const T* pred, const T* target, const SsimLossDesc& d, double scale) {
+    d.validate();
+    const int64_t planes = d.batch * d.channels, H = d.height, W = d.width;
+    const int64_t valid = (H - 2 * kRadius) * (W - 2 * kRadius);
+    const double c1 = (kK1 * d.dataRange) * (kK1 * d.dataRange),
+                 c2 = (kK2 * d.dataRange) * (kK2 * d.dataRange);
+    // Loss = 1 - mean S  =>  dLoss/dS_p = -1 / (planes * valid).
+    const double dS = -scale / (double(planes) * double(valid));
+    parallelFor(0, planes, 1, [&](int64_t first, int64_t last) {
+        PlaneMoments m;
+        std::vector<double> a(valid), b(valid), c(valid), ga(H * W), gb(H * W), gc(H * W),
+            tmp(H * (W - 2 * kRadius));
+        for (int64_t p = first; p < last; ++p) {
+            const double shift = double(target[p * H * W]);
+            loadPlane(m.x, target + p * H * W, H * W, shift);
+            loadPlane(m.y, pred + p * H * W, H * W, shift);
+            m.compute(c1, c2, H, W, shift);
+            // S = A1 A2 / (B1 B2) in terms of the moments of the shifted samples (mean of y: my + shift).
+            for (int64_t i = 0; i < valid; ++i) {
+                const double mxs = m.mx[i], mys = m.my[i];
+                const double ux = mxs + shift, uy = mys + shift;
+                const double vx = m.exx[i] - mxs * mxs, vy = m.eyy[i] - mys * mys, cxy = m.exy[i] - mxs * mys;
+                const double A1 = 2 * ux * uy + c1, A2 = 2 * cxy + c2;
+                const double B1 = ux * ux + uy * uy + c1, B2 = vx + vy + c2;
+                const double S = (A1 * A2) / (B1 * B2);
+                const double dS_duy = 2 * ux * A2 / (B1 * B2) - S * 2 * uy / B1;  // luminance, direct
+                const double dS_dvy = -S / B2;
+                const double dS_dcxy = 2 * A1 / (B1 * B2);
+                // Chain through vy = E[ys^2] - mys^2 and cxy = E[xs ys] - mxs mys (ys = y - shift).
+                a[i] = dS * (dS_duy - 2 * mys * dS_dvy - mxs * dS_dcxy);
+                b[i] = dS * dS_dvy;
+                c[i] = dS * dS_dcxy;
+            }
+            std::fill(ga.begin(), ga.end(), 0.0);
+            std::fill(gb.begin(), gb.end(), 0.0);
+            std::fill(gc.begin(), gc.end(), 0.0);
+            filterValidTransposed(a.data(), tmp.data(), ga.data(), H, W);
+            filterValidTransposed(b.data(), tmp.data(), gb.data(), H, W);
+            filterValidTransposed(c.data(), tmp.data(), gc.data(), H, W);
+            T* g = dpred + p * H * W;
+            for (int64_t q = 0; q < H * W; ++q) g[q] += T(ga[q] + 2 * m.y[q] * gb[q] + m.x[q] * gc[q]);
+        }
+    });
+}
+
+CompositeLoss CompositeLoss::parse(const std::string& text) {
+    CompositeLoss loss;
+    std::stringstream stream(text);
+    std::string term;
+    while (std::getline(stream, term, '+')) {
+        LossTerm t;
+        std::string name = term;
+        const size_t star = term.find('*');
+        if (star != std::string::npos) {
+            char* end = nullptr;
+            t.weight = std::strtod(term.c_str(), &end);
+            if (end != term.c_str() + star || !(t.weight > 0) || !std::isfinite(t.weight))
+                throw Error("loss '" + text + "': '" + term.substr(0, star) + "' is not a positive weight");
+            name = term.substr(star + 1);
+        }
+        if (name == "ssim")
+            t.kind = LossKind::Ssim;
+        else if (name == "l1")
+            t.kind = LossKind::L1;
+        else if (name == "mse")
+            t.kind = LossKind::Mse;
+        else
+            throw Error("loss '" + text + "': unknown term '" + name + "' (ssim, l1, mse)");
+        loss.terms.push_back(t);
+    }
+    if (loss.terms.empty()) throw Error("loss '" + text + "' has no terms");
+    return loss;
+}
+
+std::string CompositeLoss::describe() const {
+    std::string text;
+    for (const LossTerm& t : terms) {
+        if (!text.empty()) text += " + ";
+        std::ostringstream weight;
+        weight << t.weight;
+        text += weight.str() + " * " +
+                (t.kind == LossKind::Ssim ? "(1 - SSIM)"
+                 : t.kind == LossKind::L1 ? "L1"
+                                          : "MSE");
+    }
+    return text;
+}
+
+template <class T>
+double CompositeLoss::evaluate(T* dpred, const T* pred, const T* target, const SsimLossDesc& shape,
+                               double scale) const {
+    const int64_t n = shape.batch * shape.channels * shape.height * shape.width;
+    double value = 0.0;
+    for (const LossTerm& t : terms) {
+        switch (t.kind) {
+            case LossKind::Ssim:
+                value += t.weight * ssimLoss(pred, target, shape);
+                if (dpred) ssimLossBackward(dpred, pred, target, shape, scale * t.weight);
+                break;
+            case LossKind::L1:
+                value += t.weight * l1Loss(pred, target, n);
+                if (dpred) l1LossBackward(dpred, pred, target, n, scale * t.weight);
+                break;
+            case LossKind::Mse:
+                value += t.weight * mseLoss(pred, target, n);
+                if (dpred) mseLossBackward(dpred, pred, target, n, scale * t.weight);
+                break;
+        }
+    }
+    return value;
+}
+
+#define DEJAG_INSTANTIATE(T)                                                                \
+    template double l1Loss<T>(const T*, const T*, int64_t);                                 \
+    template void l1LossBackward<T>(T*, const T*, const T*, int64_t, double);               \
+    template double mseLoss<T>(const T*, const T*, int64_t);                                \
+    template void mseLossBackward<T>(T*, const T*, const T*, int64_t, double);              \
+    template double ssimLoss<T>(const T*, const T*, const SsimLossDesc&);                   \
+    template void ssimLossBackward<T>(T*, const T*, const T*, const SsimLossDesc&, double); \
+    template double CompositeLoss::evaluate<T>(T*, const T*, const T*, const SsimLossDesc&, double) const;
+DEJAG_INSTANTIATE(float)
+DEJAG_INSTANTIATE(double)
+#undef DEJAG_INSTANTIATE
+
+}  // namespace dejag::nn

@@ -1,0 +1,56 @@
+// dejag/nn: losses, each value and gradient side by side.
+//
+// Every backward ADDS scale * dLoss/dprediction into dpred (scale carries the weight of the term in a
+// combined loss such as 0.84 (1 - SSIM) + 0.16 L1, and the upstream gradient, usually 1).
+#pragma once
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+namespace dejag::nn {
+
+// Mean absolute error over n values; d/dp |p - t| = sign(p - t), 0 at p == t (as PyTorch).
+template <class T>
+double l1Loss(const T* pred, const T* target, int64_t n);
+template <class T>
+void l1LossBackward(T* dpred, const T* pred, const T* target, int64_t n, double scale);
+
+// Mean squared error over n values.
+template <class T>
+double mseLoss(const T* pred, const T* target, int64_t n);
+template <class T>
+void mseLossBackward(T* dpred, const T* pred, const T* target, int64_t n, double scale);
+
+// 1 - SSIM with the constants and window of spec/metrics.md (11x11 Gaussian, sigma 1.5, K1 0.01,
+// K2 0.03, population covariance), over the valid region of every (N, C) plane (the pixels whose window
+// lies inside the plane: the same pixels scikit-image averages), mean over planes and pixels.
+// Internals are computed in double: stable on flat patches (zero variance; C1 and C2 keep every
+// denominator >= C1 C2 > 0) and on values far outside [0, 1].
+struct SsimLossDesc {
+    int64_t batch = 1, channels = 1, height = 11, width = 11;
+    double dataRange = 1.0;
+    void validate() const;  // planes must be at least 11x11
+};
+template <class T>
+double ssimLoss(const T* pred, const T* target, const SsimLossDesc& d);  // (N, C, H, W) each
+template <class T>
+void ssimLossBackward(T* dpred, const T* pred, const T* target, const SsimLossDesc& d, double scale);
+
+// A weighted sum of the losses above, e.g. "ssim" or "0.84*ssim+0.16*l1".
+enum class LossKind { Ssim, L1, Mse };
+struct LossTerm {
+    LossKind kind = LossKind::Ssim;
+    double weight = 1.0;
+};
+struct CompositeLoss {
+    std::vector<LossTerm> terms;
+    static CompositeLoss parse(const std::string& text);  // throws dejag::Error on a bad spec
+    std::string describe() const;
+    // Value of the weighted sum; if dpred is non-null, adds its gradient (times scale) into dpred.
+    template <class T>
+    double evaluate(T* dpred, const T* pred, const T* target, const SsimLossDesc& shape,
+                    double scale = 1.0) const;
+};
+
+}  // namespace dejag::nn

@@ -1,0 +1,227 @@
+#!/usr/bin/python3
+"""Golden fixtures for dejag's nn layers, losses and optimizers, computed by PyTorch.
+
+Run with Debian's interpreter (`make golden`, or /usr/bin/python3 tests/golden/make_nn_golden.py); it needs
+python3-torch. For every layer configuration it writes tests/golden/nn/<case>.safetensors holding:
+  inputs and parameters as F32 (the exact values both sides use), and
+  the forward output and every gradient as F64, computed by PyTorch in float64 from those F32 values,
+with the configuration as JSON in the metadata key "config". The C++ tests (tests/nn/golden_test.cpp)
+run dejag's float32 kernels and require forward relative error <= 1e-5 and backward <= 1e-4 (max abs
+difference over max abs reference value).
+"""
+import json
+import os
+import struct
+
+import torch
+import torch.nn.functional as F
+
+HERE = os.path.join(os.path.dirname(os.path.abspath(__file__)), "nn")
+torch.manual_seed(20261121)
+
+
+def write_safetensors(path, tensors, config):
+    header = {"__metadata__": {"config": json.dumps(config, sort_keys=True)}}
+    blobs, offset = [], 0
+    for name, t in tensors.items():
+        t = t.detach().contiguous()
+        dtype = {torch.float32: "F32", torch.float64: "F64"}[t.dtype]
+        data = t.numpy().astype("<f4" if dtype == "F32" else "<f8").tobytes()
+        header[name] = {"dtype": dtype, "shape": list(t.shape), "data_offsets": [offset, offset + len(data)]}
+        blobs.append(data)
+        offset += len(data)
+    text = json.dumps(header).encode()
+    text += b" " * ((8 - (8 + len(text)) % 8) % 8)
+    with open(path, "wb") as f:
+        f.write(struct.pack("<Q", len(text)))
+        f.write(text)
+        for b in blobs:
+            f.write(b)
+
+
+def f32(*shape, low=-1.0, high=1.0):
+    return (torch.rand(*shape, dtype=torch.float32) * (high - low) + low)
+
+
+def run(fn, inputs, params):
+    """Forward in float64 from the float32 values, backward with a random upstream gradient."""
+    leaves = {k: v.double().requires_grad_(True) for k, v in {**inputs, **params}.items()}
+    out = fn(**leaves)
+    dout = f32(*out.shape)
+    out.backward(dout.double())
+    result = {k: v for k, v in {**inputs, **params}.items()}
+    result["dout"] = dout
+    result["output"] = out.detach()
+    for k, v in leaves.items():
+        result["d" + k] = v.grad.detach()
+    return result
+
+
+cases = {}
+
+
+def conv2d_case(name, n, cin, cout, h, w, k, stride=1, pad=(0, 0, 0, 0), dilation=1, bias=True):
+    kh, kw = (k, k) if isinstance(k, int) else k
+    inputs = {"input": f32(n, cin, h, w)}
+    params = {"weight": f32(cout, cin, kh, kw, low=-0.5, high=0.5)}
+    if bias:
+        params["bias"] = f32(cout)
+    top, bottom, left, right = pad
+
+    def fn(input, weight, bias=None):
+        return F.conv2d(F.pad(input, (left, right, top, bottom)), weight, bias, stride=stride, dilation=dilation)
+
+    cases[name] = (run(fn, inputs, params), {"layer": "conv2d", "batch": n, "in_channels": cin, "out_channels": cout,
+                   "height": h, "width": w, "kernel": [kh, kw], "stride": stride, "pad": list(pad),
+                   "dilation": dilation, "bias": bias})
+
+
+def conv_transpose_case(name, n, cin, cout, h, w, k, stride, pad, output_padding, dilation=1, bias=True):
+    inputs = {"input": f32(n, cin, h, w)}
+    params = {"weight": f32(cin, cout, k, k, low=-0.5, high=0.5)}
+    if bias:
+        params["bias"] = f32(cout)
+
+    def fn(input, weight, bias=None):
+        return F.conv_transpose2d(input, weight, bias, stride=stride, padding=pad, output_padding=output_padding,
+                                  dilation=dilation)
+
+    cases[name] = (run(fn, inputs, params), {"layer": "conv_transpose2d", "batch": n, "in_channels": cin,
+                   "out_channels": cout, "height": h, "width": w, "kernel": k, "stride": stride, "pad": pad,
+                   "output_padding": output_padding, "dilation": dilation, "bias": bias})
+
+
+def maxpool_case(name, n, c, h, w, k, stride, pad, ties=False):
+    x = f32(n, c, h, w)
+    if ties:
+        x = torch.round(x * 2) / 2  # few distinct values: ties everywhere
+    cases[name] = (run(lambda input: F.max_pool2d(input, k, stride, pad), {"input": x}, {}),
+                   {"layer": "maxpool2d", "batch": n, "channels": c, "height": h, "width": w, "kernel": k,
+                    "stride": stride, "pad": pad})
+
+
+def activation_case(name, kind, fn, scale=3.0, **extra):
+    x = f32(2, 3, 7, 9, low=-scale, high=scale)
+    cases[name] = (run(lambda input: fn(input), {"input": x}, {}), {"layer": "activation", "kind": kind,
+                   "shape": list(x.shape), **extra})
+
+
+def resample_case(name, kind, factor, n, c, h, w):
+    x = f32(n, c, h, w)
+    if kind == "nearest":
+        fn = lambda input: F.interpolate(input, scale_factor=factor, mode="nearest")
+    elif kind == "bilinear":
+        fn = lambda input: F.interpolate(input, scale_factor=factor, mode="bilinear", align_corners=False)
+    else:
+        fn = lambda input: F.pixel_shuffle(input, factor)
+    cases[name] = (run(fn, {"input": x}, {}), {"layer": kind, "factor": factor, "batch": n, "channels": c,
+                   "height": h, "width": w})
+
+
+def gaussian_window():
+    coords = torch.arange(11, dtype=torch.float64) - 5
+    g = torch.exp(-0.5 * coords ** 2 / 1.5 ** 2)
+    g = g / g.sum()
+    return torch.outer(g, g)
+
+
+def ssim_loss(pred, target, data_range=1.0):
+    c = pred.shape[1]
+    win = gaussian_window().to(pred.dtype).expand(c, 1, 11, 11)
+    f = lambda x: F.conv2d(x, win, groups=c)
+    mx, my = f(target), f(pred)
+    vx = f(target * target) - mx * mx
+    vy = f(pred * pred) - my * my
+    cxy = f(target * pred) - mx * my
+    c1, c2 = (0.01 * data_range) ** 2, (0.03 * data_range) ** 2
+    s = ((2 * mx * my + c1) * (2 * cxy + c2)) / ((mx * mx + my * my + c1) * (vx + vy + c2))
+    return 1 - s.mean()
+
+
+def loss_case(name, kind, pred, target, data_range=1.0):
+    p = pred.double().requires_grad_(True)
+    t = target.double()
+    if kind == "ssim":
+        loss = ssim_loss(p, t, data_range)
+    elif kind == "l1":
+        loss = F.l1_loss(p, t)
+    else:
+        loss = F.mse_loss(p, t)
+    loss.backward()
+    cases[name] = ({"pred": pred, "target": target, "loss": loss.detach().reshape(1), "dpred": p.grad},
+                   {"layer": "loss", "kind": kind, "shape": list(pred.shape), "data_range": data_range})
+
+
+def optimizer_case(name, kind, steps=5, **kw):
+    params = f32(257)
+    grads = [f32(257) for _ in range(steps)]
+    lrs = [1e-2 * (1 + 0.1 * i) for i in range(steps)]
+    p = params.clone().requires_grad_(True)
+    opt = {"sgd": torch.optim.SGD, "adam": torch.optim.Adam, "adamw": torch.optim.AdamW}[kind]([p], lr=lrs[0], **kw)
+    tensors = {"params": params}
+    for i in range(steps):
+        for group in opt.param_groups:
+            group["lr"] = lrs[i]
+        p.grad = grads[i].clone()
+        opt.step()
+        tensors[f"grad{i}"] = grads[i]
+        tensors[f"after{i}"] = p.detach().clone().double()
+    cases[name] = (tensors, {"layer": "optimizer", "kind": kind, "steps": steps, "lrs": lrs, **kw})
+
+
+def main():
+    os.makedirs(HERE, exist_ok=True)
+    # Conv2D: kernel sizes 1, 3, 5; strides; same/valid/explicit/asymmetric padding; dilation; bias or not.
+    conv2d_case("conv2d_k3_same", 2, 3, 5, 9, 11, 3, pad=(1, 1, 1, 1))
+    conv2d_case("conv2d_k5_same_seed_layer1", 1, 1, 4, 13, 10, 5, pad=(2, 2, 2, 2))
+    conv2d_case("conv2d_k1_nobias", 2, 4, 6, 5, 7, 1, bias=False)
+    conv2d_case("conv2d_k3_stride2", 2, 2, 3, 10, 13, 3, stride=2, pad=(1, 1, 1, 1))
+    conv2d_case("conv2d_k3_dilation2", 1, 3, 2, 12, 9, 3, pad=(2, 2, 2, 2), dilation=2)
+    conv2d_case("conv2d_k3_valid", 2, 3, 4, 8, 6, 3)
+    conv2d_case("conv2d_k3_stride2_keras_same", 1, 3, 3, 8, 10, 3, stride=2, pad=(0, 1, 0, 1))
+    conv2d_case("conv2d_k2x4_asymmetric", 1, 2, 3, 7, 9, (2, 4), pad=(1, 0, 2, 1))
+    # ConvTranspose2D: stride 2 with padding/output_padding, stride 1, dilation, no bias.
+    conv_transpose_case("convt_k3_s2_p1_op1_seed", 2, 4, 3, 5, 6, 3, 2, 1, 1)
+    conv_transpose_case("convt_k3_s2_p0", 1, 3, 2, 4, 5, 3, 2, 0, 0)
+    conv_transpose_case("convt_k2_s2", 2, 2, 3, 3, 4, 2, 2, 0, 0, bias=False)
+    conv_transpose_case("convt_k3_s1_p1", 1, 3, 4, 6, 5, 3, 1, 1, 0)
+    conv_transpose_case("convt_k3_s2_dilation2", 1, 2, 2, 4, 4, 3, 2, 2, 1, dilation=2)
+    conv_transpose_case("convt_k4_s3_p1_op2", 1, 2, 3, 3, 5, 4, 3, 1, 2)
+    # MaxPool2D.
+    maxpool_case("maxpool_k2_s2_odd", 2, 3, 9, 11, 2, 2, 0)
+    maxpool_case("maxpool_k3_s2_p1", 1, 2, 8, 7, 3, 2, 1)
+    maxpool_case("maxpool_k2_s1", 1, 2, 5, 6, 2, 1, 0)
+    maxpool_case("maxpool_k2_s2_ties", 2, 2, 6, 8, 2, 2, 0, ties=True)
+    # Activations.
+    activation_case("act_relu", "relu", F.relu)
+    activation_case("act_leaky_relu", "leaky_relu", lambda x: F.leaky_relu(x, 0.1), slope=0.1)
+    activation_case("act_sigmoid", "sigmoid", torch.sigmoid, scale=40.0)
+    activation_case("act_clamp", "clamp", lambda x: torch.clamp(x, 0.0, 1.0), low=0.0, high=1.0)
+    # Resampling.
+    resample_case("up_nearest_x2", "nearest", 2, 2, 3, 5, 7)
+    resample_case("up_bilinear_x2", "bilinear", 2, 2, 2, 5, 6)
+    resample_case("up_bilinear_x3", "bilinear", 3, 1, 2, 4, 5)
+    resample_case("pixel_shuffle_x2", "pixel_shuffle", 2, 2, 8, 4, 5)
+    # Losses.
+    target = f32(2, 3, 16, 19, low=0.0, high=1.0)
+    pred = (target + f32(2, 3, 16, 19, low=-0.2, high=0.2)).clamp(0, 1)
+    loss_case("loss_ssim", "ssim", pred, target)
+    loss_case("loss_ssim_flat_target", "ssim", f32(1, 1, 14, 15, low=0.4, high=0.6), torch.full((1, 1, 14, 15), 0.5))
+    loss_case("loss_ssim_hdr", "ssim", f32(1, 2, 12, 13, low=0.0, high=50.0), f32(1, 2, 12, 13, low=0.0, high=50.0),
+              data_range=50.0)
+    loss_case("loss_l1", "l1", pred, target)
+    loss_case("loss_mse", "mse", pred, target)
+    # Optimizers, 5 steps with changing learning rates.
+    optimizer_case("optim_sgd_momentum", "sgd", momentum=0.9)
+    optimizer_case("optim_sgd_momentum_wd", "sgd", momentum=0.8, weight_decay=0.01)
+    optimizer_case("optim_adam", "adam", betas=(0.9, 0.999), eps=1e-8)
+    optimizer_case("optim_adam_wd", "adam", weight_decay=0.05)
+    optimizer_case("optim_adamw", "adamw", weight_decay=0.1)
+
+    for name, (tensors, config) in cases.items():
+        write_safetensors(os.path.join(HERE, name + ".safetensors"), tensors, config)
+    print(f"wrote {len(cases)} fixtures to {HERE}")
+
+
+if __name__ == "__main__":
+    main()
