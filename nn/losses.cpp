@@ -1,6 +1,7 @@
 // Losses: value and gradient side by side (see nn/losses.h).
 #include "nn/losses.h"
 
+#include <algorithm>
 #include <cmath>
 #include <cstdlib>
 #include <sstream>
@@ -212,9 +213,12 @@ void ssimLossBackward(T* dpred, const T* pred, const T* target, const SsimLossDe
 
 CompositeLoss CompositeLoss::parse(const std::string& text) {
     CompositeLoss loss;
-    std::stringstream stream(text);
-    std::string term;
-    while (std::getline(stream, term, '+')) {
+    size_t start = 0;
+    while (start <= text.size()) {
+        const size_t plus = std::min(text.find('+', start), text.size());
+        const std::string term = text.substr(start, plus - start);
+        start = plus + 1;
+        if (term.empty()) throw Error("loss '" + text + "' has an empty term");
         LossTerm t;
         std::string name = term;
         const size_t star = term.find('*');
@@ -235,7 +239,6 @@ CompositeLoss CompositeLoss::parse(const std::string& text) {
             throw Error("loss '" + text + "': unknown term '" + name + "' (ssim, l1, mse)");
         loss.terms.push_back(t);
     }
-    if (loss.terms.empty()) throw Error("loss '" + text + "' has no terms");
     return loss;
 }
 

@@ -169,6 +169,57 @@ def optimizer_case(name, kind, steps=5, **kw):
     cases[name] = (tensors, {"layer": "optimizer", "kind": kind, "steps": steps, "lrs": lrs, **kw})
 
 
+class Seed2020(torch.nn.Module):
+    """spec/seed-cnn.md as dejag builds it (nn/model.cpp builtinArchitecture("seed2020"))."""
+
+    def __init__(self):
+        super().__init__()
+        nn = torch.nn
+        self.conv1 = nn.Conv2d(1, 32, 5, padding=2)
+        self.conv2 = nn.Conv2d(32, 32, 3, padding=1)
+        self.conv3 = nn.Conv2d(32, 64, 1)
+        self.conv4 = nn.Conv2d(64, 128, 3, padding=1)
+        self.up1 = nn.ConvTranspose2d(128, 64, 3, stride=2, padding=1, output_padding=1)
+        self.up2 = nn.ConvTranspose2d(64, 1, 3, stride=2, padding=1, output_padding=1)
+
+    def forward(self, x):
+        x = F.relu(self.conv2(F.relu(self.conv1(x))))
+        x = F.relu(self.conv3(F.max_pool2d(x, 2)))
+        x = F.relu(self.conv4(F.max_pool2d(x, 2)))
+        return torch.sigmoid(self.up2(F.relu(self.up1(x))))
+
+
+def seed2020_adam_case(steps=5, lr=1e-3):
+    """5 Adam steps of seed2020 on one fixed batch with the 1 - SSIM loss: loss per step, final weights."""
+    model = Seed2020().double()
+    initial = {}
+    for name, p in model.named_parameters():
+        value = f32(*p.shape, low=-0.15, high=0.15) if name.endswith("weight") else f32(*p.shape, low=-0.05, high=0.05)
+        initial[name] = value
+        with torch.no_grad():
+            p.copy_(value.double())
+    target = f32(2, 1, 16, 16, low=0.0, high=1.0)
+    inputs = (target + f32(2, 1, 16, 16, low=-0.15, high=0.15)).clamp(0, 1)
+    opt = torch.optim.Adam(model.parameters(), lr=lr)
+    losses, first_gradients = [], {}
+    for step in range(steps):
+        opt.zero_grad()
+        loss = ssim_loss(model(inputs.double()), target.double())
+        loss.backward()
+        if step == 0:  # the whole graph's backward, before Adam touches anything
+            first_gradients = {n: p.grad.detach().clone().float() for n, p in model.named_parameters()}
+        opt.step()
+        losses.append(loss.item())
+    tensors = {"input": inputs, "target": target, "losses": torch.tensor(losses, dtype=torch.float64)}
+    for name, value in first_gradients.items():
+        tensors["grad0." + name] = value
+    for name, value in initial.items():
+        tensors["initial." + name] = value
+    for name, p in model.named_parameters():
+        tensors["final." + name] = p.detach().clone().float()  # F32 keeps the fixture small
+    cases["seed2020_adam5"] = (tensors, {"layer": "seed2020_training", "steps": steps, "lr": lr, "loss": "ssim"})
+
+
 def main():
     os.makedirs(HERE, exist_ok=True)
     # Conv2D: kernel sizes 1, 3, 5; strides; same/valid/explicit/asymmetric padding; dilation; bias or not.
@@ -217,6 +268,8 @@ def main():
     optimizer_case("optim_adam", "adam", betas=(0.9, 0.999), eps=1e-8)
     optimizer_case("optim_adam_wd", "adam", weight_decay=0.05)
     optimizer_case("optim_adamw", "adamw", weight_decay=0.1)
+    # The whole graph: 5 Adam steps of seed2020.
+    seed2020_adam_case()
 
     for name, (tensors, config) in cases.items():
         write_safetensors(os.path.join(HERE, name + ".safetensors"), tensors, config)

@@ -1,0 +1,657 @@
+#include "nn/model.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstring>
+
+#include "base/error.h"
+#include "nn/init.h"
+#include "nn/safetensors.h"
+
+namespace dejag::nn {
+namespace {
+
+enum class Op { Conv2d, ConvTranspose2d, MaxPool2d, Activation, Add, Concat, Upsample, PixelShuffle, Count };
+constexpr const char* opNames[] = {"conv2d", "conv_transpose2d", "maxpool2d", "activation",
+                                   "add",    "concat",           "upsample",  "pixel_shuffle"};
+static_assert(sizeof(opNames) / sizeof(opNames[0]) == size_t(Op::Count), "every op needs a name");
+
+Op parseOp(const std::string& name, const std::string& node) {
+    for (int i = 0; i < int(Op::Count); ++i)
+        if (name == opNames[i]) return Op(i);
+    throw Error("node '" + node + "': unknown op '" + name + "'");
+}
+
+struct Node {
+    std::string name;
+    Op op = Op::Conv2d;
+    std::vector<int> inputs;  // indices of earlier nodes, -1 = the model input
+    int inChannels = 0, outChannels = 0;
+    // conv2d / conv_transpose2d / maxpool2d
+    int kernel = 3, stride = 1, dilation = 1, outputPadding = 0;
+    bool samePadding = false;
+    int padding = 0;
+    bool bias = true;
+    ActivationDesc activation{Activation::None};
+    // upsample / pixel_shuffle
+    bool bilinear = false;
+    int factor = 2;
+    int64_t weightOffset = -1, biasOffset = -1;
+
+    // Per forward: the output, the pre-activation of fused layers, argmax of pools, gradients.
+    Tensor preActivation, output, gradient, preActivationGradient;
+    std::vector<int32_t> argmax;
+};
+
+void ensureShape(Tensor& t, const Shape& shape) {
+    if (t.shape() != shape || t.data() == nullptr) t = Tensor(shape);
+}
+
+}  // namespace
+
+struct Model::Impl {
+    nlohmann::json architecture;
+    std::string name;
+    int inputChannels = 0;
+    int outputNode = -1;
+    std::vector<Node> nodes;
+    std::vector<ParameterInfo> parameters;
+    std::vector<float> params, grads;
+    std::string init = "he_normal";
+    const Tensor* lastInput = nullptr;
+    Shape lastInputShape;
+
+    Conv2dDesc convDesc(const Node& n, const Shape& in) const {
+        Conv2dDesc d;
+        d.batch = in[0], d.inChannels = in[1], d.inHeight = in[2], d.inWidth = in[3];
+        d.outChannels = n.outChannels, d.kernelHeight = d.kernelWidth = n.kernel;
+        d.strideH = d.strideW = n.stride;
+        d.dilationH = d.dilationW = n.dilation;
+        d.bias = n.bias;
+        if (n.samePadding)
+            d.setSamePadding();
+        else
+            d.padTop = d.padBottom = d.padLeft = d.padRight = n.padding;
+        return d;
+    }
+    ConvTranspose2dDesc convTransposeDesc(const Node& n, const Shape& in) const {
+        ConvTranspose2dDesc d;
+        d.batch = in[0], d.inChannels = in[1], d.inHeight = in[2], d.inWidth = in[3];
+        d.outChannels = n.outChannels, d.kernelHeight = d.kernelWidth = n.kernel;
+        d.strideH = d.strideW = n.stride;
+        d.padH = d.padW = n.padding;
+        d.outputPaddingH = d.outputPaddingW = n.outputPadding;
+        d.dilationH = d.dilationW = n.dilation;
+        d.bias = n.bias;
+        return d;
+    }
+    MaxPool2dDesc poolDesc(const Node& n, const Shape& in) const {
+        MaxPool2dDesc d;
+        d.batch = in[0], d.channels = in[1], d.inHeight = in[2], d.inWidth = in[3];
+        d.kernel = n.kernel, d.stride = n.stride;
+        return d;
+    }
+    ResampleDesc resampleDesc(const Node& n, const Shape& in) const {
+        return {in[0], in[1], in[2], in[3], n.factor};
+    }
+
+    // Output shape of node i given its input shapes (validating them).
+    Shape nodeOutputShape(const Node& n, const std::vector<Shape>& ins) const {
+        const Shape& in = ins[0];
+        auto fail = [&](const std::string& what) { return Error("node '" + n.name + "': " + what); };
+        try {
+            switch (n.op) {
+                case Op::Conv2d: {
+                    const Conv2dDesc d = convDesc(n, in);
+                    d.validate();
+                    return {in[0], n.outChannels, d.outHeight(), d.outWidth()};
+                }
+                case Op::ConvTranspose2d: {
+                    const ConvTranspose2dDesc d = convTransposeDesc(n, in);
+                    d.validate();
+                    return {in[0], n.outChannels, d.outHeight(), d.outWidth()};
+                }
+                case Op::MaxPool2d: {
+                    const MaxPool2dDesc d = poolDesc(n, in);
+                    d.validate();
+                    return {in[0], in[1], d.outHeight(), d.outWidth()};
+                }
+                case Op::Activation:
+                    return in;
+                case Op::Add:
+                    if (ins[1] != in)
+                        throw fail("adds " + shapeToString(in) + " and " + shapeToString(ins[1]) +
+                                   " (shapes differ)");
+                    return in;
+                case Op::Concat: {
+                    Shape out = in;
+                    out[1] = 0;
+                    for (const Shape& s : ins) {
+                        if (s[0] != in[0] || s[2] != in[2] || s[3] != in[3])
+                            throw fail("concatenates " + shapeToString(in) + " and " + shapeToString(s));
+                        out[1] += s[1];
+                    }
+                    return out;
+                }
+                case Op::Upsample:
+                    return {in[0], in[1], in[2] * n.factor, in[3] * n.factor};
+                case Op::PixelShuffle:
+                    return {in[0], in[1] / (n.factor * n.factor), in[2] * n.factor, in[3] * n.factor};
+                case Op::Count:
+                    break;
+            }
+        } catch (const Error& e) {
+            const std::string message = e.what();
+            if (message.rfind("node '", 0) == 0) throw;
+            throw fail(message);
+        }
+        throw fail("bad op");
+    }
+
+    std::vector<Shape> inputShapes(const Node& n, const std::vector<Shape>& shapes,
+                                   const Shape& input) const {
+        std::vector<Shape> ins;
+        for (int i : n.inputs) ins.push_back(i < 0 ? input : shapes[size_t(i)]);
+        return ins;
+    }
+
+    const Tensor& inputTensor(int index) const {
+        return index < 0 ? *lastInput : nodes[size_t(index)].output;
+    }
+};
+
+Model::Model(std::unique_ptr<Impl> impl) : impl_(std::move(impl)) {}
+Model::Model(Model&&) noexcept = default;
+Model& Model::operator=(Model&&) noexcept = default;
+Model::~Model() = default;
+
+Model Model::fromArchitecture(const nlohmann::json& a) {
+    auto impl = std::make_unique<Impl>();
+    impl->architecture = a;
+    auto fail = [](const std::string& what) { return Error("architecture: " + what); };
+    if (!a.is_object()) throw fail("not a JSON object");
+    try {
+        impl->name = a.value("name", "model");
+        impl->inputChannels = a.at("input_channels").get<int>();
+        impl->init = a.value("init", "he_normal");
+        if (impl->init != "he_normal" && impl->init != "glorot_uniform")
+            throw fail("init must be he_normal or glorot_uniform, not '" + impl->init + "'");
+        if (impl->inputChannels < 1 || impl->inputChannels > 4096)
+            throw fail("input_channels must be 1..4096");
+        const auto& nodes = a.at("nodes");
+        if (!nodes.is_array() || nodes.empty()) throw fail("nodes must be a non-empty array");
+        std::map<std::string, int> indexOf;
+        std::vector<int> channels;  // per node
+        int64_t offset = 0;
+        for (const auto& j : nodes) {
+            Node n;
+            n.name = j.at("name").get<std::string>();
+            if (n.name.empty() || n.name == "input" || indexOf.count(n.name))
+                throw fail("node name '" + n.name + "' is empty, reserved or repeated");
+            n.op = parseOp(j.at("op").get<std::string>(), n.name);
+            for (const auto& input : j.at("inputs")) {
+                const std::string source = input.get<std::string>();
+                if (source == "input")
+                    n.inputs.push_back(-1);
+                else if (indexOf.count(source))
+                    n.inputs.push_back(indexOf[source]);
+                else
+                    throw Error("node '" + n.name + "': input '" + source +
+                                "' is not 'input' or an earlier node");
+            }
+            const size_t wantInputs = (n.op == Op::Add) ? 2 : (n.op == Op::Concat ? 0 : 1);
+            if ((wantInputs && n.inputs.size() != wantInputs) || (n.op == Op::Concat && n.inputs.size() < 2))
+                throw Error("node '" + n.name + "': " + opNames[int(n.op)] + " takes " +
+                            (n.op == Op::Concat ? std::string("two or more inputs")
+                                                : std::to_string(wantInputs) + " input(s)"));
+            auto channelsOf = [&](int i) { return i < 0 ? impl->inputChannels : channels[size_t(i)]; };
+            n.inChannels = channelsOf(n.inputs[0]);
+            auto readActivation = [&](const nlohmann::json& src) {
+                n.activation.kind = parseActivation(src.value("activation", "none"));
+                n.activation.slope = src.value("slope", 0.01f);
+                n.activation.low = src.value("low", 0.0f);
+                n.activation.high = src.value("high", 1.0f);
+            };
+            switch (n.op) {
+                case Op::Conv2d:
+                case Op::ConvTranspose2d: {
+                    n.outChannels = j.at("out_channels").get<int>();
+                    n.kernel = j.at("kernel").get<int>();
+                    n.stride = j.value("stride", n.op == Op::Conv2d ? 1 : 2);
+                    n.dilation = j.value("dilation", 1);
+                    n.bias = j.value("bias", true);
+                    if (j.contains("padding") && j["padding"].is_string()) {
+                        const std::string mode = j["padding"];
+                        if (mode == "same" && n.op == Op::Conv2d)
+                            n.samePadding = true;
+                        else if (mode != "valid")
+                            throw Error("node '" + n.name + "': padding '" + mode + "'");
+                    } else {
+                        n.padding = j.value("padding", 0);
+                    }
+                    n.outputPadding = j.value("output_padding", 0);
+                    readActivation(j);
+                    if (n.outChannels < 1 || n.kernel < 1 || n.stride < 1 || n.dilation < 1 || n.padding < 0)
+                        throw Error("node '" + n.name +
+                                    "': out_channels, kernel, stride and dilation must be >= 1");
+                    const int64_t weights = int64_t(n.inChannels) * n.outChannels * n.kernel * n.kernel;
+                    ParameterInfo w;
+                    w.name = n.name + ".weight";
+                    w.shape = n.op == Op::Conv2d ? Shape{n.outChannels, n.inChannels, n.kernel, n.kernel}
+                                                 : Shape{n.inChannels, n.outChannels, n.kernel, n.kernel};
+                    w.offset = n.weightOffset = offset;
+                    w.fanIn = int64_t(n.inChannels) * n.kernel * n.kernel;
+                    w.fanOut = int64_t(n.outChannels) * n.kernel * n.kernel;
+                    impl->parameters.push_back(w);
+                    offset += weights;
+                    if (n.bias) {
+                        ParameterInfo b;
+                        b.name = n.name + ".bias";
+                        b.shape = {n.outChannels};
+                        b.offset = n.biasOffset = offset;
+                        b.isBias = true;
+                        impl->parameters.push_back(b);
+                        offset += n.outChannels;
+                    }
+                    break;
+                }
+                case Op::MaxPool2d:
+                    n.kernel = j.value("kernel", 2);
+                    n.stride = j.value("stride", n.kernel);
+                    n.outChannels = n.inChannels;
+                    break;
+                case Op::Activation:
+                    readActivation(j);
+                    n.outChannels = n.inChannels;
+                    break;
+                case Op::Add:
+                    if (channelsOf(n.inputs[1]) != n.inChannels)
+                        throw Error("node '" + n.name + "': adds " + std::to_string(n.inChannels) + " and " +
+                                    std::to_string(channelsOf(n.inputs[1])) + " channels");
+                    n.outChannels = n.inChannels;
+                    break;
+                case Op::Concat:
+                    n.outChannels = 0;
+                    for (int i : n.inputs) n.outChannels += channelsOf(i);
+                    break;
+                case Op::Upsample: {
+                    const std::string mode = j.value("mode", "nearest");
+                    if (mode != "nearest" && mode != "bilinear")
+                        throw Error("node '" + n.name + "': upsample mode '" + mode + "'");
+                    n.bilinear = mode == "bilinear";
+                    n.factor = j.value("factor", 2);
+                    n.outChannels = n.inChannels;
+                    break;
+                }
+                case Op::PixelShuffle:
+                    n.factor = j.value("factor", 2);
+                    if (n.factor < 1 || n.inChannels % (n.factor * n.factor))
+                        throw Error("node '" + n.name + "': " + std::to_string(n.inChannels) +
+                                    " channels are not a multiple of factor^2");
+                    n.outChannels = n.inChannels / (n.factor * n.factor);
+                    break;
+                case Op::Count:
+                    break;
+            }
+            if ((n.op == Op::Upsample || n.op == Op::PixelShuffle) && (n.factor < 1 || n.factor > 16))
+                throw Error("node '" + n.name + "': factor must be 1..16");
+            indexOf[n.name] = int(impl->nodes.size());
+            channels.push_back(n.outChannels);
+            impl->nodes.push_back(std::move(n));
+        }
+        const std::string output = a.value("output", impl->nodes.back().name);
+        if (!indexOf.count(output)) throw fail("output '" + output + "' is not a node");
+        impl->outputNode = indexOf[output];
+        impl->params.assign(size_t(offset), 0.0f);
+        impl->grads.assign(size_t(offset), 0.0f);
+    } catch (const nlohmann::json::exception& e) {
+        throw fail(std::string("bad field (") + e.what() + ")");
+    }
+    return Model(std::move(impl));
+}
+
+nlohmann::json Model::builtinArchitecture(const std::string& name, const ModelOptions& options) {
+    using nlohmann::json;
+    auto conv = [](const std::string& n, const std::string& in, int out, int k, const std::string& act,
+                   int stride = 1) {
+        return json{{"name", n},   {"op", "conv2d"},   {"inputs", {in}},    {"out_channels", out},
+                    {"kernel", k}, {"stride", stride}, {"padding", "same"}, {"activation", act}};
+    };
+    if (name == "seed2020") {
+        // spec/seed-cnn.md. Activations are not published: ReLU inside, sigmoid at the end (output in
+        // (0, 1) like the [0, 1] luminance input). Transposed convs: 3x3, stride 2, padding 1,
+        // output_padding 1, so each exactly doubles the size (H and W must be multiples of 4).
+        json nodes = json::array();
+        nodes.push_back(conv("conv1", "input", 32, 5, "relu"));
+        nodes.push_back(conv("conv2", "conv1", 32, 3, "relu"));
+        nodes.push_back({{"name", "pool1"}, {"op", "maxpool2d"}, {"inputs", {"conv2"}}, {"kernel", 2}});
+        nodes.push_back(conv("conv3", "pool1", 64, 1, "relu"));
+        nodes.push_back({{"name", "pool2"}, {"op", "maxpool2d"}, {"inputs", {"conv3"}}, {"kernel", 2}});
+        nodes.push_back(conv("conv4", "pool2", 128, 3, "relu"));
+        nodes.push_back({{"name", "up1"},
+                         {"op", "conv_transpose2d"},
+                         {"inputs", {"conv4"}},
+                         {"out_channels", 64},
+                         {"kernel", 3},
+                         {"stride", 2},
+                         {"padding", 1},
+                         {"output_padding", 1},
+                         {"activation", "relu"}});
+        nodes.push_back({{"name", "up2"},
+                         {"op", "conv_transpose2d"},
+                         {"inputs", {"up1"}},
+                         {"out_channels", 1},
+                         {"kernel", 3},
+                         {"stride", 2},
+                         {"padding", 1},
+                         {"output_padding", 1},
+                         {"activation", "sigmoid"}});
+        return {{"name", "seed2020"},
+                {"input_channels", 1},
+                {"init", "glorot_uniform"},
+                {"nodes", nodes},
+                {"output", "up2"}};
+    }
+    if (name == "fast") {
+        // Residual RGB: output = input + correction. The correction runs at half resolution: a stride-2
+        // conv in, (depth - 2) convs, a conv to 4 x channels and a pixel shuffle back to full resolution.
+        const int w = options.width, c = options.channels;
+        if (w < 1 || options.depth < 2 || c < 1) throw Error("the fast family needs width >= 1, depth >= 2");
+        json nodes = json::array();
+        nodes.push_back(conv("down", "input", w, 3, "relu", 2));
+        std::string previous = "down";
+        for (int i = 1; i <= options.depth - 2; ++i) {
+            nodes.push_back(conv("body" + std::to_string(i), previous, w, 3, "relu"));
+            previous = "body" + std::to_string(i);
+        }
+        nodes.push_back(conv("to_subpixels", previous, 4 * c, 3, "none"));
+        nodes.push_back(
+            {{"name", "shuffle"}, {"op", "pixel_shuffle"}, {"inputs", {"to_subpixels"}}, {"factor", 2}});
+        nodes.push_back({{"name", "residual"}, {"op", "add"}, {"inputs", {"input", "shuffle"}}});
+        return {{"name", "fast"},       {"input_channels", c},
+                {"init", "he_normal"},  {"nodes", nodes},
+                {"output", "residual"}, {"family", {{"width", w}, {"depth", options.depth}}}};
+    }
+    throw Error("unknown built-in architecture '" + name + "' (seed2020, fast)");
+}
+
+Model Model::builtin(const std::string& name, const ModelOptions& options) {
+    return fromArchitecture(builtinArchitecture(name, options));
+}
+
+const nlohmann::json& Model::architecture() const {
+    return impl_->architecture;
+}
+const std::string& Model::name() const {
+    return impl_->name;
+}
+int Model::inputChannels() const {
+    return impl_->inputChannels;
+}
+int Model::outputChannels() const {
+    return impl_->nodes[size_t(impl_->outputNode)].outChannels;
+}
+const std::vector<ParameterInfo>& Model::parameters() const {
+    return impl_->parameters;
+}
+int64_t Model::parameterCount() const {
+    return int64_t(impl_->params.size());
+}
+float* Model::parameterData() {
+    return impl_->params.data();
+}
+const float* Model::parameterData() const {
+    return impl_->params.data();
+}
+float* Model::gradientData() {
+    return impl_->grads.data();
+}
+const float* Model::gradientData() const {
+    return impl_->grads.data();
+}
+
+const ParameterInfo& Model::parameter(const std::string& name) const {
+    for (const ParameterInfo& p : impl_->parameters)
+        if (p.name == name) return p;
+    throw Error("model '" + impl_->name + "' has no parameter '" + name + "'");
+}
+
+void Model::initialize(uint64_t seed) {
+    Rng rng(seed);
+    for (const ParameterInfo& p : impl_->parameters) {
+        float* data = impl_->params.data() + p.offset;
+        const int64_t count = shapeNumel(p.shape);
+        if (p.isBias)
+            std::fill(data, data + count, 0.0f);
+        else if (impl_->init == "glorot_uniform")
+            glorotUniform(data, count, p.fanIn, p.fanOut, rng);
+        else
+            heNormal(data, count, p.fanIn, rng);
+    }
+}
+
+Shape Model::outputShape(const Shape& input) const {
+    if (input.size() != 4 || input[1] != impl_->inputChannels)
+        throw Error("model '" + impl_->name + "' takes (N, " + std::to_string(impl_->inputChannels) +
+                    ", H, W) input, not " + shapeToString(input));
+    std::vector<Shape> shapes;
+    for (const Node& n : impl_->nodes)
+        shapes.push_back(impl_->nodeOutputShape(n, impl_->inputShapes(n, shapes, input)));
+    return shapes[size_t(impl_->outputNode)];
+}
+
+int64_t Model::macs(const Shape& input) const {
+    outputShape(input);
+    std::vector<Shape> shapes;
+    int64_t total = 0;
+    for (const Node& n : impl_->nodes) {
+        const std::vector<Shape> ins = impl_->inputShapes(n, shapes, input);
+        if (n.op == Op::Conv2d) total += impl_->convDesc(n, ins[0]).macs();
+        if (n.op == Op::ConvTranspose2d) total += impl_->convTransposeDesc(n, ins[0]).macs();
+        shapes.push_back(impl_->nodeOutputShape(n, ins));
+    }
+    return total;
+}
+
+const Tensor& Model::forward(const Tensor& input) {
+    Impl& m = *impl_;
+    if (input.rank() != 4 || input.dim(1) != m.inputChannels)
+        throw Error("model '" + m.name + "' takes (N, " + std::to_string(m.inputChannels) +
+                    ", H, W) input, not " + shapeToString(input.shape()));
+    if (const int64_t bad = input.findNonFinite(); bad >= 0)
+        throw Error("the model input has a non-finite value (" + std::to_string(input.data()[bad]) +
+                    ") at element " + std::to_string(bad));
+    m.lastInput = &input;
+    m.lastInputShape = input.shape();
+    std::vector<Shape> shapes;
+    for (Node& n : m.nodes) {
+        const std::vector<Shape> ins = m.inputShapes(n, shapes, input.shape());
+        const Shape out = m.nodeOutputShape(n, ins);
+        shapes.push_back(out);
+        ensureShape(n.output, out);
+        const float* x = m.inputTensor(n.inputs[0]).data();
+        const float* weight = n.weightOffset >= 0 ? m.params.data() + n.weightOffset : nullptr;
+        const float* bias = n.biasOffset >= 0 ? m.params.data() + n.biasOffset : nullptr;
+        const bool fused =
+            (n.op == Op::Conv2d || n.op == Op::ConvTranspose2d) && n.activation.kind != Activation::None;
+        float* target = n.output.data();
+        if (fused) {
+            ensureShape(n.preActivation, out);
+            target = n.preActivation.data();
+        }
+        switch (n.op) {
+            case Op::Conv2d:
+                conv2dForward(target, x, weight, bias, m.convDesc(n, ins[0]));
+                break;
+            case Op::ConvTranspose2d:
+                convTranspose2dForward(target, x, weight, bias, m.convTransposeDesc(n, ins[0]));
+                break;
+            case Op::MaxPool2d:
+                n.argmax.resize(size_t(shapeNumel(out)));
+                maxPool2dForward(target, n.argmax.data(), x, m.poolDesc(n, ins[0]));
+                break;
+            case Op::Activation:
+                activationForward(target, x, shapeNumel(out), n.activation);
+                break;
+            case Op::Add:
+                addForward(target, x, m.inputTensor(n.inputs[1]).data(), shapeNumel(out));
+                break;
+            case Op::Concat: {
+                std::vector<const float*> sources;
+                std::vector<int64_t> channels;
+                for (size_t i = 0; i < n.inputs.size(); ++i) {
+                    sources.push_back(m.inputTensor(n.inputs[i]).data());
+                    channels.push_back(ins[i][1]);
+                }
+                concatForward(target, sources, channels, out[0], out[2] * out[3]);
+                break;
+            }
+            case Op::Upsample:
+                if (n.bilinear)
+                    upsampleBilinearForward(target, x, m.resampleDesc(n, ins[0]));
+                else
+                    upsampleNearestForward(target, x, m.resampleDesc(n, ins[0]));
+                break;
+            case Op::PixelShuffle:
+                pixelShuffleForward(target, x, m.resampleDesc(n, ins[0]));
+                break;
+            case Op::Count:
+                break;
+        }
+        if (fused) activationForward(n.output.data(), n.preActivation.data(), shapeNumel(out), n.activation);
+    }
+    return m.nodes[size_t(m.outputNode)].output;
+}
+
+void Model::backward(const Tensor& doutput) {
+    Impl& m = *impl_;
+    if (!m.lastInput) throw Error("backward() before forward()");
+    Node& outputNode = m.nodes[size_t(m.outputNode)];
+    doutput.requireShape(outputNode.output.shape(), "model output gradient");
+    std::fill(m.grads.begin(), m.grads.end(), 0.0f);
+    for (Node& n : m.nodes) {
+        ensureShape(n.gradient, n.output.shape());
+        n.gradient.zero();
+    }
+    std::memcpy(outputNode.gradient.data(), doutput.data(), doutput.byteSize());
+    std::vector<Shape> shapes;
+    for (const Node& n : m.nodes) shapes.push_back(n.output.shape());
+
+    for (int i = int(m.nodes.size()) - 1; i >= 0; --i) {
+        Node& n = m.nodes[size_t(i)];
+        const std::vector<Shape> ins = m.inputShapes(n, shapes, m.lastInputShape);
+        const float* x = m.inputTensor(n.inputs[0]).data();
+        float* dx = n.inputs[0] >= 0 ? m.nodes[size_t(n.inputs[0])].gradient.data() : nullptr;
+        const float* weight = n.weightOffset >= 0 ? m.params.data() + n.weightOffset : nullptr;
+        float* dweight = n.weightOffset >= 0 ? m.grads.data() + n.weightOffset : nullptr;
+        float* dbias = n.biasOffset >= 0 ? m.grads.data() + n.biasOffset : nullptr;
+        const int64_t count = n.output.numel();
+        const float* g = n.gradient.data();
+        const bool fused =
+            (n.op == Op::Conv2d || n.op == Op::ConvTranspose2d) && n.activation.kind != Activation::None;
+        if (fused) {
+            ensureShape(n.preActivationGradient, n.output.shape());
+            n.preActivationGradient.zero();
+            activationBackward(n.preActivationGradient.data(), g, n.preActivation.data(), n.output.data(),
+                               count, n.activation);
+            g = n.preActivationGradient.data();
+        }
+        switch (n.op) {
+            case Op::Conv2d:
+                conv2dBackward(dx, dweight, dbias, g, x, weight, m.convDesc(n, ins[0]));
+                break;
+            case Op::ConvTranspose2d:
+                convTranspose2dBackward(dx, dweight, dbias, g, x, weight, m.convTransposeDesc(n, ins[0]));
+                break;
+            case Op::MaxPool2d:
+                if (dx) maxPool2dBackward(dx, g, n.argmax.data(), m.poolDesc(n, ins[0]));
+                break;
+            case Op::Activation:
+                if (dx) activationBackward(dx, g, x, n.output.data(), count, n.activation);
+                break;
+            case Op::Add: {
+                float* db = n.inputs[1] >= 0 ? m.nodes[size_t(n.inputs[1])].gradient.data() : nullptr;
+                addBackward(dx, db, g, count);
+                break;
+            }
+            case Op::Concat: {
+                std::vector<float*> grads;
+                std::vector<int64_t> channels;
+                for (size_t k = 0; k < n.inputs.size(); ++k) {
+                    grads.push_back(n.inputs[k] >= 0 ? m.nodes[size_t(n.inputs[k])].gradient.data()
+                                                     : nullptr);
+                    channels.push_back(ins[k][1]);
+                }
+                concatBackward(grads, g, channels, n.output.dim(0), n.output.dim(2) * n.output.dim(3));
+                break;
+            }
+            case Op::Upsample:
+                if (dx) {
+                    if (n.bilinear)
+                        upsampleBilinearBackward(dx, g, m.resampleDesc(n, ins[0]));
+                    else
+                        upsampleNearestBackward(dx, g, m.resampleDesc(n, ins[0]));
+                }
+                break;
+            case Op::PixelShuffle:
+                if (dx) pixelShuffleBackward(dx, g, m.resampleDesc(n, ins[0]));
+                break;
+            case Op::Count:
+                break;
+        }
+    }
+}
+
+void saveModel(const std::string& path, const Model& model,
+               const std::map<std::string, std::string>& metadata) {
+    std::vector<TensorToWrite> tensors;
+    for (const ParameterInfo& p : model.parameters())
+        tensors.push_back({p.name, p.shape, model.parameterData() + p.offset});
+    std::map<std::string, std::string> all = metadata;
+    all["dejag.architecture"] = model.architecture().dump();
+    all["dejag.format"] = "dejag-model-1";
+    writeSafetensors(path, tensors, all);
+}
+
+Model loadModel(const std::string& path, std::map<std::string, std::string>* metadata) {
+    const SafetensorsFile file = readSafetensors(path);
+    auto fail = [&](const std::string& what) { return Error("model '" + path + "': " + what); };
+    auto it = file.metadata.find("dejag.architecture");
+    if (it == file.metadata.end()) throw fail("no dejag.architecture in the metadata (not a dejag model)");
+    nlohmann::json architecture;
+    try {
+        architecture = nlohmann::json::parse(it->second);
+    } catch (const nlohmann::json::exception&) {
+        throw fail("dejag.architecture is not JSON");
+    }
+    Model model = [&] {
+        try {
+            return Model::fromArchitecture(architecture);
+        } catch (const Error& e) {
+            throw fail(e.what());
+        }
+    }();
+    for (const ParameterInfo& p : model.parameters()) {
+        auto tensor = file.tensors.find(p.name);
+        if (tensor == file.tensors.end()) throw fail("parameter '" + p.name + "' is missing");
+        if (tensor->second.shape != p.shape)
+            throw fail("parameter '" + p.name + "' has shape " + shapeToString(tensor->second.shape) +
+                       ", the architecture needs " + shapeToString(p.shape));
+        const std::vector<float> values = tensor->second.asFloat();
+        for (size_t i = 0; i < values.size(); ++i)
+            if (!std::isfinite(values[i]))
+                throw fail("parameter '" + p.name + "' has a non-finite value at " + std::to_string(i));
+        std::memcpy(model.parameterData() + p.offset, values.data(), values.size() * sizeof(float));
+    }
+    if (file.tensors.size() != model.parameters().size()) {
+        for (const auto& [name, tensor] : file.tensors) {
+            bool known = false;
+            for (const ParameterInfo& p : model.parameters()) known |= p.name == name;
+            if (!known) throw fail("tensor '" + name + "' is not a parameter of the architecture");
+        }
+    }
+    if (metadata) *metadata = file.metadata;
+    return model;
+}
+
+}  // namespace dejag::nn

@@ -1,0 +1,103 @@
+// dejag/nn: a model is a named graph of layers described in JSON, with all parameters in one flat buffer.
+//
+// Architecture JSON (the node names are the weight file's keys: "conv1.weight", "conv1.bias"):
+//   {"name": "seed2020", "input_channels": 1, "init": "glorot_uniform",
+//    "nodes": [{"name": "conv1", "op": "conv2d", "inputs": ["input"], "out_channels": 32, "kernel": 5,
+//               "padding": "same", "activation": "relu"}, ...],
+//    "output": "up2"}
+// Ops and their fields:
+//   conv2d            out_channels, kernel, stride (1), padding ("same" | "valid" | n), dilation (1),
+//                     bias (true), activation ("none")
+//   conv_transpose2d  out_channels, kernel, stride (2), padding (0), output_padding (0), bias, activation
+//   maxpool2d         kernel (2), stride (= kernel)
+//   activation        activation, slope, low, high
+//   add               two inputs of one shape (residual)
+//   concat            inputs along channels
+//   upsample          mode ("nearest" | "bilinear"), factor (2)
+//   pixel_shuffle     factor (2)
+// Nodes are listed in topological order: inputs name "input" or earlier nodes. A DAG, so skips work.
+//
+// forward() keeps what backward() needs; backward() zeroes the gradient buffer, then fills it.
+#pragma once
+
+#include <cstdint>
+#include <map>
+#include <memory>
+#include <nlohmann/json.hpp>
+#include <string>
+#include <vector>
+
+#include "nn/layers.h"
+#include "nn/tensor.h"
+
+namespace dejag::nn {
+
+struct ParameterInfo {
+    std::string name;  // "conv1.weight"
+    Shape shape;
+    int64_t offset = 0;  // into the flat parameter buffer
+    int64_t fanIn = 0, fanOut = 0;
+    bool isBias = false;
+};
+
+struct ModelOptions {
+    int width = 16, depth = 3;  // the "fast" residual family
+    int channels = 3;
+};
+
+class Model {
+  public:
+    // Throws dejag::Error naming the node and field at fault.
+    static Model fromArchitecture(const nlohmann::json& architecture);
+    // "seed2020": the reference network of spec/seed-cnn.md. "fast": the residual RGB family.
+    static Model builtin(const std::string& name, const ModelOptions& options = {});
+    static nlohmann::json builtinArchitecture(const std::string& name, const ModelOptions& options = {});
+
+    Model(Model&&) noexcept;
+    Model& operator=(Model&&) noexcept;
+    ~Model();
+
+    const nlohmann::json& architecture() const;
+    const std::string& name() const;
+    int inputChannels() const;
+    int outputChannels() const;
+
+    const std::vector<ParameterInfo>& parameters() const;
+    const ParameterInfo& parameter(const std::string& name) const;
+    int64_t parameterCount() const;
+    float* parameterData();
+    const float* parameterData() const;
+    float* gradientData();
+    const float* gradientData() const;
+
+    // Seeded initialisation: the architecture's "init" (glorot_uniform or he_normal) for weights, zero
+    // biases.
+    void initialize(uint64_t seed);
+
+    // input (N, Cin, H, W). Throws dejag::Error on a wrong channel count, a size the graph cannot take,
+    // or a NaN/Inf in the input. The returned tensor lives until the next forward().
+    const Tensor& forward(const Tensor& input);
+    // doutput: gradient of the loss w.r.t. the last forward's output. Fills gradientData().
+    void backward(const Tensor& doutput);
+    // Output shape for an input shape, without running.
+    Shape outputShape(const Shape& inputShape) const;
+    // Multiply-adds of one forward at this input size, total and per input pixel.
+    int64_t macs(const Shape& inputShape) const;
+
+  private:
+    struct Impl;
+    explicit Model(std::unique_ptr<Impl> impl);
+    std::unique_ptr<Impl> impl_;
+};
+
+// Model files: safetensors with the parameters under their names and metadata
+//   dejag.architecture  the architecture JSON
+//   dejag.format        "dejag-model-1"
+//   plus any caller metadata (input colour space, normalisation, provenance...).
+void saveModel(const std::string& path, const Model& model,
+               const std::map<std::string, std::string>& metadata = {});
+// Validates the architecture, that every parameter is present with its exact shape, that nothing else is,
+// and that every value is finite. Throws dejag::Error naming the file and the problem.
+Model loadModel(const std::string& path, std::map<std::string, std::string>* metadata = nullptr);
+
+}  // namespace dejag::nn
