@@ -41,6 +41,7 @@ bench: build
 golden:
 	@scripts/install-deps --golden
 	/usr/bin/python3 tests/golden/make_metrics_golden.py
+	/usr/bin/python3 tests/golden/make_nn_golden.py
 
 format:
 	clang-format -i $$(git ls-files '*.cpp' '*.h')

@@ -348,6 +348,8 @@ nlohmann::json Model::builtinArchitecture(const std::string& name, const ModelOp
                          {"activation", "sigmoid"}});
         return {{"name", "seed2020"},
                 {"input_channels", 1},
+                {"input_colour", "luma 0.21R + 0.72G + 0.07B of sRGB-encoded values"},
+                {"normalisation", "[0, 1]"},
                 {"init", "glorot_uniform"},
                 {"nodes", nodes},
                 {"output", "up2"}};
@@ -368,9 +370,14 @@ nlohmann::json Model::builtinArchitecture(const std::string& name, const ModelOp
         nodes.push_back(
             {{"name", "shuffle"}, {"op", "pixel_shuffle"}, {"inputs", {"to_subpixels"}}, {"factor", 2}});
         nodes.push_back({{"name", "residual"}, {"op", "add"}, {"inputs", {"input", "shuffle"}}});
-        return {{"name", "fast"},       {"input_channels", c},
-                {"init", "he_normal"},  {"nodes", nodes},
-                {"output", "residual"}, {"family", {{"width", w}, {"depth", options.depth}}}};
+        return {{"name", "fast"},
+                {"input_channels", c},
+                {"input_colour", "sRGB-encoded RGB"},
+                {"normalisation", "[0, 1]"},
+                {"init", "he_normal"},
+                {"nodes", nodes},
+                {"output", "residual"},
+                {"family", {{"width", w}, {"depth", options.depth}}}};
     }
     throw Error("unknown built-in architecture '" + name + "' (seed2020, fast)");
 }
@@ -609,6 +616,8 @@ void saveModel(const std::string& path, const Model& model,
         tensors.push_back({p.name, p.shape, model.parameterData() + p.offset});
     std::map<std::string, std::string> all = metadata;
     all["dejag.architecture"] = model.architecture().dump();
+    all["dejag.input_colour"] = model.architecture().value("input_colour", "unspecified");
+    all["dejag.normalisation"] = model.architecture().value("normalisation", "unspecified");
     all["dejag.format"] = "dejag-model-1";
     writeSafetensors(path, tensors, all);
 }

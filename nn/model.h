@@ -2,6 +2,7 @@
 //
 // Architecture JSON (the node names are the weight file's keys: "conv1.weight", "conv1.bias"):
 //   {"name": "seed2020", "input_channels": 1, "init": "glorot_uniform",
+//    "input_colour": "luma ...", "normalisation": "[0, 1]",   (recorded in model files)
 //    "nodes": [{"name": "conv1", "op": "conv2d", "inputs": ["input"], "out_channels": 32, "kernel": 5,
 //               "padding": "same", "activation": "relu"}, ...],
 //    "output": "up2"}
@@ -93,7 +94,8 @@ class Model {
 // Model files: safetensors with the parameters under their names and metadata
 //   dejag.architecture  the architecture JSON
 //   dejag.format        "dejag-model-1"
-//   plus any caller metadata (input colour space, normalisation, provenance...).
+//   dejag.input_colour, dejag.normalisation   from the architecture
+//   plus any caller metadata (dejag.provenance: the command and data that made it, ...).
 void saveModel(const std::string& path, const Model& model,
                const std::map<std::string, std::string>& metadata = {});
 // Validates the architecture, that every parameter is present with its exact shape, that nothing else is,

@@ -157,10 +157,13 @@ TEST(Model, SaveLoadGivesIdenticalOutputs) {
     testing::TempDir dir;
     Model model = Model::builtin("fast");
     model.initialize(7);
-    saveModel(dir.file("m.safetensors"), model, {{"dejag.input_colour", "linear"}});
+    saveModel(dir.file("m.safetensors"), model, {{"dejag.provenance", "unit test"}});
     std::map<std::string, std::string> metadata;
     Model loaded = loadModel(dir.file("m.safetensors"), &metadata);
-    EXPECT_EQ(metadata["dejag.input_colour"], "linear");
+    EXPECT_EQ(metadata["dejag.provenance"], "unit test");
+    EXPECT_EQ(metadata["dejag.input_colour"], "sRGB-encoded RGB");
+    EXPECT_EQ(metadata["dejag.normalisation"], "[0, 1]");
+    EXPECT_EQ(metadata["dejag.format"], "dejag-model-1");
     EXPECT_EQ(loaded.name(), "fast");
     const Tensor input = randomTensor({1, 3, 16, 16}, 8);
     const Tensor expected = model.forward(input).clone();
