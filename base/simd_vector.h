@@ -8,6 +8,10 @@
 
 #include <cstring>
 
+#if !defined(DEJAG_SIMD_LEVEL_scalar)
+#include <immintrin.h>
+#endif
+
 #if !defined(DEJAG_SIMD_NAMESPACE)
 #error "simd_vector.h is for kernel sources compiled by dejag_add_simd_kernels()"
 #endif
@@ -40,11 +44,20 @@ inline void storeu(float* p, V v) {
     std::memcpy(p, &v, sizeof(V));
 }
 
-// Broadcast. (Not V{} + s: adding +0.0 is not an identity for -0.0, so the compiler would keep the add.)
+// Broadcast, through the set1 intrinsic so a value loaded from memory becomes one vbroadcastss from
+// that address. (Not V{} + s: adding +0.0 is not an identity for -0.0, so the compiler keeps the add.)
 template <class V>
 inline V splat(float s) {
     if constexpr (sizeof(V) == sizeof(float)) {
         return s;
+#if defined(DEJAG_SIMD_LEVEL_avx512)
+    } else if constexpr (sizeof(V) == 64) {
+        return V(_mm512_set1_ps(s));
+#endif
+#if defined(DEJAG_SIMD_LEVEL_avx2) || defined(DEJAG_SIMD_LEVEL_avx512)
+    } else if constexpr (sizeof(V) == 32) {
+        return V(_mm256_set1_ps(s));
+#endif
     } else {
         V v;
         for (int i = 0; i < int(sizeof(V) / sizeof(float)); ++i) v[i] = s;

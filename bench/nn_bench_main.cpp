@@ -1,0 +1,229 @@
+// dejag-bench-nn: dejag's convolution kernels side by side with oneDNN and libtorch, in one process.
+// Run through `dejag bench nn` (or `make bench`). oneDNN and libtorch are linked here only, never into nn/.
+//
+// Every case runs each library at each thread count: one warm-up, then the median of --repeat runs,
+// next to the machine's fp32 FMA peak measured in the same run. Each library works in its preferred
+// layout (dejag: blocked with a zero border; oneDNN: the format it picks with format_tag::any; libtorch:
+// NCHW), with layout conversions outside the timed region, and every library fuses bias and ReLU
+// (libtorch: an in-place relu_ after the convolution, which is how a libtorch user would write it).
+#include <cstdio>
+#include <cstdlib>
+#include <cstring>
+#include <functional>
+#include <nlohmann/json.hpp>
+#include <string>
+#include <vector>
+
+#include "base/error.h"
+#include "base/peak.h"
+#include "base/simd.h"
+#include "base/thread_pool.h"
+#include "base/timer.h"
+#include "nn/fast_conv.h"
+#include "nn/init.h"
+
+#if DEJAG_HAVE_ONEDNN
+#include <omp.h>
+#include <dnnl.hpp>
+#endif
+#if DEJAG_HAVE_LIBTORCH
+#include <torch/torch.h>
+#endif
+
+namespace {
+
+using namespace dejag;
+using namespace dejag::nn;
+
+struct Case {
+    std::string name;
+    int64_t inChannels, outChannels, kernel, height, width;
+};
+
+double medianMs(int repeat, const std::function<void()>& run) {
+    run();
+    std::vector<double> times;
+    for (int i = 0; i < repeat; ++i) {
+        Stopwatch watch;
+        run();
+        times.push_back(watch.elapsedMs());
+    }
+    return median(times);
+}
+
+void setAllThreads(int threads) {
+    setThreadCount(threads);
+#if DEJAG_HAVE_ONEDNN
+    omp_set_num_threads(threads);
+#endif
+#if DEJAG_HAVE_LIBTORCH
+    at::set_num_threads(threads);
+#endif
+}
+
+double benchDejag(const Case& c, int repeat) {
+    Conv2dDesc d;
+    d.batch = 1, d.inChannels = c.inChannels, d.outChannels = c.outChannels;
+    d.kernelHeight = d.kernelWidth = c.kernel;
+    d.padTop = d.padBottom = d.padLeft = d.padRight = int(c.kernel / 2);
+    d.inHeight = c.height, d.inWidth = c.width;
+    Rng rng(1);
+    std::vector<float> weight(size_t(d.weightCount())), bias(size_t(d.outChannels));
+    for (float& w : weight) w = rng.uniform(-0.1f, 0.1f);
+    for (float& b : bias) b = rng.uniform(-0.1f, 0.1f);
+    const FastConv2d conv(d, weight.data(), bias.data(), Activation::ReLU);
+    const int border = int(c.kernel / 2);
+    const BlockedShape inShape = conv.inputShape(border), outShape = conv.outputShape(border);
+    Tensor in = allocateBlocked(inShape), out = allocateBlocked(outShape);
+    std::vector<float> plain(size_t(c.inChannels * c.height * c.width));
+    for (float& v : plain) v = rng.uniform(0.0f, 1.0f);
+    toBlocked(in.data(), plain.data(), inShape);
+    return medianMs(repeat, [&] { conv.forward(out.data(), outShape, in.data(), inShape); });
+}
+
+double benchOneDnn(const Case& c, int repeat) {
+#if DEJAG_HAVE_ONEDNN
+    using namespace dnnl;
+    using tag = memory::format_tag;
+    using dt = memory::data_type;
+    engine eng(engine::kind::cpu, 0);
+    stream s(eng);
+    const memory::dims src{1, c.inChannels, c.height, c.width},
+        wei{c.outChannels, c.inChannels, c.kernel, c.kernel};
+    const memory::dims bia{c.outChannels}, dst{1, c.outChannels, c.height, c.width};
+    const memory::dims strides{1, 1}, pad{c.kernel / 2, c.kernel / 2};
+    const auto conv = convolution_forward::desc(
+        prop_kind::forward_inference, algorithm::convolution_auto, memory::desc(src, dt::f32, tag::any),
+        memory::desc(wei, dt::f32, tag::any), memory::desc(bia, dt::f32, tag::x),
+        memory::desc(dst, dt::f32, tag::any), strides, pad, pad);
+    post_ops ops;
+    ops.append_eltwise(1.0f, algorithm::eltwise_relu, 0.0f, 0.0f);
+    primitive_attr attr;
+    attr.set_post_ops(ops);
+    const auto pd = convolution_forward::primitive_desc(conv, attr, eng);
+    memory srcMem(pd.src_desc(), eng), weiMem(pd.weights_desc(), eng), biaMem(pd.bias_desc(), eng),
+        dstMem(pd.dst_desc(), eng);
+    auto fill = [](memory& m, float value) {
+        float* p = static_cast<float*>(m.get_data_handle());
+        const size_t n = m.get_desc().get_size() / sizeof(float);
+        for (size_t i = 0; i < n; ++i) p[i] = value * float(int(i % 13) - 6);
+    };
+    fill(srcMem, 0.05f), fill(weiMem, 0.01f), fill(biaMem, 0.01f);
+    convolution_forward primitive(pd);
+    return medianMs(repeat, [&] {
+        primitive.execute(s, {{DNNL_ARG_SRC, srcMem},
+                              {DNNL_ARG_WEIGHTS, weiMem},
+                              {DNNL_ARG_BIAS, biaMem},
+                              {DNNL_ARG_DST, dstMem}});
+        s.wait();
+    });
+#else
+    (void)c, (void)repeat;
+    return 0.0;
+#endif
+}
+
+double benchLibtorch(const Case& c, int repeat) {
+#if DEJAG_HAVE_LIBTORCH
+    torch::NoGradGuard noGrad;
+    torch::manual_seed(1);
+    const auto x = torch::rand({1, c.inChannels, c.height, c.width});
+    const auto w = torch::randn({c.outChannels, c.inChannels, c.kernel, c.kernel}) * 0.1;
+    const auto b = torch::randn({c.outChannels}) * 0.1;
+    return medianMs(repeat, [&] {
+        auto y = torch::conv2d(x, w, b, 1, c.kernel / 2);
+        torch::relu_(y);
+    });
+#else
+    (void)c, (void)repeat;
+    return 0.0;
+#endif
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+    bool json = false;
+    int repeat = 7;
+    std::vector<int> threadCounts = {1, 2};
+    std::string only;
+    for (int i = 1; i < argc; ++i) {
+        const std::string arg = argv[i];
+        if (arg == "--json")
+            json = true;
+        else if (arg == "--repeat" && i + 1 < argc)
+            repeat = std::max(1, std::atoi(argv[++i]));
+        else if (arg == "--threads" && i + 1 < argc) {
+            threadCounts.clear();
+            for (char* t = std::strtok(argv[++i], ","); t; t = std::strtok(nullptr, ","))
+                threadCounts.push_back(std::max(1, std::atoi(t)));
+        } else if (arg == "--case" && i + 1 < argc)
+            only = argv[++i];
+        else if (arg == "--help" || arg == "-h") {
+            std::printf(
+                "dejag bench nn [--json] [--repeat N] [--threads 1,2] [--case NAME]\n"
+                "dejag's fast convolution vs oneDNN and libtorch; median ms, GMAC/s, fraction of the\n"
+                "measured FMA peak, and peer time / dejag time (above 1: dejag is faster).\n");
+            return 0;
+        } else {
+            std::fprintf(stderr, "dejag bench nn: unknown argument '%s' (see --help)\n", arg.c_str());
+            return 2;
+        }
+    }
+    const std::vector<Case> cases = {
+        {"conv3x3 32->32 1920x1080", 32, 32, 3, 1080, 1920},
+        {"conv3x3 3->16 1920x1080", 3, 16, 3, 1080, 1920},
+        {"conv3x3 16->16 1920x1080", 16, 16, 3, 1080, 1920},
+        {"conv3x3 16->3 1920x1080", 16, 3, 3, 1080, 1920},
+        {"conv1x1 32->64 400x400", 32, 64, 1, 400, 400},
+        {"conv5x5 1->32 800x800 (seed2020 conv1)", 1, 32, 5, 800, 800},
+    };
+    try {
+        if (!json)
+            std::printf("%-40s %3s %6s %9s %8s %7s | %9s %6s | %9s %6s\n", "case", "thr", "simd", "dejag ms",
+                        "GMAC/s", "% peak", "oneDNN ms", "ratio", "torch ms", "ratio");
+        for (const Case& c : cases) {
+            if (!only.empty() && c.name.find(only) == std::string::npos) continue;
+            const double macs =
+                double(c.inChannels * c.outChannels * c.kernel * c.kernel * c.height * c.width);
+            for (int threads : threadCounts) {
+                setAllThreads(threads);
+                const FmaPeak peak = measureFmaPeak(100.0);
+                const double ours = benchDejag(c, repeat);
+                const double onednn = benchOneDnn(c, repeat);
+                const double libtorch = benchLibtorch(c, repeat);
+                const double gmacs = macs / (ours * 1e6);
+                nlohmann::json row = {
+                    {"name", c.name},
+                    {"threads", threads},
+                    {"simd", simdLevelName(activeSimdLevel())},
+                    {"ms", ours},
+                    {"gmacs", gmacs},
+                    {"peak_gmacs", peak.gmacsTotal},
+                    {"peak_fraction", gmacs / peak.gmacsTotal},
+                    {"onednn_ms", onednn > 0 ? nlohmann::json(onednn) : nlohmann::json(nullptr)},
+                    {"onednn_ratio", onednn > 0 ? nlohmann::json(onednn / ours) : nlohmann::json(nullptr)},
+                    {"libtorch_ms", libtorch > 0 ? nlohmann::json(libtorch) : nlohmann::json(nullptr)},
+                    {"libtorch_ratio",
+                     libtorch > 0 ? nlohmann::json(libtorch / ours) : nlohmann::json(nullptr)}};
+                if (json) {
+                    std::printf("%s\n", row.dump().c_str());
+                } else {
+                    std::printf("%-40s %3d %6s %9.2f %8.2f %6.1f%% | %9.2f %6.2f | %9.2f %6.2f\n",
+                                c.name.c_str(), threads, simdLevelName(activeSimdLevel()), ours, gmacs,
+                                100.0 * gmacs / peak.gmacsTotal, onednn, onednn > 0 ? onednn / ours : 0.0,
+                                libtorch, libtorch > 0 ? libtorch / ours : 0.0);
+                }
+                std::fflush(stdout);
+            }
+        }
+        if (!json)
+            std::printf(
+                "ratio = peer ms / dejag ms (above 1: dejag is faster). Peak: measured fp32 FMA rate at that "
+                "thread count.\n");
+    } catch (const std::exception& e) {
+        std::fprintf(stderr, "dejag bench nn: %s\n", e.what());
+        return 2;
+    }
+    return 0;
+}

@@ -1,0 +1,40 @@
+// dejag/nn: the blocked activation layout of the fast kernels.
+//
+// (N, C, H, W) activations are stored as (N, ceil(C / B), H + 2P, W + 2P, B): channels in blocks of
+// B = the SIMD width (16 for AVX-512, 8 for AVX2, 1 scalar), so one vector holds one pixel's B
+// channels, and a zero border of P pixels, so a k x k convolution with k <= 2P + 1 reads its padding
+// without a branch. Channels beyond C in the last block are zero. This is the layout oneDNN calls
+// nChw16c (nChw8c for AVX2); the border is dejag's addition (Open Image Denoise pads the same way).
+#pragma once
+
+#include <cstdint>
+
+#include "nn/tensor.h"
+
+namespace dejag::nn {
+
+struct BlockedShape {
+    int64_t batch = 1, channels = 1, height = 1, width = 1;
+    int block = 16;  // channels per block
+    int border = 1;  // zero pixels around each plane
+
+    int64_t channelBlocks() const { return (channels + block - 1) / block; }
+    int64_t paddedHeight() const { return height + 2 * border; }
+    int64_t paddedWidth() const { return width + 2 * border; }
+    int64_t rowStride() const { return paddedWidth() * block; }           // floats per padded row
+    int64_t planeStride() const { return paddedHeight() * rowStride(); }  // floats per channel block
+    int64_t imageStride() const { return channelBlocks() * planeStride(); }
+    int64_t floatCount() const { return batch * imageStride(); }
+    // Offset of pixel (y, x) of channel block cb of image n (y, x may be in [-border, size + border)).
+    int64_t offset(int64_t n, int64_t cb, int64_t y, int64_t x) const {
+        return n * imageStride() + cb * planeStride() + (y + border) * rowStride() + (x + border) * block;
+    }
+};
+
+// A zeroed tensor holding a blocked activation.
+Tensor allocateBlocked(const BlockedShape& shape);
+// (N, C, H, W) -> blocked (border and unused channels stay zero) and back.
+void toBlocked(float* blocked, const float* plain, const BlockedShape& shape);
+void fromBlocked(float* plain, const float* blocked, const BlockedShape& shape);
+
+}  // namespace dejag::nn

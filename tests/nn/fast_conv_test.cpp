@@ -1,0 +1,147 @@
+// The fast convolution against the reference kernel, on every SIMD path this CPU has: random shapes with
+// odd sizes, 1-3 channels and channel counts that are not multiples of the block.
+#include "nn/fast_conv.h"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+
+#include "base/error.h"
+#include "base/simd.h"
+#include "base/thread_pool.h"
+#include "nn/init.h"
+
+namespace dejag::nn {
+namespace {
+
+std::vector<SimdLevel> availableSimdLevels() {
+    std::vector<SimdLevel> levels;
+    for (int level = 0; level <= int(cpuSimdLevel()); ++level) levels.push_back(SimdLevel(level));
+    return levels;
+}
+
+}  // namespace
+
+void PrintTo(SimdLevel level, std::ostream* out) {
+    *out << simdLevelName(level);
+}
+
+namespace {
+
+class FastConv : public ::testing::TestWithParam<SimdLevel> {
+  protected:
+    void SetUp() override {
+        original_ = activeSimdLevel();
+        setSimdLevel(GetParam());
+    }
+    void TearDown() override { setSimdLevel(original_); }
+    SimdLevel original_ = SimdLevel::Scalar;
+};
+
+std::vector<float> randomValues(size_t n, Rng& rng, float scale = 1.0f) {
+    std::vector<float> v(n);
+    for (float& x : v) x = rng.uniform(-scale, scale);
+    return v;
+}
+
+// Runs the fast path on plain tensors (converting to and from the blocked layout).
+std::vector<float> runFast(const FastConv2d& conv, const std::vector<float>& input, int border) {
+    const BlockedShape inShape = conv.inputShape(border), outShape = conv.outputShape(border);
+    Tensor in = allocateBlocked(inShape), out = allocateBlocked(outShape);
+    toBlocked(in.data(), input.data(), inShape);
+    conv.forward(out.data(), outShape, in.data(), inShape);
+    // The border must stay zero for the next layer.
+    for (int64_t y = -border; y < outShape.height + border; ++y)
+        for (int64_t x = -border; x < outShape.width + border; ++x) {
+            if (y >= 0 && y < outShape.height && x >= 0 && x < outShape.width) continue;
+            for (int64_t cb = 0; cb < outShape.channelBlocks(); ++cb)
+                for (int c = 0; c < outShape.block; ++c)
+                    EXPECT_EQ(out.data()[outShape.offset(0, cb, y, x) + c], 0.0f);
+        }
+    const Conv2dDesc& d = conv.desc();
+    std::vector<float> plain(size_t(d.batch * d.outChannels * d.inHeight * d.inWidth));
+    fromBlocked(plain.data(), out.data(), outShape);
+    return plain;
+}
+
+TEST_P(FastConv, MatchesTheReferenceOnRandomShapes) {
+    Rng rng(77);
+    const Activation activations[] = {Activation::None, Activation::ReLU, Activation::LeakyReLU,
+                                      Activation::Clamp};
+    for (int trial = 0; trial < 30; ++trial) {
+        Conv2dDesc d;
+        d.batch = 1 + rng.below(2);
+        d.inChannels = 1 + rng.below(trial < 10 ? 3 : 40);
+        d.outChannels = 1 + rng.below(trial % 3 == 0 ? 3 : 40);
+        const int k = int(1 + 2 * rng.below(3));  // 1, 3, 5
+        d.kernelHeight = d.kernelWidth = k;
+        d.padTop = d.padBottom = d.padLeft = d.padRight = k / 2;
+        d.inHeight = 1 + rng.below(19);
+        d.inWidth = 1 + rng.below(41);
+        d.bias = rng.below(2) == 1;
+        const Activation activation = activations[trial % 4];
+        SCOPED_TRACE("trial " + std::to_string(trial) + ": " + std::to_string(d.inChannels) + "->" +
+                     std::to_string(d.outChannels) + " k" + std::to_string(k) + " " +
+                     std::to_string(d.inHeight) + "x" + std::to_string(d.inWidth));
+        const auto input = randomValues(size_t(d.batch * d.inChannels * d.inHeight * d.inWidth), rng);
+        const auto weight = randomValues(size_t(d.weightCount()), rng, 0.3f);
+        const auto bias = randomValues(size_t(d.outChannels), rng);
+
+        std::vector<float> want(size_t(d.batch * d.outChannels * d.inHeight * d.inWidth));
+        conv2dForward(want.data(), input.data(), weight.data(), d.bias ? bias.data() : nullptr, d);
+        ActivationDesc act;
+        act.kind = activation;
+        activationForward(want.data(), want.data(), int64_t(want.size()), act);
+
+        const FastConv2d conv(d, weight.data(), d.bias ? bias.data() : nullptr, activation);
+        const std::vector<float> got = runFast(conv, input, 2);
+        double worst = 0.0, scale = 1e-6;
+        for (size_t i = 0; i < want.size(); ++i) {
+            worst = std::max(worst, double(std::abs(got[i] - want[i])));
+            scale = std::max(scale, double(std::abs(want[i])));
+        }
+        EXPECT_LE(worst / scale, 1e-5);
+    }
+}
+
+TEST_P(FastConv, SameResultForEveryThreadCount) {
+    Rng rng(5);
+    Conv2dDesc d;
+    d.batch = 2, d.inChannels = 19, d.outChannels = 35, d.inHeight = 23, d.inWidth = 37;
+    d.padTop = d.padBottom = d.padLeft = d.padRight = 1;
+    const auto input = randomValues(size_t(2 * 19 * 23 * 37), rng);
+    const auto weight = randomValues(size_t(d.weightCount()), rng, 0.3f);
+    const auto bias = randomValues(35, rng);
+    const FastConv2d conv(d, weight.data(), bias.data(), Activation::ReLU);
+    setThreadCount(1);
+    const auto one = runFast(conv, input, 1);
+    setThreadCount(3);
+    const auto three = runFast(conv, input, 1);
+    setThreadCount(0);
+    EXPECT_EQ(one, three);
+}
+
+INSTANTIATE_TEST_SUITE_P(SimdLevels, FastConv, ::testing::ValuesIn(availableSimdLevels()),
+                         [](const ::testing::TestParamInfo<SimdLevel>& test) {
+                             return std::string(simdLevelName(test.param));
+                         });
+
+TEST(FastConvLimits, RefusesWhatItDoesNotSupport) {
+    Conv2dDesc d;
+    d.inChannels = 4, d.outChannels = 4, d.inHeight = 8, d.inWidth = 8;
+    d.strideH = d.strideW = 2;
+    d.padTop = d.padBottom = d.padLeft = d.padRight = 1;
+    std::vector<float> w(size_t(d.weightCount())), b(4);
+    EXPECT_FALSE(FastConv2d::supports(d));
+    EXPECT_THROW(FastConv2d(d, w.data(), b.data(), Activation::None), Error);
+    d.strideH = d.strideW = 1;
+    EXPECT_TRUE(FastConv2d::supports(d));
+    EXPECT_THROW(FastConv2d(d, w.data(), b.data(), Activation::Sigmoid), Error);
+    const FastConv2d conv(d, w.data(), b.data(), Activation::None);
+    Tensor in = allocateBlocked(conv.inputShape(0)), out = allocateBlocked(conv.outputShape(0));
+    EXPECT_THROW(conv.forward(out.data(), conv.outputShape(0), in.data(), conv.inputShape(0)),
+                 Error);  // border 0 < 1
+}
+
+}  // namespace
+}  // namespace dejag::nn
