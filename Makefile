@@ -34,8 +34,12 @@ test-asan:
 test-tsan:
 	$(MAKE) test PRESET=tsan
 
-bench: build
+# The benchmarks need the peers (oneDNN, libtorch): installed here, found by the configure step.
+bench:
+	@scripts/install-deps --bench
+	$(MAKE) build
 	$(BUILD_DIR)/dejag bench metrics
+	$(BUILD_DIR)/dejag bench nn
 
 # Regenerates the committed golden files from the Python references (needs Debian's python3-skimage).
 golden:

@@ -1,5 +1,10 @@
 // dejag bench TARGET: benchmarks that print figures next to the machine's measured peak.
+#include <unistd.h>
+
+#include <cerrno>
 #include <cstdio>
+#include <cstring>
+#include <filesystem>
 #include <memory>
 #include <nlohmann/json.hpp>
 #include <sstream>
@@ -71,10 +76,34 @@ void printRows(const std::vector<bench::Row>& rows, bool json) {
 
 }  // namespace
 
+// `dejag bench nn` runs dejag-bench-nn, built next to this binary: the peers (oneDNN, libtorch) are
+// linked only there, so they never load with dejag itself.
+[[noreturn]] void runNnBenchmark(const std::vector<std::string>& arguments) {
+    std::error_code ec;
+    const std::filesystem::path self = std::filesystem::read_symlink("/proc/self/exe", ec);
+    const std::filesystem::path tool = self.parent_path() / "dejag-bench-nn";
+    if (ec || !std::filesystem::exists(tool))
+        throw Error("'" + tool.string() + "' is missing: build it with 'make bench'");
+    std::vector<std::string> argv = {tool.string()};
+    argv.insert(argv.end(), arguments.begin(), arguments.end());
+    std::vector<char*> pointers;
+    for (std::string& a : argv) pointers.push_back(a.data());
+    pointers.push_back(nullptr);
+    std::fflush(stdout);
+    ::execv(tool.c_str(), pointers.data());
+    throw Error("cannot run '" + tool.string() + "': " + std::strerror(errno));
+}
+
 void registerBenchCommand(CLI::App& app) {
     CLI::App* bench =
         app.add_subcommand("bench", "Benchmarks: median times, throughput and the measured peak");
     bench->require_subcommand(1);
+
+    CLI::App* nn = bench->add_subcommand(
+        "nn", "nn kernels vs oneDNN and libtorch side by side (runs dejag-bench-nn; dejag bench nn --help)");
+    nn->prefix_command();  // everything after 'nn' goes to dejag-bench-nn
+    nn->set_help_flag();
+    nn->callback([nn] { runNnBenchmark(nn->remaining()); });
 
     auto args = std::make_shared<BenchArguments>();
     CLI::App* metrics = bench->add_subcommand(

@@ -208,5 +208,19 @@ TEST(Cli, BenchMetricsRunsSmallAndPrintsJson) {
     EXPECT_EQ(rows, 2);
 }
 
+TEST(Cli, BenchNnRunsTheKernelBenchmarkWithPeers) {
+    testing::TempDir dir;
+    const RunResult r = run("bench nn --case conv1x1 --repeat 1 --threads 1 --json", dir);
+    ASSERT_EQ(r.exitCode, 0) << r.err;
+    const nlohmann::json j = nlohmann::json::parse(r.out);
+    EXPECT_EQ(j["threads"].get<int>(), 1);
+    EXPECT_GT(j["ms"].get<double>(), 0.0);
+    EXPECT_GT(j["peak_fraction"].get<double>(), 0.0);
+    // Peers are optional (installed by make bench): a number when present, null otherwise.
+    for (const char* key : {"onednn_ratio", "libtorch_ratio"})
+        EXPECT_TRUE(j[key].is_number() || j[key].is_null()) << key;
+    expectOneLineError(run("bench nn --bogus", dir), "--bogus");
+}
+
 }  // namespace
 }  // namespace dejag
