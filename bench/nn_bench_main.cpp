@@ -37,7 +37,9 @@ using namespace dejag::nn;
 
 struct Case {
     std::string name;
-    int64_t inChannels, outChannels, kernel, height, width;
+    int64_t inChannels, outChannels, kernel, height, width;  // input size
+    bool transposed = false;  // ConvTranspose2D, stride 2, padding 1, output padding 1 (doubles the size)
+    int64_t macs() const { return inChannels * outChannels * kernel * kernel * height * width; }
 };
 
 double medianMs(int repeat, const std::function<void()>& run) {
@@ -62,17 +64,29 @@ void setAllThreads(int threads) {
 }
 
 double benchDejag(const Case& c, int repeat) {
-    Conv2dDesc d;
-    d.batch = 1, d.inChannels = c.inChannels, d.outChannels = c.outChannels;
-    d.kernelHeight = d.kernelWidth = c.kernel;
-    d.padTop = d.padBottom = d.padLeft = d.padRight = int(c.kernel / 2);
-    d.inHeight = c.height, d.inWidth = c.width;
     Rng rng(1);
-    std::vector<float> weight(size_t(d.weightCount())), bias(size_t(d.outChannels));
+    std::vector<float> weight(size_t(c.inChannels * c.outChannels * c.kernel * c.kernel)),
+        bias(size_t(c.outChannels));
     for (float& w : weight) w = rng.uniform(-0.1f, 0.1f);
     for (float& b : bias) b = rng.uniform(-0.1f, 0.1f);
-    const FastConv2d conv(d, weight.data(), bias.data(), Activation::ReLU);
-    const int border = int(c.kernel / 2);
+    auto make = [&]() {
+        if (c.transposed) {
+            ConvTranspose2dDesc d;
+            d.inChannels = c.inChannels, d.outChannels = c.outChannels, d.inHeight = c.height,
+            d.inWidth = c.width;
+            d.kernelHeight = d.kernelWidth = c.kernel;
+            d.strideH = d.strideW = 2, d.padH = d.padW = 1, d.outputPaddingH = d.outputPaddingW = 1;
+            return BlockedConv(d, weight.data(), bias.data(), Activation::ReLU);
+        }
+        Conv2dDesc d;
+        d.inChannels = c.inChannels, d.outChannels = c.outChannels, d.inHeight = c.height,
+        d.inWidth = c.width;
+        d.kernelHeight = d.kernelWidth = c.kernel;
+        d.padTop = d.padBottom = d.padLeft = d.padRight = int(c.kernel / 2);
+        return BlockedConv(d, weight.data(), bias.data(), Activation::ReLU);
+    };
+    const BlockedConv conv = make();
+    const int border = conv.requiredInputBorder();
     const BlockedShape inShape = conv.inputShape(border), outShape = conv.outputShape(border);
     Tensor in = allocateBlocked(inShape), out = allocateBlocked(outShape);
     std::vector<float> plain(size_t(c.inChannels * c.height * c.width));
@@ -88,33 +102,50 @@ double benchOneDnn(const Case& c, int repeat) {
     using dt = memory::data_type;
     engine eng(engine::kind::cpu, 0);
     stream s(eng);
+    const int64_t outH = c.transposed ? 2 * c.height : c.height, outW = c.transposed ? 2 * c.width : c.width;
     const memory::dims src{1, c.inChannels, c.height, c.width},
         wei{c.outChannels, c.inChannels, c.kernel, c.kernel};
-    const memory::dims bia{c.outChannels}, dst{1, c.outChannels, c.height, c.width};
-    const memory::dims strides{1, 1}, pad{c.kernel / 2, c.kernel / 2};
-    const auto conv = convolution_forward::desc(
-        prop_kind::forward_inference, algorithm::convolution_auto, memory::desc(src, dt::f32, tag::any),
-        memory::desc(wei, dt::f32, tag::any), memory::desc(bia, dt::f32, tag::x),
-        memory::desc(dst, dt::f32, tag::any), strides, pad, pad);
+    const memory::dims bia{c.outChannels}, dst{1, c.outChannels, outH, outW};
+    const memory::dims strides{c.transposed ? 2 : 1, c.transposed ? 2 : 1};
+    const memory::dims padLeft{c.kernel / 2, c.kernel / 2},
+        padRight{c.transposed ? 0 : c.kernel / 2, c.transposed ? 0 : c.kernel / 2};
+    const auto anySrc = memory::desc(src, dt::f32, tag::any), anyWei = memory::desc(wei, dt::f32, tag::any);
+    const auto plainBias = memory::desc(bia, dt::f32, tag::x), anyDst = memory::desc(dst, dt::f32, tag::any);
     post_ops ops;
     ops.append_eltwise(1.0f, algorithm::eltwise_relu, 0.0f, 0.0f);
     primitive_attr attr;
     attr.set_post_ops(ops);
-    const auto pd = convolution_forward::primitive_desc(conv, attr, eng);
-    memory srcMem(pd.src_desc(), eng), weiMem(pd.weights_desc(), eng), biaMem(pd.bias_desc(), eng),
-        dstMem(pd.dst_desc(), eng);
+    primitive primitiveToRun;
+    memory::desc srcDesc, weiDesc, biaDesc, dstDesc;
+    if (c.transposed) {
+        const auto desc =
+            deconvolution_forward::desc(prop_kind::forward_inference, algorithm::deconvolution_direct, anySrc,
+                                        anyWei, plainBias, anyDst, strides, padLeft, padRight);
+        const auto pd = deconvolution_forward::primitive_desc(desc, attr, eng);
+        srcDesc = pd.src_desc(), weiDesc = pd.weights_desc(), biaDesc = pd.bias_desc(),
+        dstDesc = pd.dst_desc();
+        primitiveToRun = deconvolution_forward(pd);
+    } else {
+        const auto desc =
+            convolution_forward::desc(prop_kind::forward_inference, algorithm::convolution_auto, anySrc,
+                                      anyWei, plainBias, anyDst, strides, padLeft, padRight);
+        const auto pd = convolution_forward::primitive_desc(desc, attr, eng);
+        srcDesc = pd.src_desc(), weiDesc = pd.weights_desc(), biaDesc = pd.bias_desc(),
+        dstDesc = pd.dst_desc();
+        primitiveToRun = convolution_forward(pd);
+    }
+    memory srcMem(srcDesc, eng), weiMem(weiDesc, eng), biaMem(biaDesc, eng), dstMem(dstDesc, eng);
     auto fill = [](memory& m, float value) {
         float* p = static_cast<float*>(m.get_data_handle());
         const size_t n = m.get_desc().get_size() / sizeof(float);
         for (size_t i = 0; i < n; ++i) p[i] = value * float(int(i % 13) - 6);
     };
     fill(srcMem, 0.05f), fill(weiMem, 0.01f), fill(biaMem, 0.01f);
-    convolution_forward primitive(pd);
     return medianMs(repeat, [&] {
-        primitive.execute(s, {{DNNL_ARG_SRC, srcMem},
-                              {DNNL_ARG_WEIGHTS, weiMem},
-                              {DNNL_ARG_BIAS, biaMem},
-                              {DNNL_ARG_DST, dstMem}});
+        primitiveToRun.execute(s, {{DNNL_ARG_SRC, srcMem},
+                                   {DNNL_ARG_WEIGHTS, weiMem},
+                                   {DNNL_ARG_BIAS, biaMem},
+                                   {DNNL_ARG_DST, dstMem}});
         s.wait();
     });
 #else
@@ -128,8 +159,15 @@ double benchLibtorch(const Case& c, int repeat) {
     torch::NoGradGuard noGrad;
     torch::manual_seed(1);
     const auto x = torch::rand({1, c.inChannels, c.height, c.width});
-    const auto w = torch::randn({c.outChannels, c.inChannels, c.kernel, c.kernel}) * 0.1;
     const auto b = torch::randn({c.outChannels}) * 0.1;
+    if (c.transposed) {
+        const auto w = torch::randn({c.inChannels, c.outChannels, c.kernel, c.kernel}) * 0.1;
+        return medianMs(repeat, [&] {
+            auto y = torch::conv_transpose2d(x, w, b, 2, 1, 1);
+            torch::relu_(y);
+        });
+    }
+    const auto w = torch::randn({c.outChannels, c.inChannels, c.kernel, c.kernel}) * 0.1;
     return medianMs(repeat, [&] {
         auto y = torch::conv2d(x, w, b, 1, c.kernel / 2);
         torch::relu_(y);
@@ -177,6 +215,7 @@ int main(int argc, char** argv) {
         {"conv3x3 16->3 1920x1080", 16, 3, 3, 1080, 1920},
         {"conv1x1 32->64 400x400", 32, 64, 1, 400, 400},
         {"conv5x5 1->32 800x800 (seed2020 conv1)", 1, 32, 5, 800, 800},
+        {"convT3x3 s2 128->64 200x200", 128, 64, 3, 200, 200, true},
     };
     try {
         if (!json)

@@ -1,7 +1,7 @@
 #include "nn/fast_conv.h"
 
 #include <algorithm>
-#include <cstring>
+#include <array>
 
 #include "base/error.h"
 #include "base/simd.h"
@@ -9,6 +9,10 @@
 #include "nn/fast_conv_kernels.h"
 
 namespace dejag::nn {
+
+namespace {
+constexpr int kMaxTaps = 256;
+}
 
 Tensor allocateBlocked(const BlockedShape& shape) {
     return Tensor({shape.floatCount()});
@@ -40,78 +44,168 @@ void fromBlocked(float* plain, const float* blocked, const BlockedShape& s) {
     });
 }
 
-bool FastConv2d::supports(const Conv2dDesc& d) {
-    return d.strideH == 1 && d.strideW == 1 && d.dilationH == 1 && d.dilationW == 1 &&
-           d.kernelHeight == d.kernelWidth && d.kernelHeight % 2 == 1 && d.padTop == d.kernelHeight / 2 &&
-           d.padBottom == d.padTop && d.padLeft == d.padTop && d.padRight == d.padTop;
+BlockedConv::BlockedConv(const Conv2dDesc& d, const float* weight, const float* bias, Activation activation)
+    : activation_(activation), block_(simdFloatLanes(activeSimdLevel())) {
+    d.validate();
+    batch_ = d.batch, inChannels_ = d.inChannels, inHeight_ = d.inHeight, inWidth_ = d.inWidth;
+    outChannels_ = d.outChannels, outHeight_ = d.outHeight(), outWidth_ = d.outWidth();
+    macs_ = d.macs();
+    Pass pass;
+    pass.rows = outHeight_, pass.columns = outWidth_;
+    pass.inY0 = -d.padTop, pass.inStepY = d.strideH, pass.inX0 = -d.padLeft, pass.inStepX = d.strideW;
+    const int64_t B = block_, cinBlocks = (inChannels_ + B - 1) / B, coutBlocks = (outChannels_ + B - 1) / B;
+    const int64_t taps = d.kernelHeight * d.kernelWidth;
+    for (int64_t ky = 0; ky < d.kernelHeight; ++ky)
+        for (int64_t kx = 0; kx < d.kernelWidth; ++kx)
+            pass.taps.push_back({ky * d.dilationH, kx * d.dilationW});
+    pass.weights.assign(size_t(coutBlocks * cinBlocks * taps * B * B), 0.0f);
+    for (int64_t co = 0; co < outChannels_; ++co)
+        for (int64_t ci = 0; ci < inChannels_; ++ci)
+            for (int64_t t = 0; t < taps; ++t)
+                pass.weights[size_t((((co / B) * cinBlocks + ci / B) * taps + t) * B * B + (ci % B) * B +
+                                    co % B)] = weight[(co * inChannels_ + ci) * taps + t];
+    passes_.push_back(std::move(pass));
+    finish(d.bias ? bias : nullptr);
 }
 
-FastConv2d::FastConv2d(const Conv2dDesc& desc, const float* weight, const float* bias, Activation activation)
-    : desc_(desc), activation_(activation), block_(simdFloatLanes(activeSimdLevel())) {
-    desc.validate();
-    if (!supports(desc))
-        throw Error(
-            "FastConv2d: only stride 1, odd square kernels with 'same' padding (dilation 1) are supported");
-    if (activation == Activation::Sigmoid)
-        throw Error("FastConv2d: sigmoid is not fused; apply it afterwards");
-    const int64_t B = block_, k = desc.kernelHeight;
-    const int64_t cinBlocks = (desc.inChannels + B - 1) / B, coutBlocks = (desc.outChannels + B - 1) / B;
-    packedWeights_.assign(size_t(coutBlocks * cinBlocks * k * k * B * B), 0.0f);
-    for (int64_t co = 0; co < desc.outChannels; ++co)
-        for (int64_t ci = 0; ci < desc.inChannels; ++ci)
-            for (int64_t ky = 0; ky < k; ++ky)
-                for (int64_t kx = 0; kx < k; ++kx) {
-                    const int64_t packed =
-                        ((((co / B) * cinBlocks + ci / B) * k + ky) * k + kx) * B * B + (ci % B) * B + co % B;
-                    packedWeights_[size_t(packed)] = weight[((co * desc.inChannels + ci) * k + ky) * k + kx];
+BlockedConv::BlockedConv(const ConvTranspose2dDesc& d, const float* weight, const float* bias,
+                         Activation activation)
+    : activation_(activation), block_(simdFloatLanes(activeSimdLevel())) {
+    d.validate();
+    batch_ = d.batch, inChannels_ = d.inChannels, inHeight_ = d.inHeight, inWidth_ = d.inWidth;
+    outChannels_ = d.outChannels, outHeight_ = d.outHeight(), outWidth_ = d.outWidth();
+    macs_ = d.macs();
+    const int64_t B = block_, cinBlocks = (inChannels_ + B - 1) / B, coutBlocks = (outChannels_ + B - 1) / B;
+    // Output oy = iy * s - pad + ky * dilation. For the outputs oy = py + r * s of parity class py, the
+    // taps with (py + pad - ky * dilation) divisible by s reach them, from input row r + dy.
+    auto tapsFor = [](int64_t parity, int64_t pad, int64_t kernel, int64_t dilation, int64_t stride) {
+        std::vector<std::pair<int64_t, int64_t>> taps;  // (k, d)
+        for (int64_t k = 0; k < kernel; ++k) {
+            const int64_t v = parity + pad - k * dilation;
+            if (((v % stride) + stride) % stride == 0) taps.push_back({k, v / stride});
+        }
+        return taps;
+    };
+    for (int64_t py = 0; py < d.strideH; ++py)
+        for (int64_t px = 0; px < d.strideW; ++px) {
+            Pass pass;
+            pass.rows = py < outHeight_ ? (outHeight_ - py + d.strideH - 1) / d.strideH : 0;
+            pass.columns = px < outWidth_ ? (outWidth_ - px + d.strideW - 1) / d.strideW : 0;
+            if (pass.rows == 0 || pass.columns == 0) continue;
+            pass.outY0 = py, pass.outStepY = d.strideH, pass.outX0 = px, pass.outStepX = d.strideW;
+            const auto rowsTaps = tapsFor(py, d.padH, d.kernelHeight, d.dilationH, d.strideH);
+            const auto columnTaps = tapsFor(px, d.padW, d.kernelWidth, d.dilationW, d.strideW);
+            std::vector<std::pair<int64_t, int64_t>> kernelIndex;
+            for (const auto& [ky, dy] : rowsTaps)
+                for (const auto& [kx, dx] : columnTaps) {
+                    pass.taps.push_back({dy, dx});
+                    kernelIndex.push_back({ky, kx});
                 }
+            const int64_t taps = int64_t(pass.taps.size());
+            pass.weights.assign(size_t(std::max<int64_t>(1, coutBlocks * cinBlocks * taps * B * B)), 0.0f);
+            for (int64_t co = 0; co < outChannels_; ++co)
+                for (int64_t ci = 0; ci < inChannels_; ++ci)
+                    for (int64_t t = 0; t < taps; ++t) {
+                        const auto [ky, kx] = kernelIndex[size_t(t)];
+                        pass.weights[size_t((((co / B) * cinBlocks + ci / B) * taps + t) * B * B +
+                                            (ci % B) * B + co % B)] =
+                            weight[((ci * outChannels_ + co) * d.kernelHeight + ky) * d.kernelWidth + kx];
+                    }
+            passes_.push_back(std::move(pass));
+        }
+    finish(d.bias ? bias : nullptr);
+}
+
+void BlockedConv::finish(const float* bias) {
+    if (activation_ == Activation::Sigmoid)
+        throw Error("BlockedConv: sigmoid is not fused; apply it afterwards");
+    const int64_t B = block_, coutBlocks = (outChannels_ + B - 1) / B;
     paddedBias_.assign(size_t(coutBlocks * B), 0.0f);
-    if (bias && desc.bias) std::copy(bias, bias + desc.outChannels, paddedBias_.begin());
+    if (bias) std::copy(bias, bias + outChannels_, paddedBias_.begin());
+    // The border must hold every input pixel a tap reads outside the image.
+    int64_t border = 0;
+    for (const Pass& p : passes_) {
+        if (int64_t(p.taps.size()) > kMaxTaps) throw Error("BlockedConv: more than 256 kernel taps");
+        for (const Tap& t : p.taps) {
+            const int64_t top = p.inY0 + t.dy, bottom = p.inY0 + (p.rows - 1) * p.inStepY + t.dy;
+            const int64_t left = p.inX0 + t.dx, right = p.inX0 + (p.columns - 1) * p.inStepX + t.dx;
+            border = std::max({border, -top, -left, bottom - (inHeight_ - 1), right - (inWidth_ - 1)});
+        }
+    }
+    requiredBorder_ = int(border);
 }
 
-BlockedShape FastConv2d::inputShape(int border) const {
-    return {desc_.batch, desc_.inChannels, desc_.inHeight, desc_.inWidth, block_, border};
+BlockedShape BlockedConv::inputShape(int border) const {
+    return {batch_, inChannels_, inHeight_, inWidth_, block_, border};
 }
 
-BlockedShape FastConv2d::outputShape(int border) const {
-    return {desc_.batch, desc_.outChannels, desc_.inHeight, desc_.inWidth, block_, border};
+BlockedShape BlockedConv::outputShape(int border) const {
+    return {batch_, outChannels_, outHeight_, outWidth_, block_, border};
 }
 
-void FastConv2d::forward(float* out, const BlockedShape& outShape, const float* in,
-                         const BlockedShape& inShape) const {
-    if (inShape.block != block_ || outShape.block != block_)
-        throw Error("FastConv2d: blocked layout of " + std::to_string(inShape.block) + "/" +
-                    std::to_string(outShape.block) + " channels, the kernels use " + std::to_string(block_));
-    if (block_ != simdFloatLanes(activeSimdLevel()))
-        throw Error("FastConv2d: the SIMD level changed since packing");
-    if (inShape.border < desc_.kernelHeight / 2)
-        throw Error("FastConv2d: the input border is narrower than the kernel radius");
-    if (inShape.channels != desc_.inChannels || outShape.channels != desc_.outChannels ||
-        inShape.height != desc_.inHeight || inShape.width != desc_.inWidth ||
-        outShape.height != desc_.inHeight || outShape.width != desc_.inWidth ||
-        inShape.batch != desc_.batch || outShape.batch != desc_.batch)
-        throw Error("FastConv2d: tensor shapes do not match the convolution");
-    ConvRowsArgs args;
-    args.in = in, args.inShape = inShape, args.out = out, args.outShape = outShape;
-    args.weights = packedWeights_.data(), args.bias = paddedBias_.data();
-    args.kernel = int(desc_.kernelHeight);
-    args.activation.kind = activation_;
-    const int64_t coutBlocks = outShape.channelBlocks();
-    // Work items: (image, group of output blocks, band of rows); bands small enough for both cores to
-    // stay busy on small training patches, large enough to amortise the call at 1080p.
-    const int64_t rowsPerItem =
-        std::max<int64_t>(1, std::min<int64_t>(8, desc_.inHeight / (4 * threadCount()) + 1));
-    const int64_t bands = (desc_.inHeight + rowsPerItem - 1) / rowsPerItem;
-    const int64_t blockGroups = (coutBlocks + 1) / 2;
-    parallelFor(0, desc_.batch * blockGroups * bands, 1, [&](int64_t first, int64_t last) {
+void BlockedConv::forward(float* out, const BlockedShape& outShape, const float* in,
+                          const BlockedShape& inShape) const {
+    if (inShape.block != block_ || outShape.block != block_ || block_ != simdFloatLanes(activeSimdLevel()))
+        throw Error("BlockedConv: blocked layout of " + std::to_string(inShape.block) +
+                    " channels, the kernels use " + std::to_string(simdFloatLanes(activeSimdLevel())) +
+                    " (the SIMD level changed since packing?)");
+    if (inShape.border < requiredBorder_)
+        throw Error("BlockedConv: the input border (" + std::to_string(inShape.border) +
+                    ") is narrower than the " + std::to_string(requiredBorder_) + " pixels the kernel reads");
+    if (inShape.channels != inChannels_ || outShape.channels != outChannels_ || inShape.height != inHeight_ ||
+        inShape.width != inWidth_ || outShape.height != outHeight_ || outShape.width != outWidth_ ||
+        inShape.batch != batch_ || outShape.batch != batch_)
+        throw Error("BlockedConv: tensor shapes do not match the convolution");
+    const int64_t coutBlocks = outShape.channelBlocks(), blockGroups = (coutBlocks + 1) / 2;
+    // Tap offsets for this input layout; on the stack (no allocation per call).
+    std::array<std::array<int64_t, kMaxTaps>, 16> offsets{};
+    if (passes_.size() > offsets.size()) throw Error("BlockedConv: too many passes");
+    struct Item {
+        int64_t pass, bands, rowsPerBand;
+    };
+    std::array<Item, 16> items{};
+    int64_t totalItems = 0;
+    for (size_t p = 0; p < passes_.size(); ++p) {
+        const Pass& pass = passes_[p];
+        for (size_t t = 0; t < pass.taps.size(); ++t)
+            offsets[p][t] = pass.taps[t].dy * inShape.rowStride() + pass.taps[t].dx * block_;
+        // Bands small enough for both cores to stay busy on small patches, large enough to amortise.
+        const int64_t rowsPerBand =
+            std::max<int64_t>(1, std::min<int64_t>(8, pass.rows / (4 * threadCount()) + 1));
+        items[p] = {int64_t(p), (pass.rows + rowsPerBand - 1) / rowsPerBand, rowsPerBand};
+        totalItems += batch_ * blockGroups * items[p].bands;
+    }
+    parallelFor(0, totalItems, 1, [&](int64_t first, int64_t last) {
         for (int64_t item = first; item < last; ++item) {
-            ConvRowsArgs a = args;
-            a.image = item / (blockGroups * bands);
-            const int64_t group = (item / bands) % blockGroups;
+            int64_t index = item;
+            size_t p = 0;
+            while (index >= batch_ * blockGroups * items[p].bands)
+                index -= batch_ * blockGroups * items[p++].bands;
+            const Pass& pass = passes_[p];
+            ConvRowsArgs a;
+            a.in = in, a.inShape = inShape, a.out = out, a.outShape = outShape;
+            a.pass = {pass.rows,
+                      pass.columns,
+                      pass.outY0,
+                      pass.outStepY,
+                      pass.outX0,
+                      pass.outStepX,
+                      pass.inY0,
+                      pass.inStepY,
+                      pass.inX0,
+                      pass.inStepX,
+                      int(pass.taps.size()),
+                      offsets[p].data(),
+                      pass.weights.data()};
+            a.bias = paddedBias_.data();
+            a.activation.kind = activation_;
+            const int64_t bands = items[p].bands;
+            a.image = index / (blockGroups * bands);
+            const int64_t group = (index / bands) % blockGroups;
             a.outBlockBegin = group * 2;
             a.outBlockEnd = std::min(coutBlocks, a.outBlockBegin + 2);
-            a.rowBegin = (item % bands) * rowsPerItem;
-            a.rowEnd = std::min(desc_.inHeight, a.rowBegin + rowsPerItem);
+            a.rowBegin = (index % bands) * items[p].rowsPerBand;
+            a.rowEnd = std::min(pass.rows, a.rowBegin + items[p].rowsPerBand);
             DEJAG_SIMD_CALL(convForwardRows, a);
         }
     });

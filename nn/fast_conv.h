@@ -2,10 +2,13 @@
 // nn/blocked.h. They are tested against the reference kernels of nn/layers.h on every SIMD path.
 //
 // Design, measured against oneDNN in `dejag bench nn`: a register-blocked direct convolution. One
-// micro-kernel computes a tile of TW output pixels x B output channels (TW accumulators of one vector
-// each); for every input channel and kernel tap it loads one vector of B weights and multiplies it
-// with TW broadcast input values. Every weight vector is reused TW times and every input value B times,
-// so the loop is FMA-bound rather than load-bound, with no im2col copy and no packing of activations.
+// micro-kernel computes a tile of TW output pixels x 2 blocks of B output channels (2 TW accumulators of
+// one vector each); for every input channel and kernel tap it loads two vectors of B weights and
+// multiplies them with TW broadcast input values. Every weight vector is reused TW times and every input
+// value 2B times, so the loop is FMA-bound, with no im2col copy and no packing of activations.
+// A Conv2D of any stride, padding and dilation is one pass of that kernel over the output; a
+// ConvTranspose2D of stride s is s^2 passes, one per output parity class, each a small stride-1
+// convolution with the kernel taps that reach that class (no zero-stuffing, no scatter).
 #pragma once
 
 #include <vector>
@@ -15,30 +18,46 @@
 
 namespace dejag::nn {
 
-// A Conv2D (stride 1, odd square kernel, 'same' padding) ready to run: weights packed once as
-// [Cout blocks][Cin blocks][ky][kx][ci in block][co in block], bias padded to whole blocks.
-class FastConv2d {
+class BlockedConv {
   public:
-    // Throws dejag::Error if the descriptor is not one the fast path supports (see supports()).
-    FastConv2d(const Conv2dDesc& desc, const float* weight, const float* bias, Activation activation);
-    static bool supports(const Conv2dDesc& desc);
+    // Weights in the PyTorch layouts of nn/layers.h; packed once here. Throws dejag::Error for a sigmoid
+    // activation (not fused: apply it afterwards) or an invalid descriptor.
+    BlockedConv(const Conv2dDesc& desc, const float* weight, const float* bias, Activation activation);
+    BlockedConv(const ConvTranspose2dDesc& desc, const float* weight, const float* bias,
+                Activation activation);
 
-    // Shapes of the blocked input and output this convolution reads and writes. The input's border
-    // must be at least kernel / 2; the output's border is `outputBorder` (for the next layer).
+    // The input border the taps need (reads there must be zero), for the descriptor's input size.
+    int requiredInputBorder() const { return requiredBorder_; }
     BlockedShape inputShape(int border) const;
     BlockedShape outputShape(int border) const;
-    // in: blocked (N, Cin, H, W) with border >= k / 2; out: blocked (N, Cout, H, W), border untouched.
+    // in: blocked input with border >= requiredInputBorder(); out: blocked output, border untouched.
     void forward(float* out, const BlockedShape& outShape, const float* in,
                  const BlockedShape& inShape) const;
 
     int block() const { return block_; }
-    const Conv2dDesc& desc() const { return desc_; }
+    int64_t macs() const { return macs_; }
 
   private:
-    Conv2dDesc desc_;
+    struct Tap {
+        int64_t dy, dx;
+    };
+    struct Pass {
+        int64_t rows = 0, columns = 0;
+        int64_t outY0 = 0, outStepY = 1, outX0 = 0, outStepX = 1;
+        int64_t inY0 = 0, inStepY = 1, inX0 = 0, inStepX = 1;
+        std::vector<Tap> taps;
+        std::vector<float> weights;  // [Cout blocks][Cin blocks][taps][B ci][B co]
+    };
+    void finish(const float* bias);
+
+    int64_t batch_ = 1, inChannels_ = 1, inHeight_ = 1, inWidth_ = 1;
+    int64_t outChannels_ = 1, outHeight_ = 1, outWidth_ = 1;
     Activation activation_;
     int block_;
-    std::vector<float, std::allocator<float>> packedWeights_, paddedBias_;
+    int requiredBorder_ = 0;
+    int64_t macs_ = 0;
+    std::vector<Pass> passes_;
+    std::vector<float> paddedBias_;
 };
 
 }  // namespace dejag::nn

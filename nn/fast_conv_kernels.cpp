@@ -36,13 +36,14 @@ inline VFloat activate(VFloat v, const ActivationDesc& a) {
     }
 }
 
-// One tile: TW pixels starting at output (y, x) for CB output blocks starting at cob.
+// One tile: TW lattice columns starting at column j of lattice row r, for CB output blocks from cob.
 template <int TW, int CB>
-inline void convTile(const ConvRowsArgs& a, int64_t cob, int64_t y, int64_t x) {
+inline void convTile(const ConvRowsArgs& a, int64_t cob, int64_t r, int64_t j) {
     const BlockedShape& is = a.inShape;
-    const int k = a.kernel, radius = k / 2;
+    const ConvPass& p = a.pass;
     const int64_t cinBlocks = is.channelBlocks();
-    const int64_t weightBlockStride = cinBlocks * k * k * B * B;  // floats per output channel block
+    const int64_t weightBlockStride = cinBlocks * p.taps * B * B;  // floats per output channel block
+    const int64_t inPixelStep = p.inStepX * B;
     VFloat acc[CB][TW];
     for (int b = 0; b < CB; ++b) {
         const VFloat bias = loadu<VFloat>(a.bias + (cob + b) * B);
@@ -50,35 +51,33 @@ inline void convTile(const ConvRowsArgs& a, int64_t cob, int64_t y, int64_t x) {
     }
     for (int64_t cib = 0; cib < cinBlocks; ++cib) {
         const int channelsInBlock = int(std::min<int64_t>(B, is.channels - cib * B));
-        const float* inBlock = a.in + is.offset(a.image, cib, y - radius, x - radius);
-        const float* w = a.weights + cob * weightBlockStride + cib * k * k * B * B;
-        for (int ky = 0; ky < k; ++ky) {
-            const float* row = inBlock + ky * is.rowStride();
-            for (int kx = 0; kx < k; ++kx, w += B * B) {
-                const float* pixels = row + kx * B;
-                auto accumulateChannel = [&](int c) {
-                    VFloat weight[CB];
-                    for (int b = 0; b < CB; ++b) weight[b] = loadu<VFloat>(w + b * weightBlockStride + c * B);
+        const float* base = a.in + is.offset(a.image, cib, p.inY0 + r * p.inStepY, p.inX0 + j * p.inStepX);
+        const float* w = p.weights + cob * weightBlockStride + cib * p.taps * B * B;
+        for (int t = 0; t < p.taps; ++t, w += B * B) {
+            const float* pixels = base + p.tapOffsets[t];
+            auto accumulateChannel = [&](int c) {
+                VFloat weight[CB];
+                for (int b = 0; b < CB; ++b) weight[b] = loadu<VFloat>(w + b * weightBlockStride + c * B);
 #pragma GCC unroll 16
-                    for (int i = 0; i < TW; ++i) {
-                        const VFloat value = splat<VFloat>(pixels[i * B + c]);
-                        for (int b = 0; b < CB; ++b) acc[b][i] += value * weight[b];
-                    }
-                };
-                if (channelsInBlock == B) {
-#pragma GCC unroll 4
-                    for (int c = 0; c < B; ++c) accumulateChannel(c);
-                } else {
-                    // A partial last block (e.g. 3 RGB channels): skip the zero channels.
-                    for (int c = 0; c < channelsInBlock; ++c) accumulateChannel(c);
+                for (int i = 0; i < TW; ++i) {
+                    const VFloat value = splat<VFloat>(pixels[i * inPixelStep + c]);
+                    for (int b = 0; b < CB; ++b) acc[b][i] += value * weight[b];
                 }
+            };
+            if (channelsInBlock == B) {
+#pragma GCC unroll 4
+                for (int c = 0; c < B; ++c) accumulateChannel(c);
+            } else {
+                // A partial last block (e.g. 3 RGB channels): skip the zero channels.
+                for (int c = 0; c < channelsInBlock; ++c) accumulateChannel(c);
             }
         }
     }
     const BlockedShape& os = a.outShape;
+    const int64_t outPixelStep = p.outStepX * B;
     for (int b = 0; b < CB; ++b) {
-        float* out = a.out + os.offset(a.image, cob + b, y, x);
-        for (int i = 0; i < TW; ++i) storeu(out + i * B, activate(acc[b][i], a.activation));
+        float* out = a.out + os.offset(a.image, cob + b, p.outY0 + r * p.outStepY, p.outX0 + j * p.outStepX);
+        for (int i = 0; i < TW; ++i) storeu(out + i * outPixelStep, activate(acc[b][i], a.activation));
     }
 }
 
@@ -90,21 +89,21 @@ constexpr auto makeTailTable(std::index_sequence<I...>) {
 }
 
 template <int CB>
-void convRow(const ConvRowsArgs& a, int64_t cob, int64_t y) {
+void convRow(const ConvRowsArgs& a, int64_t cob, int64_t r) {
     static constexpr auto tails = makeTailTable<CB>(std::make_index_sequence<kTileWidth - 1>());
-    const int64_t width = a.outShape.width;
-    int64_t x = 0;
-    for (; x + kTileWidth <= width; x += kTileWidth) convTile<kTileWidth, CB>(a, cob, y, x);
-    if (x < width) tails[size_t(width - x - 1)](a, cob, y, x);
+    const int64_t columns = a.pass.columns;
+    int64_t j = 0;
+    for (; j + kTileWidth <= columns; j += kTileWidth) convTile<kTileWidth, CB>(a, cob, r, j);
+    if (j < columns) tails[size_t(columns - j - 1)](a, cob, r, j);
 }
 
 }  // namespace
 
 void convForwardRows(const ConvRowsArgs& a) {
-    for (int64_t y = a.rowBegin; y < a.rowEnd; ++y) {
+    for (int64_t r = a.rowBegin; r < a.rowEnd; ++r) {
         int64_t cob = a.outBlockBegin;
-        for (; cob + kTileBlocks <= a.outBlockEnd; cob += kTileBlocks) convRow<kTileBlocks>(a, cob, y);
-        for (; cob < a.outBlockEnd; ++cob) convRow<1>(a, cob, y);
+        for (; cob + kTileBlocks <= a.outBlockEnd; cob += kTileBlocks) convRow<kTileBlocks>(a, cob, r);
+        for (; cob < a.outBlockEnd; ++cob) convRow<1>(a, cob, r);
     }
 }
 

@@ -9,18 +9,30 @@
 
 namespace dejag::nn {
 
+// One pass of a direct convolution over a lattice of output pixels: output (outY0 + r * outStepY,
+// outX0 + j * outStepX) reads input pixels (inY0 + r * inStepY, inX0 + j * inStepX) + each tap's
+// offset. A stride-s Conv2D is one pass (in steps s, out steps 1); a stride-s ConvTranspose2D is s^2
+// passes, one per output parity class, each with the kernel taps that reach that class.
+struct ConvPass {
+    int64_t rows = 0, columns = 0;  // lattice size
+    int64_t outY0 = 0, outStepY = 1, outX0 = 0, outStepX = 1;
+    int64_t inY0 = 0, inStepY = 1, inX0 = 0, inStepX = 1;
+    int taps = 0;
+    const int64_t* tapOffsets = nullptr;  // float offset of each tap's input pixel from the base pixel
+    const float* weights = nullptr;       // [Cout blocks][Cin blocks][taps][B ci][B co]
+};
+
 struct ConvRowsArgs {
-    const float* in = nullptr;  // blocked input (border >= kernel / 2)
+    const float* in = nullptr;  // blocked input; every tap of the lattice lies inside its border
     BlockedShape inShape;
     float* out = nullptr;  // blocked output
     BlockedShape outShape;
-    const float* weights = nullptr;  // [Cout blocks][Cin blocks][k][k][B ci][B co]
-    const float* bias = nullptr;     // [Cout blocks * B]
-    int kernel = 3;
-    ActivationDesc activation;  // None, ReLU, LeakyReLU or Clamp (fused into the store)
+    ConvPass pass;
+    const float* bias = nullptr;  // [Cout blocks * B]
+    ActivationDesc activation;    // None, ReLU, LeakyReLU or Clamp (fused into the store)
     int64_t image = 0;
     int64_t outBlockBegin = 0, outBlockEnd = 0;  // output channel blocks of this work item
-    int64_t rowBegin = 0, rowEnd = 0;            // output rows of this work item
+    int64_t rowBegin = 0, rowEnd = 0;            // lattice rows of this work item
 };
 
 DEJAG_SIMD_DECLARE(void convForwardRows(const ConvRowsArgs& args);)

@@ -2,6 +2,8 @@
 // odd sizes, 1-3 channels and channel counts that are not multiples of the block.
 #include "nn/fast_conv.h"
 
+#include "nn/layers.h"
+
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -45,7 +47,8 @@ std::vector<float> randomValues(size_t n, Rng& rng, float scale = 1.0f) {
 }
 
 // Runs the fast path on plain tensors (converting to and from the blocked layout).
-std::vector<float> runFast(const FastConv2d& conv, const std::vector<float>& input, int border) {
+std::vector<float> runBlocked(const BlockedConv& conv, const std::vector<float>& input, int64_t outCount) {
+    const int border = conv.requiredInputBorder() + 1;
     const BlockedShape inShape = conv.inputShape(border), outShape = conv.outputShape(border);
     Tensor in = allocateBlocked(inShape), out = allocateBlocked(outShape);
     toBlocked(in.data(), input.data(), inShape);
@@ -58,49 +61,99 @@ std::vector<float> runFast(const FastConv2d& conv, const std::vector<float>& inp
                 for (int c = 0; c < outShape.block; ++c)
                     EXPECT_EQ(out.data()[outShape.offset(0, cb, y, x) + c], 0.0f);
         }
-    const Conv2dDesc& d = conv.desc();
-    std::vector<float> plain(size_t(d.batch * d.outChannels * d.inHeight * d.inWidth));
+    std::vector<float> plain(static_cast<size_t>(outCount));
     fromBlocked(plain.data(), out.data(), outShape);
     return plain;
 }
 
-TEST_P(FastConv, MatchesTheReferenceOnRandomShapes) {
+void expectClose(const std::vector<float>& got, const std::vector<float>& want) {
+    ASSERT_EQ(got.size(), want.size());
+    double worst = 0.0, scale = 1e-6;
+    for (size_t i = 0; i < want.size(); ++i) {
+        worst = std::max(worst, double(std::abs(got[i] - want[i])));
+        scale = std::max(scale, double(std::abs(want[i])));
+    }
+    EXPECT_LE(worst / scale, 1e-5);
+}
+
+const Activation kActivations[] = {Activation::None, Activation::ReLU, Activation::LeakyReLU,
+                                   Activation::Clamp};
+
+TEST_P(FastConv, Conv2dMatchesTheReferenceOnRandomShapes) {
     Rng rng(77);
-    const Activation activations[] = {Activation::None, Activation::ReLU, Activation::LeakyReLU,
-                                      Activation::Clamp};
-    for (int trial = 0; trial < 30; ++trial) {
+    for (int trial = 0; trial < 40; ++trial) {
         Conv2dDesc d;
         d.batch = 1 + rng.below(2);
         d.inChannels = 1 + rng.below(trial < 10 ? 3 : 40);
         d.outChannels = 1 + rng.below(trial % 3 == 0 ? 3 : 40);
         const int k = int(1 + 2 * rng.below(3));  // 1, 3, 5
-        d.kernelHeight = d.kernelWidth = k;
-        d.padTop = d.padBottom = d.padLeft = d.padRight = k / 2;
-        d.inHeight = 1 + rng.below(19);
-        d.inWidth = 1 + rng.below(41);
+        d.kernelHeight = k;
+        d.kernelWidth = trial % 5 == 4 ? int(1 + rng.below(4)) : k;  // some non-square kernels
+        if (trial % 2 == 0) {
+            d.padTop = d.padBottom = k / 2;
+            d.padLeft = d.padRight = int(d.kernelWidth / 2);
+        } else {  // strides, dilations, asymmetric padding
+            d.strideH = int(1 + rng.below(2)), d.strideW = int(1 + rng.below(3));
+            d.dilationH = int(1 + rng.below(2)), d.dilationW = int(1 + rng.below(2));
+            d.padTop = int(rng.below(3)), d.padBottom = int(rng.below(3));
+            d.padLeft = int(rng.below(3)), d.padRight = int(rng.below(2));
+        }
+        d.inHeight = d.dilationH * (d.kernelHeight - 1) + 1 + rng.below(19);
+        d.inWidth = d.dilationW * (d.kernelWidth - 1) + 1 + rng.below(41);
         d.bias = rng.below(2) == 1;
-        const Activation activation = activations[trial % 4];
+        const Activation activation = kActivations[trial % 4];
         SCOPED_TRACE("trial " + std::to_string(trial) + ": " + std::to_string(d.inChannels) + "->" +
-                     std::to_string(d.outChannels) + " k" + std::to_string(k) + " " +
-                     std::to_string(d.inHeight) + "x" + std::to_string(d.inWidth));
+                     std::to_string(d.outChannels) + " k" + std::to_string(d.kernelHeight) + "x" +
+                     std::to_string(d.kernelWidth) + " s" + std::to_string(d.strideH) + "," +
+                     std::to_string(d.strideW) + " " + std::to_string(d.inHeight) + "x" +
+                     std::to_string(d.inWidth));
         const auto input = randomValues(size_t(d.batch * d.inChannels * d.inHeight * d.inWidth), rng);
         const auto weight = randomValues(size_t(d.weightCount()), rng, 0.3f);
         const auto bias = randomValues(size_t(d.outChannels), rng);
-
-        std::vector<float> want(size_t(d.batch * d.outChannels * d.inHeight * d.inWidth));
+        const int64_t outCount = d.batch * d.outChannels * d.outHeight() * d.outWidth();
+        std::vector<float> want(static_cast<size_t>(outCount));
         conv2dForward(want.data(), input.data(), weight.data(), d.bias ? bias.data() : nullptr, d);
         ActivationDesc act;
         act.kind = activation;
-        activationForward(want.data(), want.data(), int64_t(want.size()), act);
+        activationForward(want.data(), want.data(), outCount, act);
+        const BlockedConv conv(d, weight.data(), bias.data(), activation);
+        expectClose(runBlocked(conv, input, outCount), want);
+    }
+}
 
-        const FastConv2d conv(d, weight.data(), d.bias ? bias.data() : nullptr, activation);
-        const std::vector<float> got = runFast(conv, input, 2);
-        double worst = 0.0, scale = 1e-6;
-        for (size_t i = 0; i < want.size(); ++i) {
-            worst = std::max(worst, double(std::abs(got[i] - want[i])));
-            scale = std::max(scale, double(std::abs(want[i])));
+TEST_P(FastConv, ConvTranspose2dMatchesTheReferenceOnRandomShapes) {
+    Rng rng(78);
+    for (int trial = 0; trial < 40; ++trial) {
+        ConvTranspose2dDesc d;
+        d.batch = 1 + rng.below(2);
+        d.inChannels = 1 + rng.below(trial < 10 ? 3 : 40);
+        d.outChannels = 1 + rng.below(trial % 3 == 0 ? 3 : 40);
+        d.kernelHeight = int(1 + rng.below(4)), d.kernelWidth = int(1 + rng.below(4));
+        d.strideH = int(1 + rng.below(3)), d.strideW = int(1 + rng.below(3));
+        d.dilationH = int(1 + rng.below(2)), d.dilationW = 1;
+        d.padH = int(rng.below(2)), d.padW = int(rng.below(2));
+        d.outputPaddingH = int(rng.below(uint32_t(std::max(d.strideH, d.dilationH))));
+        d.outputPaddingW = int(rng.below(uint32_t(std::max(d.strideW, d.dilationW))));
+        d.inHeight = 1 + rng.below(9), d.inWidth = 1 + rng.below(17);
+        d.bias = rng.below(2) == 1;
+        if (trial == 0) {  // the seed2020 upsampler exactly
+            d.kernelHeight = d.kernelWidth = 3, d.strideH = d.strideW = 2, d.padH = d.padW = 1;
+            d.outputPaddingH = d.outputPaddingW = 1, d.dilationH = 1;
         }
-        EXPECT_LE(worst / scale, 1e-5);
+        if (d.outHeight() < 1 || d.outWidth() < 1) continue;
+        const Activation activation = kActivations[trial % 4];
+        SCOPED_TRACE("trial " + std::to_string(trial));
+        const auto input = randomValues(size_t(d.batch * d.inChannels * d.inHeight * d.inWidth), rng);
+        const auto weight = randomValues(size_t(d.weightCount()), rng, 0.3f);
+        const auto bias = randomValues(size_t(d.outChannels), rng);
+        const int64_t outCount = d.batch * d.outChannels * d.outHeight() * d.outWidth();
+        std::vector<float> want(static_cast<size_t>(outCount));
+        convTranspose2dForward(want.data(), input.data(), weight.data(), d.bias ? bias.data() : nullptr, d);
+        ActivationDesc act;
+        act.kind = activation;
+        activationForward(want.data(), want.data(), outCount, act);
+        const BlockedConv conv(d, weight.data(), bias.data(), activation);
+        expectClose(runBlocked(conv, input, outCount), want);
     }
 }
 
@@ -112,11 +165,12 @@ TEST_P(FastConv, SameResultForEveryThreadCount) {
     const auto input = randomValues(size_t(2 * 19 * 23 * 37), rng);
     const auto weight = randomValues(size_t(d.weightCount()), rng, 0.3f);
     const auto bias = randomValues(35, rng);
-    const FastConv2d conv(d, weight.data(), bias.data(), Activation::ReLU);
+    const BlockedConv conv(d, weight.data(), bias.data(), Activation::ReLU);
+    const int64_t outCount = 2 * 35 * 23 * 37;
     setThreadCount(1);
-    const auto one = runFast(conv, input, 1);
+    const auto one = runBlocked(conv, input, outCount);
     setThreadCount(3);
-    const auto three = runFast(conv, input, 1);
+    const auto three = runBlocked(conv, input, outCount);
     setThreadCount(0);
     EXPECT_EQ(one, three);
 }
@@ -129,15 +183,11 @@ INSTANTIATE_TEST_SUITE_P(SimdLevels, FastConv, ::testing::ValuesIn(availableSimd
 TEST(FastConvLimits, RefusesWhatItDoesNotSupport) {
     Conv2dDesc d;
     d.inChannels = 4, d.outChannels = 4, d.inHeight = 8, d.inWidth = 8;
-    d.strideH = d.strideW = 2;
     d.padTop = d.padBottom = d.padLeft = d.padRight = 1;
     std::vector<float> w(size_t(d.weightCount())), b(4);
-    EXPECT_FALSE(FastConv2d::supports(d));
-    EXPECT_THROW(FastConv2d(d, w.data(), b.data(), Activation::None), Error);
-    d.strideH = d.strideW = 1;
-    EXPECT_TRUE(FastConv2d::supports(d));
-    EXPECT_THROW(FastConv2d(d, w.data(), b.data(), Activation::Sigmoid), Error);
-    const FastConv2d conv(d, w.data(), b.data(), Activation::None);
+    EXPECT_THROW(BlockedConv(d, w.data(), b.data(), Activation::Sigmoid), Error);
+    const BlockedConv conv(d, w.data(), b.data(), Activation::None);
+    EXPECT_EQ(conv.requiredInputBorder(), 1);
     Tensor in = allocateBlocked(conv.inputShape(0)), out = allocateBlocked(conv.outputShape(0));
     EXPECT_THROW(conv.forward(out.data(), conv.outputShape(0), in.data(), conv.inputShape(0)),
                  Error);  // border 0 < 1
