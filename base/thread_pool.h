@@ -9,11 +9,25 @@
 #pragma once
 
 #include <cstdint>
-#include <functional>
 
 namespace dejag {
 
-using ParallelBody = std::function<void(int64_t begin, int64_t end)>;
+// A non-owning reference to a callable body(begin, end): passing a lambda costs no allocation (a
+// std::function would allocate for captures beyond two pointers), so a parallelFor per layer per frame
+// stays allocation-free. The callable must outlive the call, which parallelFor guarantees by waiting.
+class ParallelBody {
+  public:
+    template <class F>
+    ParallelBody(const F& body)  // NOLINT(google-explicit-constructor): lambdas convert implicitly
+        : object_(&body), call_([](const void* object, int64_t begin, int64_t end) {
+              (*static_cast<const F*>(object))(begin, end);
+          }) {}
+    void operator()(int64_t begin, int64_t end) const { call_(object_, begin, end); }
+
+  private:
+    const void* object_;
+    void (*call_)(const void*, int64_t, int64_t);
+};
 
 // Number of threads parallelFor uses (workers + caller). Default: DEJAG_THREADS, else the core count.
 int threadCount();

@@ -76,14 +76,14 @@ double benchDejag(const Case& c, int repeat) {
             d.inWidth = c.width;
             d.kernelHeight = d.kernelWidth = c.kernel;
             d.strideH = d.strideW = 2, d.padH = d.padW = 1, d.outputPaddingH = d.outputPaddingW = 1;
-            return BlockedConv(d, weight.data(), bias.data(), Activation::ReLU);
+            return BlockedConv(d, weight.data(), bias.data(), ActivationDesc{Activation::ReLU});
         }
         Conv2dDesc d;
         d.inChannels = c.inChannels, d.outChannels = c.outChannels, d.inHeight = c.height,
         d.inWidth = c.width;
         d.kernelHeight = d.kernelWidth = c.kernel;
         d.padTop = d.padBottom = d.padLeft = d.padRight = int(c.kernel / 2);
-        return BlockedConv(d, weight.data(), bias.data(), Activation::ReLU);
+        return BlockedConv(d, weight.data(), bias.data(), ActivationDesc{Activation::ReLU});
     };
     const BlockedConv conv = make();
     const int border = conv.requiredInputBorder();

@@ -44,7 +44,8 @@ void fromBlocked(float* plain, const float* blocked, const BlockedShape& s) {
     });
 }
 
-BlockedConv::BlockedConv(const Conv2dDesc& d, const float* weight, const float* bias, Activation activation)
+BlockedConv::BlockedConv(const Conv2dDesc& d, const float* weight, const float* bias,
+                         const ActivationDesc& activation)
     : activation_(activation), block_(simdFloatLanes(activeSimdLevel())) {
     d.validate();
     batch_ = d.batch, inChannels_ = d.inChannels, inHeight_ = d.inHeight, inWidth_ = d.inWidth;
@@ -69,7 +70,7 @@ BlockedConv::BlockedConv(const Conv2dDesc& d, const float* weight, const float* 
 }
 
 BlockedConv::BlockedConv(const ConvTranspose2dDesc& d, const float* weight, const float* bias,
-                         Activation activation)
+                         const ActivationDesc& activation)
     : activation_(activation), block_(simdFloatLanes(activeSimdLevel())) {
     d.validate();
     batch_ = d.batch, inChannels_ = d.inChannels, inHeight_ = d.inHeight, inWidth_ = d.inWidth;
@@ -117,7 +118,7 @@ BlockedConv::BlockedConv(const ConvTranspose2dDesc& d, const float* weight, cons
 }
 
 void BlockedConv::finish(const float* bias) {
-    if (activation_ == Activation::Sigmoid)
+    if (activation_.kind == Activation::Sigmoid)
         throw Error("BlockedConv: sigmoid is not fused; apply it afterwards");
     const int64_t B = block_, coutBlocks = (outChannels_ + B - 1) / B;
     paddedBias_.assign(size_t(coutBlocks * B), 0.0f);
@@ -198,7 +199,7 @@ void BlockedConv::forward(float* out, const BlockedShape& outShape, const float*
                       offsets[p].data(),
                       pass.weights.data()};
             a.bias = paddedBias_.data();
-            a.activation.kind = activation_;
+            a.activation = activation_;
             const int64_t bands = items[p].bands;
             a.image = index / (blockGroups * bands);
             const int64_t group = (index / bands) % blockGroups;

@@ -22,9 +22,10 @@ class BlockedConv {
   public:
     // Weights in the PyTorch layouts of nn/layers.h; packed once here. Throws dejag::Error for a sigmoid
     // activation (not fused: apply it afterwards) or an invalid descriptor.
-    BlockedConv(const Conv2dDesc& desc, const float* weight, const float* bias, Activation activation);
+    BlockedConv(const Conv2dDesc& desc, const float* weight, const float* bias,
+                const ActivationDesc& activation);
     BlockedConv(const ConvTranspose2dDesc& desc, const float* weight, const float* bias,
-                Activation activation);
+                const ActivationDesc& activation);
 
     // The input border the taps need (reads there must be zero), for the descriptor's input size.
     int requiredInputBorder() const { return requiredBorder_; }
@@ -52,7 +53,7 @@ class BlockedConv {
 
     int64_t batch_ = 1, inChannels_ = 1, inHeight_ = 1, inWidth_ = 1;
     int64_t outChannels_ = 1, outHeight_ = 1, outWidth_ = 1;
-    Activation activation_;
+    ActivationDesc activation_;
     int block_;
     int requiredBorder_ = 0;
     int64_t macs_ = 0;

@@ -11,37 +11,19 @@
 namespace dejag::nn {
 namespace {
 
-enum class Op { Conv2d, ConvTranspose2d, MaxPool2d, Activation, Add, Concat, Upsample, PixelShuffle, Count };
-constexpr const char* opNames[] = {"conv2d", "conv_transpose2d", "maxpool2d", "activation",
-                                   "add",    "concat",           "upsample",  "pixel_shuffle"};
-static_assert(sizeof(opNames) / sizeof(opNames[0]) == size_t(Op::Count), "every op needs a name");
+using Op = GraphOp;
+
+// A graph node plus what forward() keeps for backward().
+struct Node : GraphNode {
+    Tensor preActivation, output, gradient, preActivationGradient;  // (N, C, H, W) each
+    std::vector<int32_t> argmax;                                    // maxpool2d
+};
 
 Op parseOp(const std::string& name, const std::string& node) {
     for (int i = 0; i < int(Op::Count); ++i)
-        if (name == opNames[i]) return Op(i);
+        if (name == graphOpName(Op(i))) return Op(i);
     throw Error("node '" + node + "': unknown op '" + name + "'");
 }
-
-struct Node {
-    std::string name;
-    Op op = Op::Conv2d;
-    std::vector<int> inputs;  // indices of earlier nodes, -1 = the model input
-    int inChannels = 0, outChannels = 0;
-    // conv2d / conv_transpose2d / maxpool2d
-    int kernel = 3, stride = 1, dilation = 1, outputPadding = 0;
-    bool samePadding = false;
-    int padding = 0;
-    bool bias = true;
-    ActivationDesc activation{Activation::None};
-    // upsample / pixel_shuffle
-    bool bilinear = false;
-    int factor = 2;
-    int64_t weightOffset = -1, biasOffset = -1;
-
-    // Per forward: the output, the pre-activation of fused layers, argmax of pools, gradients.
-    Tensor preActivation, output, gradient, preActivationGradient;
-    std::vector<int32_t> argmax;
-};
 
 void ensureShape(Tensor& t, const Shape& shape) {
     if (t.shape() != shape || t.data() == nullptr) t = Tensor(shape);
@@ -61,40 +43,6 @@ struct Model::Impl {
     const Tensor* lastInput = nullptr;
     Shape lastInputShape;
 
-    Conv2dDesc convDesc(const Node& n, const Shape& in) const {
-        Conv2dDesc d;
-        d.batch = in[0], d.inChannels = in[1], d.inHeight = in[2], d.inWidth = in[3];
-        d.outChannels = n.outChannels, d.kernelHeight = d.kernelWidth = n.kernel;
-        d.strideH = d.strideW = n.stride;
-        d.dilationH = d.dilationW = n.dilation;
-        d.bias = n.bias;
-        if (n.samePadding)
-            d.setSamePadding();
-        else
-            d.padTop = d.padBottom = d.padLeft = d.padRight = n.padding;
-        return d;
-    }
-    ConvTranspose2dDesc convTransposeDesc(const Node& n, const Shape& in) const {
-        ConvTranspose2dDesc d;
-        d.batch = in[0], d.inChannels = in[1], d.inHeight = in[2], d.inWidth = in[3];
-        d.outChannels = n.outChannels, d.kernelHeight = d.kernelWidth = n.kernel;
-        d.strideH = d.strideW = n.stride;
-        d.padH = d.padW = n.padding;
-        d.outputPaddingH = d.outputPaddingW = n.outputPadding;
-        d.dilationH = d.dilationW = n.dilation;
-        d.bias = n.bias;
-        return d;
-    }
-    MaxPool2dDesc poolDesc(const Node& n, const Shape& in) const {
-        MaxPool2dDesc d;
-        d.batch = in[0], d.channels = in[1], d.inHeight = in[2], d.inWidth = in[3];
-        d.kernel = n.kernel, d.stride = n.stride;
-        return d;
-    }
-    ResampleDesc resampleDesc(const Node& n, const Shape& in) const {
-        return {in[0], in[1], in[2], in[3], n.factor};
-    }
-
     // Output shape of node i given its input shapes (validating them).
     Shape nodeOutputShape(const Node& n, const std::vector<Shape>& ins) const {
         const Shape& in = ins[0];
@@ -102,17 +50,17 @@ struct Model::Impl {
         try {
             switch (n.op) {
                 case Op::Conv2d: {
-                    const Conv2dDesc d = convDesc(n, in);
+                    const Conv2dDesc d = n.convDesc(in);
                     d.validate();
                     return {in[0], n.outChannels, d.outHeight(), d.outWidth()};
                 }
                 case Op::ConvTranspose2d: {
-                    const ConvTranspose2dDesc d = convTransposeDesc(n, in);
+                    const ConvTranspose2dDesc d = n.convTransposeDesc(in);
                     d.validate();
                     return {in[0], n.outChannels, d.outHeight(), d.outWidth()};
                 }
                 case Op::MaxPool2d: {
-                    const MaxPool2dDesc d = poolDesc(n, in);
+                    const MaxPool2dDesc d = n.poolDesc(in);
                     d.validate();
                     return {in[0], in[1], d.outHeight(), d.outWidth()};
                 }
@@ -160,6 +108,50 @@ struct Model::Impl {
     }
 };
 
+const char* graphOpName(GraphOp op) {
+    static constexpr const char* kNames[] = {"conv2d", "conv_transpose2d", "maxpool2d", "activation",
+                                             "add",    "concat",           "upsample",  "pixel_shuffle"};
+    static_assert(sizeof(kNames) / sizeof(kNames[0]) == size_t(GraphOp::Count), "every op needs a name");
+    return op < GraphOp::Count ? kNames[int(op)] : "unknown";
+}
+
+Conv2dDesc GraphNode::convDesc(const Shape& in) const {
+    const GraphNode& n = *this;
+    Conv2dDesc d;
+    d.batch = in[0], d.inChannels = in[1], d.inHeight = in[2], d.inWidth = in[3];
+    d.outChannels = n.outChannels, d.kernelHeight = d.kernelWidth = n.kernel;
+    d.strideH = d.strideW = n.stride;
+    d.dilationH = d.dilationW = n.dilation;
+    d.bias = n.bias;
+    if (n.samePadding)
+        d.setSamePadding();
+    else
+        d.padTop = d.padBottom = d.padLeft = d.padRight = n.padding;
+    return d;
+}
+ConvTranspose2dDesc GraphNode::convTransposeDesc(const Shape& in) const {
+    const GraphNode& n = *this;
+    ConvTranspose2dDesc d;
+    d.batch = in[0], d.inChannels = in[1], d.inHeight = in[2], d.inWidth = in[3];
+    d.outChannels = n.outChannels, d.kernelHeight = d.kernelWidth = n.kernel;
+    d.strideH = d.strideW = n.stride;
+    d.padH = d.padW = n.padding;
+    d.outputPaddingH = d.outputPaddingW = n.outputPadding;
+    d.dilationH = d.dilationW = n.dilation;
+    d.bias = n.bias;
+    return d;
+}
+MaxPool2dDesc GraphNode::poolDesc(const Shape& in) const {
+    const GraphNode& n = *this;
+    MaxPool2dDesc d;
+    d.batch = in[0], d.channels = in[1], d.inHeight = in[2], d.inWidth = in[3];
+    d.kernel = n.kernel, d.stride = n.stride;
+    return d;
+}
+ResampleDesc GraphNode::resampleDesc(const Shape& in) const {
+    return {in[0], in[1], in[2], in[3], factor};
+}
+
 Model::Model(std::unique_ptr<Impl> impl) : impl_(std::move(impl)) {}
 Model::Model(Model&&) noexcept = default;
 Model& Model::operator=(Model&&) noexcept = default;
@@ -201,7 +193,7 @@ Model Model::fromArchitecture(const nlohmann::json& a) {
             }
             const size_t wantInputs = (n.op == Op::Add) ? 2 : (n.op == Op::Concat ? 0 : 1);
             if ((wantInputs && n.inputs.size() != wantInputs) || (n.op == Op::Concat && n.inputs.size() < 2))
-                throw Error("node '" + n.name + "': " + opNames[int(n.op)] + " takes " +
+                throw Error("node '" + n.name + "': " + graphOpName(n.op) + " takes " +
                             (n.op == Op::Concat ? std::string("two or more inputs")
                                                 : std::to_string(wantInputs) + " input(s)"));
             auto channelsOf = [&](int i) { return i < 0 ? impl->inputChannels : channels[size_t(i)]; };
@@ -401,6 +393,20 @@ int Model::outputChannels() const {
 const std::vector<ParameterInfo>& Model::parameters() const {
     return impl_->parameters;
 }
+std::vector<GraphNode> Model::graph() const {
+    return {impl_->nodes.begin(), impl_->nodes.end()};
+}
+int Model::outputNode() const {
+    return impl_->outputNode;
+}
+
+std::vector<Shape> Model::nodeShapes(const Shape& input) const {
+    outputShape(input);  // validates the input shape
+    std::vector<Shape> shapes;
+    for (const Node& n : impl_->nodes)
+        shapes.push_back(impl_->nodeOutputShape(n, impl_->inputShapes(n, shapes, input)));
+    return shapes;
+}
 int64_t Model::parameterCount() const {
     return int64_t(impl_->params.size());
 }
@@ -453,8 +459,8 @@ int64_t Model::macs(const Shape& input) const {
     int64_t total = 0;
     for (const Node& n : impl_->nodes) {
         const std::vector<Shape> ins = impl_->inputShapes(n, shapes, input);
-        if (n.op == Op::Conv2d) total += impl_->convDesc(n, ins[0]).macs();
-        if (n.op == Op::ConvTranspose2d) total += impl_->convTransposeDesc(n, ins[0]).macs();
+        if (n.op == Op::Conv2d) total += n.convDesc(ins[0]).macs();
+        if (n.op == Op::ConvTranspose2d) total += n.convTransposeDesc(ins[0]).macs();
         shapes.push_back(impl_->nodeOutputShape(n, ins));
     }
     return total;
@@ -488,14 +494,14 @@ const Tensor& Model::forward(const Tensor& input) {
         }
         switch (n.op) {
             case Op::Conv2d:
-                conv2dForward(target, x, weight, bias, m.convDesc(n, ins[0]));
+                conv2dForward(target, x, weight, bias, n.convDesc(ins[0]));
                 break;
             case Op::ConvTranspose2d:
-                convTranspose2dForward(target, x, weight, bias, m.convTransposeDesc(n, ins[0]));
+                convTranspose2dForward(target, x, weight, bias, n.convTransposeDesc(ins[0]));
                 break;
             case Op::MaxPool2d:
                 n.argmax.resize(size_t(shapeNumel(out)));
-                maxPool2dForward(target, n.argmax.data(), x, m.poolDesc(n, ins[0]));
+                maxPool2dForward(target, n.argmax.data(), x, n.poolDesc(ins[0]));
                 break;
             case Op::Activation:
                 activationForward(target, x, shapeNumel(out), n.activation);
@@ -515,12 +521,12 @@ const Tensor& Model::forward(const Tensor& input) {
             }
             case Op::Upsample:
                 if (n.bilinear)
-                    upsampleBilinearForward(target, x, m.resampleDesc(n, ins[0]));
+                    upsampleBilinearForward(target, x, n.resampleDesc(ins[0]));
                 else
-                    upsampleNearestForward(target, x, m.resampleDesc(n, ins[0]));
+                    upsampleNearestForward(target, x, n.resampleDesc(ins[0]));
                 break;
             case Op::PixelShuffle:
-                pixelShuffleForward(target, x, m.resampleDesc(n, ins[0]));
+                pixelShuffleForward(target, x, n.resampleDesc(ins[0]));
                 break;
             case Op::Count:
                 break;
@@ -565,13 +571,13 @@ void Model::backward(const Tensor& doutput) {
         }
         switch (n.op) {
             case Op::Conv2d:
-                conv2dBackward(dx, dweight, dbias, g, x, weight, m.convDesc(n, ins[0]));
+                conv2dBackward(dx, dweight, dbias, g, x, weight, n.convDesc(ins[0]));
                 break;
             case Op::ConvTranspose2d:
-                convTranspose2dBackward(dx, dweight, dbias, g, x, weight, m.convTransposeDesc(n, ins[0]));
+                convTranspose2dBackward(dx, dweight, dbias, g, x, weight, n.convTransposeDesc(ins[0]));
                 break;
             case Op::MaxPool2d:
-                if (dx) maxPool2dBackward(dx, g, n.argmax.data(), m.poolDesc(n, ins[0]));
+                if (dx) maxPool2dBackward(dx, g, n.argmax.data(), n.poolDesc(ins[0]));
                 break;
             case Op::Activation:
                 if (dx) activationBackward(dx, g, x, n.output.data(), count, n.activation);
@@ -595,13 +601,13 @@ void Model::backward(const Tensor& doutput) {
             case Op::Upsample:
                 if (dx) {
                     if (n.bilinear)
-                        upsampleBilinearBackward(dx, g, m.resampleDesc(n, ins[0]));
+                        upsampleBilinearBackward(dx, g, n.resampleDesc(ins[0]));
                     else
-                        upsampleNearestBackward(dx, g, m.resampleDesc(n, ins[0]));
+                        upsampleNearestBackward(dx, g, n.resampleDesc(ins[0]));
                 }
                 break;
             case Op::PixelShuffle:
-                if (dx) pixelShuffleBackward(dx, g, m.resampleDesc(n, ins[0]));
+                if (dx) pixelShuffleBackward(dx, g, n.resampleDesc(ins[0]));
                 break;
             case Op::Count:
                 break;

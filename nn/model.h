@@ -41,6 +41,41 @@ struct ParameterInfo {
     bool isBias = false;
 };
 
+enum class GraphOp {
+    Conv2d,
+    ConvTranspose2d,
+    MaxPool2d,
+    Activation,
+    Add,
+    Concat,
+    Upsample,
+    PixelShuffle,
+    Count
+};
+const char* graphOpName(GraphOp op);
+
+// One node of a model's graph, as parsed from its architecture (fields unused by an op keep defaults).
+struct GraphNode {
+    std::string name;
+    GraphOp op = GraphOp::Conv2d;
+    std::vector<int> inputs;  // indices of earlier nodes, -1 = the model input
+    int inChannels = 0, outChannels = 0;
+    int kernel = 3, stride = 1, dilation = 1, outputPadding = 0;  // conv2d, conv_transpose2d, maxpool2d
+    bool samePadding = false;
+    int padding = 0;
+    bool bias = true;
+    ActivationDesc activation{Activation::None};  // fused into convolutions; the op of "activation"
+    bool bilinear = false;                        // upsample
+    int factor = 2;                               // upsample, pixel_shuffle
+    int64_t weightOffset = -1, biasOffset = -1;   // into the flat parameter buffer
+
+    // Layer descriptors for an input of shape (N, C, H, W).
+    Conv2dDesc convDesc(const Shape& in) const;
+    ConvTranspose2dDesc convTransposeDesc(const Shape& in) const;
+    MaxPool2dDesc poolDesc(const Shape& in) const;
+    ResampleDesc resampleDesc(const Shape& in) const;
+};
+
 struct ModelOptions {
     int width = 16, depth = 3;  // the "fast" residual family
     int channels = 3;
@@ -62,6 +97,12 @@ class Model {
     const std::string& name() const;
     int inputChannels() const;
     int outputChannels() const;
+
+    // The graph, in topological order, and the index of the output node.
+    std::vector<GraphNode> graph() const;
+    int outputNode() const;
+    // Every node's output shape for an input shape (throws dejag::Error if the graph cannot take it).
+    std::vector<Shape> nodeShapes(const Shape& inputShape) const;
 
     const std::vector<ParameterInfo>& parameters() const;
     const ParameterInfo& parameter(const std::string& name) const;

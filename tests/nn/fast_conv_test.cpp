@@ -116,7 +116,9 @@ TEST_P(FastConv, Conv2dMatchesTheReferenceOnRandomShapes) {
         ActivationDesc act;
         act.kind = activation;
         activationForward(want.data(), want.data(), outCount, act);
-        const BlockedConv conv(d, weight.data(), bias.data(), activation);
+        ActivationDesc fusedActivation;
+        fusedActivation.kind = activation;
+        const BlockedConv conv(d, weight.data(), bias.data(), fusedActivation);
         expectClose(runBlocked(conv, input, outCount), want);
     }
 }
@@ -152,7 +154,9 @@ TEST_P(FastConv, ConvTranspose2dMatchesTheReferenceOnRandomShapes) {
         ActivationDesc act;
         act.kind = activation;
         activationForward(want.data(), want.data(), outCount, act);
-        const BlockedConv conv(d, weight.data(), bias.data(), activation);
+        ActivationDesc fusedActivation;
+        fusedActivation.kind = activation;
+        const BlockedConv conv(d, weight.data(), bias.data(), fusedActivation);
         expectClose(runBlocked(conv, input, outCount), want);
     }
 }
@@ -165,7 +169,7 @@ TEST_P(FastConv, SameResultForEveryThreadCount) {
     const auto input = randomValues(size_t(2 * 19 * 23 * 37), rng);
     const auto weight = randomValues(size_t(d.weightCount()), rng, 0.3f);
     const auto bias = randomValues(35, rng);
-    const BlockedConv conv(d, weight.data(), bias.data(), Activation::ReLU);
+    const BlockedConv conv(d, weight.data(), bias.data(), ActivationDesc{Activation::ReLU});
     const int64_t outCount = 2 * 35 * 23 * 37;
     setThreadCount(1);
     const auto one = runBlocked(conv, input, outCount);
@@ -185,8 +189,8 @@ TEST(FastConvLimits, RefusesWhatItDoesNotSupport) {
     d.inChannels = 4, d.outChannels = 4, d.inHeight = 8, d.inWidth = 8;
     d.padTop = d.padBottom = d.padLeft = d.padRight = 1;
     std::vector<float> w(size_t(d.weightCount())), b(4);
-    EXPECT_THROW(BlockedConv(d, w.data(), b.data(), Activation::Sigmoid), Error);
-    const BlockedConv conv(d, w.data(), b.data(), Activation::None);
+    EXPECT_THROW(BlockedConv(d, w.data(), b.data(), ActivationDesc{Activation::Sigmoid}), Error);
+    const BlockedConv conv(d, w.data(), b.data(), ActivationDesc{Activation::None});
     EXPECT_EQ(conv.requiredInputBorder(), 1);
     Tensor in = allocateBlocked(conv.inputShape(0)), out = allocateBlocked(conv.outputShape(0));
     EXPECT_THROW(conv.forward(out.data(), conv.outputShape(0), in.data(), conv.inputShape(0)),

@@ -1,0 +1,324 @@
+#include "nn/inference.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstring>
+#include <limits>
+#include <optional>
+
+#include "base/error.h"
+#include "base/simd.h"
+#include "base/thread_pool.h"
+#include "nn/fast_conv.h"
+
+namespace dejag::nn {
+namespace {
+
+// ---- Ops on the blocked layout (nn/blocked.h); each writes the interior of its output. ----------------
+
+// Zeroes the border of every plane (regions of the arena are reused, so a border may hold old data).
+void zeroBorder(float* data, const BlockedShape& s) {
+    if (s.border == 0) return;
+    parallelFor(0, s.batch * s.channelBlocks(), 1, [&](int64_t first, int64_t last) {
+        for (int64_t plane = first; plane < last; ++plane) {
+            const int64_t n = plane / s.channelBlocks(), cb = plane % s.channelBlocks();
+            for (int64_t y = -s.border; y < s.height + s.border; ++y) {
+                float* row = data + s.offset(n, cb, y, -s.border);
+                if (y < 0 || y >= s.height) {
+                    std::memset(row, 0, size_t(s.rowStride()) * sizeof(float));
+                } else {
+                    std::memset(row, 0, size_t(s.border * s.block) * sizeof(float));
+                    std::memset(row + (s.border + s.width) * s.block, 0,
+                                size_t(s.border * s.block) * sizeof(float));
+                }
+            }
+        }
+    });
+}
+
+// Calls body(n, cb, y) for every interior row of every plane, in parallel.
+template <class F>
+void forEachRow(const BlockedShape& s, const F& body) {
+    parallelFor(0, s.batch * s.channelBlocks() * s.height, 0, [&](int64_t first, int64_t last) {
+        for (int64_t i = first; i < last; ++i) {
+            const int64_t y = i % s.height, plane = i / s.height;
+            body(plane / s.channelBlocks(), plane % s.channelBlocks(), y);
+        }
+    });
+}
+
+void blockedMaxPool(float* out, const BlockedShape& os, const float* in, const BlockedShape& is,
+                    const MaxPool2dDesc& d) {
+    const int B = os.block;
+    forEachRow(os, [&](int64_t n, int64_t cb, int64_t y) {
+        float* o = out + os.offset(n, cb, y, 0);
+        for (int64_t x = 0; x < os.width; ++x, o += B) {
+            for (int l = 0; l < B; ++l) o[l] = -std::numeric_limits<float>::infinity();
+            for (int ky = 0; ky < d.kernel; ++ky) {
+                const int64_t iy = y * d.stride - d.padding + ky;
+                if (iy < 0 || iy >= is.height) continue;
+                for (int kx = 0; kx < d.kernel; ++kx) {
+                    const int64_t ix = x * d.stride - d.padding + kx;
+                    if (ix < 0 || ix >= is.width) continue;
+                    const float* p = in + is.offset(n, cb, iy, ix);
+                    for (int l = 0; l < B; ++l) o[l] = std::max(o[l], p[l]);
+                }
+            }
+        }
+    });
+}
+
+void blockedActivation(float* out, const BlockedShape& os, const float* in, const BlockedShape& is,
+                       const ActivationDesc& a) {
+    forEachRow(os, [&](int64_t n, int64_t cb, int64_t y) {
+        activationForward(out + os.offset(n, cb, y, 0), in + is.offset(n, cb, y, 0), os.width * os.block, a);
+    });
+}
+
+void blockedAdd(float* out, const BlockedShape& os, const float* a, const BlockedShape& as, const float* b,
+                const BlockedShape& bs) {
+    forEachRow(os, [&](int64_t n, int64_t cb, int64_t y) {
+        float* o = out + os.offset(n, cb, y, 0);
+        const float* p = a + as.offset(n, cb, y, 0);
+        const float* q = b + bs.offset(n, cb, y, 0);
+        for (int64_t i = 0; i < os.width * os.block; ++i) o[i] = p[i] + q[i];
+    });
+}
+
+// Generic element access for the reshuffling ops (concat, upsampling, pixel shuffle).
+inline float& element(float* data, const BlockedShape& s, int64_t n, int64_t c, int64_t y, int64_t x) {
+    return data[s.offset(n, c / s.block, y, x) + c % s.block];
+}
+inline float element(const float* data, const BlockedShape& s, int64_t n, int64_t c, int64_t y, int64_t x) {
+    return data[s.offset(n, c / s.block, y, x) + c % s.block];
+}
+
+template <class F>
+void forEachOutputElement(const BlockedShape& os, const F& body) {
+    parallelFor(0, os.batch * os.channels * os.height, 0, [&](int64_t first, int64_t last) {
+        for (int64_t i = first; i < last; ++i) {
+            const int64_t y = i % os.height, c = (i / os.height) % os.channels,
+                          n = i / (os.height * os.channels);
+            for (int64_t x = 0; x < os.width; ++x) body(n, c, y, x);
+        }
+    });
+}
+
+}  // namespace
+
+// ---- The plan ---------------------------------------------------------------------------------------
+
+struct InferencePlan::Impl {
+    struct Step {
+        GraphNode node;
+        BlockedShape shape;               // this node's output
+        int64_t offset = 0;               // into the arena (floats)
+        std::optional<BlockedConv> conv;  // conv2d, conv_transpose2d
+        MaxPool2dDesc pool;               // maxpool2d
+        bool sigmoidAfterConv = false;
+    };
+    Shape inputShape, outputShape;
+    BlockedShape inputBlocked;
+    int64_t inputOffset = 0;
+    std::vector<Step> steps;
+    int outputStep = -1;
+    Tensor arena;
+    Tensor output;
+    size_t unpackedBytes = 0;
+    int64_t macs = 0;
+    int block = 1;
+
+    float* data(int index) { return arena.data() + (index < 0 ? inputOffset : steps[size_t(index)].offset); }
+    const BlockedShape& shape(int index) const {
+        return index < 0 ? inputBlocked : steps[size_t(index)].shape;
+    }
+};
+
+InferencePlan::InferencePlan(const Model& model, const Shape& inputShape) : impl_(std::make_unique<Impl>()) {
+    Impl& m = *impl_;
+    const std::vector<Shape> shapes = model.nodeShapes(inputShape);
+    const std::vector<GraphNode> graph = model.graph();
+    m.inputShape = inputShape;
+    m.outputStep = model.outputNode();
+    m.outputShape = shapes[size_t(m.outputStep)];
+    m.block = simdFloatLanes(activeSimdLevel());
+    const float* params = model.parameterData();
+
+    // Convolutions first: their kernels say how wide a border every activation needs.
+    int border = 0;
+    for (size_t i = 0; i < graph.size(); ++i) {
+        Impl::Step step;
+        step.node = graph[i];
+        const GraphNode& n = step.node;
+        const Shape& in = n.inputs[0] < 0 ? inputShape : shapes[size_t(n.inputs[0])];
+        const float* weight = n.weightOffset >= 0 ? params + n.weightOffset : nullptr;
+        const float* bias = n.biasOffset >= 0 ? params + n.biasOffset : nullptr;
+        ActivationDesc fused = n.activation;
+        if (fused.kind == Activation::Sigmoid) {
+            step.sigmoidAfterConv = true;
+            fused.kind = Activation::None;
+        }
+        if (n.op == GraphOp::Conv2d) {
+            step.conv.emplace(n.convDesc(in), weight, bias, fused);
+            m.macs += step.conv->macs();
+        } else if (n.op == GraphOp::ConvTranspose2d) {
+            step.conv.emplace(n.convTransposeDesc(in), weight, bias, fused);
+            m.macs += step.conv->macs();
+        } else if (n.op == GraphOp::MaxPool2d) {
+            step.pool = n.poolDesc(in);
+        }
+        if (step.conv) border = std::max(border, step.conv->requiredInputBorder());
+        m.steps.push_back(std::move(step));
+    }
+    auto blockedOf = [&](const Shape& s) { return BlockedShape{s[0], s[1], s[2], s[3], m.block, border}; };
+    m.inputBlocked = blockedOf(inputShape);
+    for (size_t i = 0; i < graph.size(); ++i) m.steps[i].shape = blockedOf(shapes[i]);
+
+    // Arena: a tensor lives from its producer to its last consumer; first-fit reuse of dead regions.
+    const int count = int(graph.size());
+    std::vector<int> lastUse(size_t(count) + 1, -1);  // index 0: the model input, i + 1: node i
+    for (int i = 0; i < count; ++i)
+        for (int input : graph[size_t(i)].inputs)
+            lastUse[size_t(input + 1)] = std::max(lastUse[size_t(input + 1)], i);
+    lastUse[size_t(m.outputStep + 1)] = count;  // the output is read after the last step
+    struct Region {
+        int64_t offset, size;
+        int owner;  // tensor index as in lastUse
+    };
+    std::vector<Region> live;
+    int64_t arenaFloats = 0;
+    auto place = [&](int owner, int64_t floats, int now) {
+        live.erase(std::remove_if(live.begin(), live.end(),
+                                  [&](const Region& r) { return lastUse[size_t(r.owner)] < now; }),
+                   live.end());
+        std::sort(live.begin(), live.end(),
+                  [](const Region& a, const Region& b) { return a.offset < b.offset; });
+        floats = (floats + 15) / 16 * 16;  // 64-byte aligned regions
+        int64_t offset = 0;
+        for (const Region& r : live) {
+            if (r.offset - offset >= floats) break;
+            offset = std::max(offset, r.offset + r.size);
+        }
+        live.push_back({offset, floats, owner});
+        arenaFloats = std::max(arenaFloats, offset + floats);
+        m.unpackedBytes += size_t(floats) * sizeof(float);
+        return offset;
+    };
+    m.inputOffset = place(0, m.inputBlocked.floatCount(), 0);
+    for (int i = 0; i < count; ++i)
+        m.steps[size_t(i)].offset = place(i + 1, m.steps[size_t(i)].shape.floatCount(), i);
+    m.arena = Tensor({std::max<int64_t>(arenaFloats, 16)});
+    m.output = Tensor(m.outputShape);
+}
+
+InferencePlan::InferencePlan(InferencePlan&&) noexcept = default;
+InferencePlan& InferencePlan::operator=(InferencePlan&&) noexcept = default;
+InferencePlan::~InferencePlan() = default;
+
+const Shape& InferencePlan::inputShape() const {
+    return impl_->inputShape;
+}
+const Shape& InferencePlan::outputShape() const {
+    return impl_->outputShape;
+}
+size_t InferencePlan::arenaBytes() const {
+    return impl_->arena.byteSize();
+}
+size_t InferencePlan::unpackedBytes() const {
+    return impl_->unpackedBytes;
+}
+int64_t InferencePlan::macs() const {
+    return impl_->macs;
+}
+
+const Tensor& InferencePlan::run(const Tensor& input) {
+    if (const int64_t bad = input.findNonFinite(); bad >= 0)
+        throw Error("the model input has a non-finite value at element " + std::to_string(bad));
+    return runUnchecked(input);
+}
+
+const Tensor& InferencePlan::runUnchecked(const Tensor& input) {
+    Impl& m = *impl_;
+    input.requireShape(m.inputShape, "inference input");
+    if (m.block != simdFloatLanes(activeSimdLevel()))
+        throw Error("inference: the SIMD level changed since planning");
+    zeroBorder(m.data(-1), m.inputBlocked);
+    toBlocked(m.data(-1), input.data(), m.inputBlocked);
+    for (size_t i = 0; i < m.steps.size(); ++i) {
+        Impl::Step& step = m.steps[i];
+        const GraphNode& n = step.node;
+        float* out = m.data(int(i));
+        const BlockedShape& os = step.shape;
+        const float* in = m.data(n.inputs[0]);
+        const BlockedShape& is = m.shape(n.inputs[0]);
+        zeroBorder(out, os);
+        switch (n.op) {
+            case GraphOp::Conv2d:
+            case GraphOp::ConvTranspose2d:
+                step.conv->forward(out, os, in, is);
+                if (step.sigmoidAfterConv) blockedActivation(out, os, out, os, n.activation);
+                break;
+            case GraphOp::MaxPool2d:
+                blockedMaxPool(out, os, in, is, step.pool);
+                break;
+            case GraphOp::Activation:
+                blockedActivation(out, os, in, is, n.activation);
+                break;
+            case GraphOp::Add:
+                blockedAdd(out, os, in, is, m.data(n.inputs[1]), m.shape(n.inputs[1]));
+                break;
+            case GraphOp::Concat: {
+                forEachOutputElement(os, [&](int64_t b, int64_t c, int64_t y, int64_t x) {
+                    int64_t channel = c;
+                    for (int source : n.inputs) {
+                        const BlockedShape& ss = m.shape(source);
+                        if (channel < ss.channels) {
+                            element(out, os, b, c, y, x) = element(m.data(source), ss, b, channel, y, x);
+                            return;
+                        }
+                        channel -= ss.channels;
+                    }
+                });
+                break;
+            }
+            case GraphOp::Upsample: {
+                const int64_t f = n.factor;
+                if (!n.bilinear) {
+                    forEachOutputElement(os, [&](int64_t b, int64_t c, int64_t y, int64_t x) {
+                        element(out, os, b, c, y, x) = element(in, is, b, c, y / f, x / f);
+                    });
+                } else {
+                    forEachOutputElement(os, [&](int64_t b, int64_t c, int64_t y, int64_t x) {
+                        // PyTorch align_corners=False, as the reference kernel.
+                        const double sy = std::max(0.0, (double(y) + 0.5) / double(f) - 0.5);
+                        const double sx = std::max(0.0, (double(x) + 0.5) / double(f) - 0.5);
+                        const int64_t y0 = std::min<int64_t>(int64_t(sy), is.height - 1),
+                                      y1 = std::min(y0 + 1, is.height - 1);
+                        const int64_t x0 = std::min<int64_t>(int64_t(sx), is.width - 1),
+                                      x1 = std::min(x0 + 1, is.width - 1);
+                        const float ly = float(sy - double(y0)), lx = float(sx - double(x0));
+                        element(out, os, b, c, y, x) = (1 - ly) * ((1 - lx) * element(in, is, b, c, y0, x0) +
+                                                                   lx * element(in, is, b, c, y0, x1)) +
+                                                       ly * ((1 - lx) * element(in, is, b, c, y1, x0) +
+                                                             lx * element(in, is, b, c, y1, x1));
+                    });
+                }
+                break;
+            }
+            case GraphOp::PixelShuffle: {
+                const int64_t f = n.factor;
+                forEachOutputElement(os, [&](int64_t b, int64_t c, int64_t y, int64_t x) {
+                    element(out, os, b, c, y, x) =
+                        element(in, is, b, (c * f + y % f) * f + x % f, y / f, x / f);
+                });
+                break;
+            }
+            case GraphOp::Count:
+                break;
+        }
+    }
+    fromBlocked(m.output.data(), m.data(m.outputStep), m.steps[size_t(m.outputStep)].shape);
+    return m.output;
+}
+
+}  // namespace dejag::nn
