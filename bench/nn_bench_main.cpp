@@ -6,12 +6,15 @@
 // layout (dejag: blocked with a zero border; oneDNN: the format it picks with format_tag::any; libtorch:
 // NCHW), with layout conversions outside the timed region, and every library fuses bias and ReLU
 // (libtorch: an in-place relu_ after the convolution, which is how a libtorch user would write it).
+#include <sys/resource.h>
+
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
 #include <functional>
 #include <nlohmann/json.hpp>
 #include <string>
+#include <unordered_map>
 #include <vector>
 
 #include "base/error.h"
@@ -20,7 +23,11 @@
 #include "base/thread_pool.h"
 #include "base/timer.h"
 #include "nn/fast_conv.h"
+#include "nn/inference.h"
 #include "nn/init.h"
+#include "nn/losses.h"
+#include "nn/model.h"
+#include "nn/optim.h"
 
 #if DEJAG_HAVE_ONEDNN
 #include <omp.h>
@@ -178,6 +185,168 @@ double benchLibtorch(const Case& c, int repeat) {
 #endif
 }
 
+// ---- Whole networks: seed2020 forward (inference plan) and one training step ----------------------
+
+struct NetworkResult {
+    double ms = 0.0;
+    double macs = 0.0;
+    size_t arenaBytes = 0;
+};
+
+NetworkResult benchSeed2020Forward(int64_t size, int repeat) {
+    Model model = Model::builtin("seed2020");
+    model.initialize(1);
+    Tensor input({1, 1, size, size});
+    Rng rng(2);
+    for (int64_t i = 0; i < input.numel(); ++i) input.data()[i] = rng.uniform();
+    InferencePlan plan(model, input.shape());
+    NetworkResult r;
+    r.ms = medianMs(repeat, [&] { plan.runUnchecked(input); });
+    r.macs = double(plan.macs());
+    r.arenaBytes = plan.arenaBytes();
+    return r;
+}
+
+NetworkResult benchSeed2020TrainingStep(int64_t batch, int64_t size, int repeat) {
+    Model model = Model::builtin("seed2020");
+    model.initialize(1);
+    Tensor input({batch, 1, size, size}), target({batch, 1, size, size});
+    Rng rng(3);
+    for (int64_t i = 0; i < input.numel(); ++i) input.data()[i] = rng.uniform(), target.data()[i] = rng.uniform();
+    Optimizer optimizer(OptimizerConfig{}, model.parameterCount());
+    const SsimLossDesc shape{batch, 1, size, size, 1.0};
+    Tensor dout({batch, 1, size, size});
+    NetworkResult r;
+    r.ms = medianMs(repeat, [&] {
+        const Tensor& out = model.forward(input);
+        dout.zero();
+        ssimLossBackward(dout.data(), out.data(), target.data(), shape, 1.0);
+        model.backward(dout);
+        optimizer.step(model.parameterData(), model.gradientData(), 1e-3);
+    });
+    r.macs = 3.0 * double(model.macs(input.shape()));  // forward + input and weight gradients
+    return r;
+}
+
+#if DEJAG_HAVE_ONEDNN
+double oneDnnSeed2020Forward(int64_t size, int repeat) {
+    using namespace dnnl;
+    using tag = memory::format_tag;
+    using dt = memory::data_type;
+    engine eng(engine::kind::cpu, 0);
+    stream s(eng);
+    std::vector<primitive> primitives;
+    std::vector<std::unordered_map<int, memory>> arguments;
+    memory current(memory::desc({1, 1, size, size}, dt::f32, tag::nchw), eng);
+    std::fill_n(static_cast<float*>(current.get_data_handle()), size * size, 0.5f);
+    int64_t channels = 1, height = size;
+    auto fill = [](memory& m, float value) {
+        float* p = static_cast<float*>(m.get_data_handle());
+        for (size_t i = 0; i < m.get_desc().get_size() / sizeof(float); ++i) p[i] = value * float(int(i % 7) - 3);
+    };
+    auto addConv = [&](int64_t out, int64_t k, bool transposed, algorithm activation) {
+        const int64_t outHeight = transposed ? height * 2 : height;
+        const memory::dims wei{out, channels, k, k}, dst{1, out, outHeight, outHeight};
+        const memory::dims strides{transposed ? 2 : 1, transposed ? 2 : 1}, padL{k / 2, k / 2};
+        const memory::dims padR{transposed ? 0 : k / 2, transposed ? 0 : k / 2};
+        post_ops ops;
+        ops.append_eltwise(1.0f, activation, 0.0f, 0.0f);
+        primitive_attr attr;
+        attr.set_post_ops(ops);
+        const auto weiAny = memory::desc(wei, dt::f32, tag::any), bias = memory::desc({out}, dt::f32, tag::x);
+        const auto dstAny = memory::desc(dst, dt::f32, tag::any);
+        memory::desc weiDesc, dstDesc;
+        if (transposed) {
+            const auto pd = deconvolution_forward::primitive_desc(
+                deconvolution_forward::desc(prop_kind::forward_inference, algorithm::deconvolution_direct,
+                                            current.get_desc(), weiAny, bias, dstAny, strides, padL, padR),
+                attr, eng);
+            weiDesc = pd.weights_desc(), dstDesc = pd.dst_desc();
+            primitives.push_back(deconvolution_forward(pd));
+        } else {
+            const auto pd = convolution_forward::primitive_desc(
+                convolution_forward::desc(prop_kind::forward_inference, algorithm::convolution_auto, current.get_desc(),
+                                          weiAny, bias, dstAny, strides, padL, padR),
+                attr, eng);
+            weiDesc = pd.weights_desc(), dstDesc = pd.dst_desc();
+            primitives.push_back(convolution_forward(pd));
+        }
+        memory w(weiDesc, eng), b(bias, eng), d(dstDesc, eng);
+        fill(w, 0.01f), fill(b, 0.01f);
+        arguments.push_back({{DNNL_ARG_SRC, current}, {DNNL_ARG_WEIGHTS, w}, {DNNL_ARG_BIAS, b}, {DNNL_ARG_DST, d}});
+        current = d, channels = out, height = outHeight;
+    };
+    auto addPool = [&]() {
+        const memory::dims dst{1, channels, height / 2, height / 2};
+        const auto pd = pooling_v2_forward::primitive_desc(
+            pooling_v2_forward::desc(prop_kind::forward_inference, algorithm::pooling_max, current.get_desc(),
+                                     memory::desc(dst, dt::f32, tag::any), {2, 2}, {2, 2}, {0, 0}, {0, 0}, {0, 0}),
+            eng);
+        memory d(pd.dst_desc(), eng);
+        primitives.push_back(pooling_v2_forward(pd));
+        arguments.push_back({{DNNL_ARG_SRC, current}, {DNNL_ARG_DST, d}});
+        current = d, height /= 2;
+    };
+    addConv(32, 5, false, algorithm::eltwise_relu);
+    addConv(32, 3, false, algorithm::eltwise_relu);
+    addPool();
+    addConv(64, 1, false, algorithm::eltwise_relu);
+    addPool();
+    addConv(128, 3, false, algorithm::eltwise_relu);
+    addConv(64, 3, true, algorithm::eltwise_relu);
+    addConv(1, 3, true, algorithm::eltwise_logistic);
+    return medianMs(repeat, [&] {
+        for (size_t i = 0; i < primitives.size(); ++i) primitives[i].execute(s, arguments[i]);
+        s.wait();
+    });
+}
+#endif
+
+#if DEJAG_HAVE_LIBTORCH
+torch::nn::Sequential torchSeed2020() {
+    namespace tnn = torch::nn;
+    return tnn::Sequential(
+        tnn::Conv2d(tnn::Conv2dOptions(1, 32, 5).padding(2)), tnn::ReLU(),
+        tnn::Conv2d(tnn::Conv2dOptions(32, 32, 3).padding(1)), tnn::ReLU(), tnn::MaxPool2d(2),
+        tnn::Conv2d(tnn::Conv2dOptions(32, 64, 1)), tnn::ReLU(), tnn::MaxPool2d(2),
+        tnn::Conv2d(tnn::Conv2dOptions(64, 128, 3).padding(1)), tnn::ReLU(),
+        tnn::ConvTranspose2d(tnn::ConvTranspose2dOptions(128, 64, 3).stride(2).padding(1).output_padding(1)),
+        tnn::ReLU(), tnn::ConvTranspose2d(tnn::ConvTranspose2dOptions(64, 1, 3).stride(2).padding(1).output_padding(1)),
+        tnn::Sigmoid());
+}
+
+double libtorchSeed2020Forward(int64_t size, int repeat) {
+    torch::NoGradGuard noGrad;
+    auto net = torchSeed2020();
+    net->eval();
+    const auto x = torch::rand({1, 1, size, size});
+    return medianMs(repeat, [&] { net->forward(x); });
+}
+
+torch::Tensor torchSsimLoss(const torch::Tensor& pred, const torch::Tensor& target) {
+    auto g = torch::exp(-0.5 * torch::pow(torch::arange(11, torch::kFloat) - 5, 2) / (1.5 * 1.5));
+    g = g / g.sum();
+    const auto window = torch::outer(g, g).reshape({1, 1, 11, 11});
+    auto f = [&](const torch::Tensor& t) { return torch::conv2d(t, window); };
+    const auto mx = f(target), my = f(pred);
+    const auto vx = f(target * target) - mx * mx, vy = f(pred * pred) - my * my, cxy = f(target * pred) - mx * my;
+    const double c1 = 1e-4, c2 = 9e-4;
+    return 1 - (((2 * mx * my + c1) * (2 * cxy + c2)) / ((mx * mx + my * my + c1) * (vx + vy + c2))).mean();
+}
+
+double libtorchSeed2020TrainingStep(int64_t batch, int64_t size, int repeat) {
+    auto net = torchSeed2020();
+    net->train();
+    torch::optim::Adam adam(net->parameters(), torch::optim::AdamOptions(1e-3));
+    const auto x = torch::rand({batch, 1, size, size}), y = torch::rand({batch, 1, size, size});
+    return medianMs(repeat, [&] {
+        adam.zero_grad();
+        torchSsimLoss(net->forward(x), y).backward();
+        adam.step();
+    });
+}
+#endif
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -256,10 +425,56 @@ int main(int argc, char** argv) {
                 std::fflush(stdout);
             }
         }
+        struct NetworkCase {
+            std::string name;
+            bool training;
+        };
+        for (const NetworkCase& net : {NetworkCase{"seed2020 forward 1x1x800x800", false},
+                                       NetworkCase{"seed2020 training step 8x1x128x128", true}}) {
+            if (!only.empty() && net.name.find(only) == std::string::npos) continue;
+            for (int threads : threadCounts) {
+                setAllThreads(threads);
+                const FmaPeak peak = measureFmaPeak(100.0);
+                const int netRepeat = net.training ? std::max(1, repeat / 2) : repeat;
+                const NetworkResult ours =
+                    net.training ? benchSeed2020TrainingStep(8, 128, netRepeat) : benchSeed2020Forward(800, netRepeat);
+                double onednn = 0.0, libtorch = 0.0;
+#if DEJAG_HAVE_ONEDNN
+                if (!net.training) onednn = oneDnnSeed2020Forward(800, netRepeat);  // no oneDNN training loop here
+#endif
+#if DEJAG_HAVE_LIBTORCH
+                libtorch = net.training ? libtorchSeed2020TrainingStep(8, 128, netRepeat)
+                                        : libtorchSeed2020Forward(800, netRepeat);
+#endif
+                const double gmacs = ours.macs / (ours.ms * 1e6);
+                nlohmann::json row = {{"name", net.name},
+                                      {"threads", threads},
+                                      {"simd", simdLevelName(activeSimdLevel())},
+                                      {"ms", ours.ms},
+                                      {"gmacs", gmacs},
+                                      {"peak_gmacs", peak.gmacsTotal},
+                                      {"peak_fraction", gmacs / peak.gmacsTotal},
+                                      {"onednn_ms", onednn > 0 ? nlohmann::json(onednn) : nlohmann::json(nullptr)},
+                                      {"onednn_ratio", onednn > 0 ? nlohmann::json(onednn / ours.ms) : nlohmann::json(nullptr)},
+                                      {"libtorch_ms", libtorch > 0 ? nlohmann::json(libtorch) : nlohmann::json(nullptr)},
+                                      {"libtorch_ratio", libtorch > 0 ? nlohmann::json(libtorch / ours.ms) : nlohmann::json(nullptr)}};
+                if (ours.arenaBytes) row["arena_mb"] = double(ours.arenaBytes) / 1048576.0;
+                if (json) {
+                    std::printf("%s\n", row.dump().c_str());
+                } else {
+                    std::printf("%-40s %3d %6s %9.2f %8.2f %6.1f%% | %9.2f %6.2f | %9.2f %6.2f\n", net.name.c_str(),
+                                threads, simdLevelName(activeSimdLevel()), ours.ms, gmacs, 100.0 * gmacs / peak.gmacsTotal,
+                                onednn, onednn > 0 ? onednn / ours.ms : 0.0, libtorch, libtorch > 0 ? libtorch / ours.ms : 0.0);
+                }
+                std::fflush(stdout);
+            }
+        }
+        struct rusage usage {};
+        getrusage(RUSAGE_SELF, &usage);
+        if (!json) std::printf("peak RSS of this process (all libraries): %.0f MB\n", double(usage.ru_maxrss) / 1024.0);
         if (!json)
-            std::printf(
-                "ratio = peer ms / dejag ms (above 1: dejag is faster). Peak: measured fp32 FMA rate at that "
-                "thread count.\n");
+            std::printf("ratio = peer ms / dejag ms (above 1: dejag is faster). Peak: measured fp32 FMA rate at that "
+                        "thread count.\n");
     } catch (const std::exception& e) {
         std::fprintf(stderr, "dejag bench nn: %s\n", e.what());
         return 2;

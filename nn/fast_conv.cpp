@@ -56,9 +56,12 @@ BlockedConv::BlockedConv(const Conv2dDesc& d, const float* weight, const float* 
     pass.inY0 = -d.padTop, pass.inStepY = d.strideH, pass.inX0 = -d.padLeft, pass.inStepX = d.strideW;
     const int64_t B = block_, cinBlocks = (inChannels_ + B - 1) / B, coutBlocks = (outChannels_ + B - 1) / B;
     const int64_t taps = d.kernelHeight * d.kernelWidth;
+    kernelArea_ = taps;
     for (int64_t ky = 0; ky < d.kernelHeight; ++ky)
-        for (int64_t kx = 0; kx < d.kernelWidth; ++kx)
+        for (int64_t kx = 0; kx < d.kernelWidth; ++kx) {
             pass.taps.push_back({ky * d.dilationH, kx * d.dilationW});
+            pass.kernelTaps.push_back(ky * d.kernelWidth + kx);
+        }
     pass.weights.assign(size_t(coutBlocks * cinBlocks * taps * B * B), 0.0f);
     for (int64_t co = 0; co < outChannels_; ++co)
         for (int64_t ci = 0; ci < inChannels_; ++ci)
@@ -77,6 +80,8 @@ BlockedConv::BlockedConv(const ConvTranspose2dDesc& d, const float* weight, cons
     outChannels_ = d.outChannels, outHeight_ = d.outHeight(), outWidth_ = d.outWidth();
     macs_ = d.macs();
     const int64_t B = block_, cinBlocks = (inChannels_ + B - 1) / B, coutBlocks = (outChannels_ + B - 1) / B;
+    transposed_ = true;
+    kernelArea_ = d.kernelHeight * d.kernelWidth;
     // Output oy = iy * s - pad + ky * dilation. For the outputs oy = py + r * s of parity class py, the
     // taps with (py + pad - ky * dilation) divisible by s reach them, from input row r + dy.
     auto tapsFor = [](int64_t parity, int64_t pad, int64_t kernel, int64_t dilation, int64_t stride) {
@@ -100,6 +105,7 @@ BlockedConv::BlockedConv(const ConvTranspose2dDesc& d, const float* weight, cons
             for (const auto& [ky, dy] : rowsTaps)
                 for (const auto& [kx, dx] : columnTaps) {
                     pass.taps.push_back({dy, dx});
+                    pass.kernelTaps.push_back(ky * d.kernelWidth + kx);
                     kernelIndex.push_back({ky, kx});
                 }
             const int64_t taps = int64_t(pass.taps.size());
@@ -210,6 +216,118 @@ void BlockedConv::forward(float* out, const BlockedShape& outShape, const float*
             DEJAG_SIMD_CALL(convForwardRows, a);
         }
     });
+}
+
+void BlockedConv::backwardWeights(float* dweight, float* dbias, const float* dout,
+                                  const BlockedShape& doutShape, const float* in,
+                                  const BlockedShape& inShape) const {
+    if (inShape.border < requiredBorder_ || inShape.block != block_ || doutShape.block != block_ ||
+        inShape.channels != inChannels_ || doutShape.channels != outChannels_ ||
+        doutShape.height != outHeight_ || doutShape.width != outWidth_ || inShape.height != inHeight_ ||
+        inShape.width != inWidth_)
+        throw Error("BlockedConv::backwardWeights: tensor shapes do not match the convolution");
+    const int64_t B = block_, cinBlocks = inShape.channelBlocks(), coutBlocks = doutShape.channelBlocks();
+    struct Item {
+        int64_t pass, tap;
+    };
+    std::vector<Item> taps;
+    std::vector<std::vector<int64_t>> offsets(passes_.size());
+    for (size_t p = 0; p < passes_.size(); ++p)
+        for (size_t t = 0; t < passes_[p].taps.size(); ++t) {
+            taps.push_back({int64_t(p), int64_t(t)});
+            offsets[p].push_back(passes_[p].taps[t].dy * inShape.rowStride() +
+                                 passes_[p].taps[t].dx * block_);
+        }
+    const int64_t items = int64_t(taps.size()) * coutBlocks * cinBlocks;
+    parallelFor(0, items, 1, [&](int64_t first, int64_t last) {
+        std::vector<float> block(size_t(B * B));
+        for (int64_t item = first; item < last; ++item) {
+            const Item& tap = taps[size_t(item / (coutBlocks * cinBlocks))];
+            const Pass& pass = passes_[size_t(tap.pass)];
+            WeightGradArgs a;
+            a.in = in, a.inShape = inShape, a.dout = dout, a.outShape = doutShape;
+            a.pass = {pass.rows,
+                      pass.columns,
+                      pass.outY0,
+                      pass.outStepY,
+                      pass.outX0,
+                      pass.outStepX,
+                      pass.inY0,
+                      pass.inStepY,
+                      pass.inX0,
+                      pass.inStepX,
+                      int(pass.taps.size()),
+                      offsets[size_t(tap.pass)].data(),
+                      nullptr};
+            a.tap = int(tap.tap);
+            a.outBlock = (item / cinBlocks) % coutBlocks;
+            a.inBlock = item % cinBlocks;
+            a.dw = block.data();
+            DEJAG_SIMD_CALL(convWeightGradient, a);
+            const int64_t k = pass.kernelTaps[size_t(tap.tap)];
+            for (int64_t c = 0; c < B; ++c) {
+                const int64_t ci = a.inBlock * B + c;
+                if (ci >= inChannels_) break;
+                for (int64_t o = 0; o < B; ++o) {
+                    const int64_t co = a.outBlock * B + o;
+                    if (co >= outChannels_) break;
+                    const int64_t index = transposed_ ? (ci * outChannels_ + co) * kernelArea_ + k
+                                                      : (co * inChannels_ + ci) * kernelArea_ + k;
+                    dweight[index] += block[size_t(c * B + o)];
+                }
+            }
+        }
+    });
+    if (dbias) {
+        parallelFor(0, outChannels_, 1, [&](int64_t first, int64_t last) {
+            for (int64_t co = first; co < last; ++co) {
+                double sum = 0.0;
+                for (int64_t n = 0; n < doutShape.batch; ++n)
+                    for (int64_t y = 0; y < outHeight_; ++y) {
+                        const float* g = dout + doutShape.offset(n, co / B, y, 0) + co % B;
+                        for (int64_t x = 0; x < outWidth_; ++x) sum += g[x * B];
+                    }
+                dbias[co] += float(sum);
+            }
+        });
+    }
+}
+
+std::optional<BlockedConv> BlockedConv::inputGradient(const Conv2dDesc& d, const float* weight) {
+    // dIn[iy] = sum_ky w[ky] dOut[oy] with iy = oy * s - padTop + ky * dilation: a ConvTranspose2D with
+    // padding padTop and the output padding that restores the input size.
+    ConvTranspose2dDesc t;
+    t.batch = d.batch, t.inChannels = d.outChannels, t.outChannels = d.inChannels;
+    t.inHeight = d.outHeight(), t.inWidth = d.outWidth();
+    t.kernelHeight = d.kernelHeight, t.kernelWidth = d.kernelWidth;
+    t.strideH = d.strideH, t.strideW = d.strideW, t.dilationH = d.dilationH, t.dilationW = d.dilationW;
+    t.padH = d.padTop, t.padW = d.padLeft;
+    t.bias = false;
+    const int64_t fullH =
+        (t.inHeight - 1) * t.strideH - 2 * int64_t(t.padH) + int64_t(t.dilationH) * (t.kernelHeight - 1) + 1;
+    const int64_t fullW =
+        (t.inWidth - 1) * t.strideW - 2 * int64_t(t.padW) + int64_t(t.dilationW) * (t.kernelWidth - 1) + 1;
+    const int64_t opH = d.inHeight - fullH, opW = d.inWidth - fullW;
+    if (opH < 0 || opW < 0 || (opH >= t.strideH && opH >= t.dilationH) ||
+        (opW >= t.strideW && opW >= t.dilationW))
+        return std::nullopt;
+    t.outputPaddingH = int(opH), t.outputPaddingW = int(opW);
+    return BlockedConv(t, weight, nullptr, ActivationDesc{Activation::None});
+}
+
+std::optional<BlockedConv> BlockedConv::inputGradient(const ConvTranspose2dDesc& d, const float* weight) {
+    // dIn[iy] = sum_ky w[ky] dOut[iy * s - pad + ky * dilation]: a Conv2D of stride s, padding pad before
+    // and max(0, pad - outputPadding) after (those reads only ever meet zeros).
+    Conv2dDesc c;
+    c.batch = d.batch, c.inChannels = d.outChannels, c.outChannels = d.inChannels;
+    c.inHeight = d.outHeight(), c.inWidth = d.outWidth();
+    c.kernelHeight = d.kernelHeight, c.kernelWidth = d.kernelWidth;
+    c.strideH = d.strideH, c.strideW = d.strideW, c.dilationH = d.dilationH, c.dilationW = d.dilationW;
+    c.padTop = d.padH, c.padLeft = d.padW;
+    c.padBottom = std::max(0, d.padH - d.outputPaddingH), c.padRight = std::max(0, d.padW - d.outputPaddingW);
+    c.bias = false;
+    if (c.outHeight() != d.inHeight || c.outWidth() != d.inWidth) return std::nullopt;
+    return BlockedConv(c, weight, nullptr, ActivationDesc{Activation::None});
 }
 
 }  // namespace dejag::nn

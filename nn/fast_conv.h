@@ -11,6 +11,7 @@
 // convolution with the kernel taps that reach that class (no zero-stuffing, no scatter).
 #pragma once
 
+#include <optional>
 #include <vector>
 
 #include "nn/blocked.h"
@@ -35,6 +36,18 @@ class BlockedConv {
     void forward(float* out, const BlockedShape& outShape, const float* in,
                  const BlockedShape& inShape) const;
 
+    // Training: ADDS the weight gradient (in the PyTorch layout of the forward's weights) and the bias
+    // gradient, from the forward's blocked input and the blocked gradient of its output (before the
+    // activation). Deterministic: each gradient element is summed by one thread in a fixed order.
+    void backwardWeights(float* dweight, float* dbias, const float* dout, const BlockedShape& doutShape,
+                         const float* in, const BlockedShape& inShape) const;
+
+    // The convolution computing a layer's input gradient from its output gradient, when it is one:
+    // Conv2D -> ConvTranspose2D and back, same weights (their PyTorch layouts coincide). None when the
+    // adjoint's output padding would be negative (e.g. 'same' stride 2 with the extra row after).
+    static std::optional<BlockedConv> inputGradient(const Conv2dDesc& desc, const float* weight);
+    static std::optional<BlockedConv> inputGradient(const ConvTranspose2dDesc& desc, const float* weight);
+
     int block() const { return block_; }
     int64_t macs() const { return macs_; }
 
@@ -47,7 +60,8 @@ class BlockedConv {
         int64_t outY0 = 0, outStepY = 1, outX0 = 0, outStepX = 1;
         int64_t inY0 = 0, inStepY = 1, inX0 = 0, inStepX = 1;
         std::vector<Tap> taps;
-        std::vector<float> weights;  // [Cout blocks][Cin blocks][taps][B ci][B co]
+        std::vector<int64_t> kernelTaps;  // per tap: ky * kernelWidth + kx in the PyTorch weights
+        std::vector<float> weights;       // [Cout blocks][Cin blocks][taps][B ci][B co]
     };
     void finish(const float* bias);
 
@@ -57,6 +71,8 @@ class BlockedConv {
     int block_;
     int requiredBorder_ = 0;
     int64_t macs_ = 0;
+    bool transposed_ = false;  // weights (Cin, Cout, kh, kw) instead of (Cout, Cin, kh, kw)
+    int64_t kernelArea_ = 1;
     std::vector<Pass> passes_;
     std::vector<float> paddedBias_;
 };

@@ -107,4 +107,28 @@ void convForwardRows(const ConvRowsArgs& a) {
     }
 }
 
+void convWeightGradient(const WeightGradArgs& a) {
+    const ConvPass& p = a.pass;
+    const int channelsInBlock = int(std::min<int64_t>(B, a.inShape.channels - a.inBlock * B));
+    VFloat acc[B];
+    for (int c = 0; c < B; ++c) acc[c] = splat<VFloat>(0.0f);
+    const int64_t offset = p.tapOffsets[a.tap];
+    const int64_t inPixelStep = p.inStepX * B, outPixelStep = p.outStepX * B;
+    for (int64_t n = 0; n < a.inShape.batch; ++n)
+        for (int64_t r = 0; r < p.rows; ++r) {
+            const float* in = a.in + a.inShape.offset(n, a.inBlock, p.inY0 + r * p.inStepY, p.inX0) + offset;
+            const float* g = a.dout + a.outShape.offset(n, a.outBlock, p.outY0 + r * p.outStepY, p.outX0);
+            for (int64_t j = 0; j < p.columns; ++j, in += inPixelStep, g += outPixelStep) {
+                const VFloat gradient = loadu<VFloat>(g);
+                if (channelsInBlock == B) {
+#pragma GCC unroll 16
+                    for (int c = 0; c < B; ++c) acc[c] += splat<VFloat>(in[c]) * gradient;
+                } else {
+                    for (int c = 0; c < channelsInBlock; ++c) acc[c] += splat<VFloat>(in[c]) * gradient;
+                }
+            }
+        }
+    for (int c = 0; c < B; ++c) storeu(a.dw + c * B, acc[c]);
+}
+
 }  // namespace dejag::nn::DEJAG_SIMD_NAMESPACE

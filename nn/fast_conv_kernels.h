@@ -35,6 +35,20 @@ struct ConvRowsArgs {
     int64_t rowBegin = 0, rowEnd = 0;            // lattice rows of this work item
 };
 
-DEJAG_SIMD_DECLARE(void convForwardRows(const ConvRowsArgs& args);)
+// Weight gradient of one (pass, tap, output block, input block): for every image and lattice point,
+// dw[ci][co] += in[base + tap][ci] * dout[out][co], a B x B block (B accumulators of one vector each).
+struct WeightGradArgs {
+    const float* in = nullptr;  // blocked forward input
+    BlockedShape inShape;
+    const float* dout = nullptr;  // blocked gradient of the forward output (before its activation)
+    BlockedShape outShape;
+    ConvPass pass;
+    int tap = 0;
+    int64_t outBlock = 0, inBlock = 0;
+    float* dw = nullptr;  // [B ci][B co], overwritten
+};
+
+DEJAG_SIMD_DECLARE(void convForwardRows(const ConvRowsArgs& args);
+                   void convWeightGradient(const WeightGradArgs& args);)
 
 }  // namespace dejag::nn

@@ -161,6 +161,71 @@ TEST_P(FastConv, ConvTranspose2dMatchesTheReferenceOnRandomShapes) {
     }
 }
 
+// Weight, bias and input gradients of the fast path against the reference backward kernels.
+template <class Desc>
+void checkBackward(const Desc& d, Rng& rng, bool transposed) {
+    const int64_t inCount = d.batch * d.inChannels * d.inHeight * d.inWidth;
+    const int64_t outCount = d.batch * d.outChannels * d.outHeight() * d.outWidth();
+    const auto input = randomValues(size_t(inCount), rng);
+    const auto weight = randomValues(size_t(d.weightCount()), rng, 0.3f);
+    const auto dout = randomValues(size_t(outCount), rng);
+    std::vector<float> wantDin(static_cast<size_t>(inCount)), wantDw(weight.size()),
+        wantDb(size_t(d.outChannels));
+    if (transposed) {
+        convTranspose2dBackward(wantDin.data(), wantDw.data(), wantDb.data(), dout.data(), input.data(),
+                                weight.data(), reinterpret_cast<const ConvTranspose2dDesc&>(d));
+    } else {
+        conv2dBackward(wantDin.data(), wantDw.data(), wantDb.data(), dout.data(), input.data(), weight.data(),
+                       reinterpret_cast<const Conv2dDesc&>(d));
+    }
+    const BlockedConv conv(d, weight.data(), nullptr, ActivationDesc{Activation::None});
+    const int border = conv.requiredInputBorder();
+    const BlockedShape inShape = conv.inputShape(border), outShape = conv.outputShape(0);
+    Tensor in = allocateBlocked(inShape), g = allocateBlocked(outShape);
+    toBlocked(in.data(), input.data(), inShape);
+    toBlocked(g.data(), dout.data(), outShape);
+    std::vector<float> dw(weight.size(), 0.0f), db(size_t(d.outChannels), 0.0f);
+    conv.backwardWeights(dw.data(), db.data(), g.data(), outShape, in.data(), inShape);
+    expectClose(dw, wantDw);
+    expectClose(db, wantDb);
+
+    const auto adjoint = BlockedConv::inputGradient(d, weight.data());
+    ASSERT_TRUE(adjoint.has_value());
+    const BlockedShape gShape = adjoint->inputShape(adjoint->requiredInputBorder());
+    Tensor gb = allocateBlocked(gShape), din = allocateBlocked(adjoint->outputShape(0));
+    toBlocked(gb.data(), dout.data(), gShape);
+    adjoint->forward(din.data(), adjoint->outputShape(0), gb.data(), gShape);
+    std::vector<float> got(static_cast<size_t>(inCount));
+    fromBlocked(got.data(), din.data(), adjoint->outputShape(0));
+    expectClose(got, wantDin);
+}
+
+TEST_P(FastConv, BackwardMatchesTheReference) {
+    Rng rng(79);
+    for (int trial = 0; trial < 16; ++trial) {
+        SCOPED_TRACE("trial " + std::to_string(trial));
+        if (trial % 2 == 0) {
+            Conv2dDesc d;
+            d.batch = 1 + rng.below(2), d.inChannels = 1 + rng.below(35), d.outChannels = 1 + rng.below(35);
+            const int k = int(1 + 2 * rng.below(3));
+            d.kernelHeight = d.kernelWidth = k;
+            d.padTop = d.padBottom = d.padLeft = d.padRight = k / 2;
+            if (trial % 4 == 2)
+                d.strideH = d.strideW = 2, d.padTop = d.padLeft = k / 2, d.padBottom = d.padRight = k / 2;
+            d.inHeight = k + rng.below(12), d.inWidth = k + rng.below(20);
+            if (!BlockedConv::inputGradient(d, std::vector<float>(size_t(d.weightCount())).data())) continue;
+            checkBackward(d, rng, false);
+        } else {
+            ConvTranspose2dDesc d;
+            d.batch = 1 + rng.below(2), d.inChannels = 1 + rng.below(35), d.outChannels = 1 + rng.below(35);
+            d.kernelHeight = d.kernelWidth = 3, d.strideH = d.strideW = int(1 + rng.below(2));
+            d.padH = d.padW = 1, d.outputPaddingH = d.outputPaddingW = d.strideH - 1;
+            d.inHeight = 1 + rng.below(10), d.inWidth = 1 + rng.below(14);
+            checkBackward(d, rng, true);
+        }
+    }
+}
+
 TEST_P(FastConv, SameResultForEveryThreadCount) {
     Rng rng(5);
     Conv2dDesc d;
