@@ -212,7 +212,8 @@ NetworkResult benchSeed2020TrainingStep(int64_t batch, int64_t size, int repeat)
     model.initialize(1);
     Tensor input({batch, 1, size, size}), target({batch, 1, size, size});
     Rng rng(3);
-    for (int64_t i = 0; i < input.numel(); ++i) input.data()[i] = rng.uniform(), target.data()[i] = rng.uniform();
+    for (int64_t i = 0; i < input.numel(); ++i)
+        input.data()[i] = rng.uniform(), target.data()[i] = rng.uniform();
     Optimizer optimizer(OptimizerConfig{}, model.parameterCount());
     const SsimLossDesc shape{batch, 1, size, size, 1.0};
     Tensor dout({batch, 1, size, size});
@@ -242,7 +243,8 @@ double oneDnnSeed2020Forward(int64_t size, int repeat) {
     int64_t channels = 1, height = size;
     auto fill = [](memory& m, float value) {
         float* p = static_cast<float*>(m.get_data_handle());
-        for (size_t i = 0; i < m.get_desc().get_size() / sizeof(float); ++i) p[i] = value * float(int(i % 7) - 3);
+        for (size_t i = 0; i < m.get_desc().get_size() / sizeof(float); ++i)
+            p[i] = value * float(int(i % 7) - 3);
     };
     auto addConv = [&](int64_t out, int64_t k, bool transposed, algorithm activation) {
         const int64_t outHeight = transposed ? height * 2 : height;
@@ -265,22 +267,24 @@ double oneDnnSeed2020Forward(int64_t size, int repeat) {
             primitives.push_back(deconvolution_forward(pd));
         } else {
             const auto pd = convolution_forward::primitive_desc(
-                convolution_forward::desc(prop_kind::forward_inference, algorithm::convolution_auto, current.get_desc(),
-                                          weiAny, bias, dstAny, strides, padL, padR),
+                convolution_forward::desc(prop_kind::forward_inference, algorithm::convolution_auto,
+                                          current.get_desc(), weiAny, bias, dstAny, strides, padL, padR),
                 attr, eng);
             weiDesc = pd.weights_desc(), dstDesc = pd.dst_desc();
             primitives.push_back(convolution_forward(pd));
         }
         memory w(weiDesc, eng), b(bias, eng), d(dstDesc, eng);
         fill(w, 0.01f), fill(b, 0.01f);
-        arguments.push_back({{DNNL_ARG_SRC, current}, {DNNL_ARG_WEIGHTS, w}, {DNNL_ARG_BIAS, b}, {DNNL_ARG_DST, d}});
+        arguments.push_back(
+            {{DNNL_ARG_SRC, current}, {DNNL_ARG_WEIGHTS, w}, {DNNL_ARG_BIAS, b}, {DNNL_ARG_DST, d}});
         current = d, channels = out, height = outHeight;
     };
     auto addPool = [&]() {
         const memory::dims dst{1, channels, height / 2, height / 2};
         const auto pd = pooling_v2_forward::primitive_desc(
             pooling_v2_forward::desc(prop_kind::forward_inference, algorithm::pooling_max, current.get_desc(),
-                                     memory::desc(dst, dt::f32, tag::any), {2, 2}, {2, 2}, {0, 0}, {0, 0}, {0, 0}),
+                                     memory::desc(dst, dt::f32, tag::any), {2, 2}, {2, 2}, {0, 0}, {0, 0},
+                                     {0, 0}),
             eng);
         memory d(pd.dst_desc(), eng);
         primitives.push_back(pooling_v2_forward(pd));
@@ -311,7 +315,8 @@ torch::nn::Sequential torchSeed2020() {
         tnn::Conv2d(tnn::Conv2dOptions(32, 64, 1)), tnn::ReLU(), tnn::MaxPool2d(2),
         tnn::Conv2d(tnn::Conv2dOptions(64, 128, 3).padding(1)), tnn::ReLU(),
         tnn::ConvTranspose2d(tnn::ConvTranspose2dOptions(128, 64, 3).stride(2).padding(1).output_padding(1)),
-        tnn::ReLU(), tnn::ConvTranspose2d(tnn::ConvTranspose2dOptions(64, 1, 3).stride(2).padding(1).output_padding(1)),
+        tnn::ReLU(),
+        tnn::ConvTranspose2d(tnn::ConvTranspose2dOptions(64, 1, 3).stride(2).padding(1).output_padding(1)),
         tnn::Sigmoid());
 }
 
@@ -329,7 +334,8 @@ torch::Tensor torchSsimLoss(const torch::Tensor& pred, const torch::Tensor& targ
     const auto window = torch::outer(g, g).reshape({1, 1, 11, 11});
     auto f = [&](const torch::Tensor& t) { return torch::conv2d(t, window); };
     const auto mx = f(target), my = f(pred);
-    const auto vx = f(target * target) - mx * mx, vy = f(pred * pred) - my * my, cxy = f(target * pred) - mx * my;
+    const auto vx = f(target * target) - mx * mx, vy = f(pred * pred) - my * my,
+               cxy = f(target * pred) - mx * my;
     const double c1 = 1e-4, c2 = 9e-4;
     return 1 - (((2 * mx * my + c1) * (2 * cxy + c2)) / ((mx * mx + my * my + c1) * (vx + vy + c2))).mean();
 }
@@ -436,45 +442,52 @@ int main(int argc, char** argv) {
                 setAllThreads(threads);
                 const FmaPeak peak = measureFmaPeak(100.0);
                 const int netRepeat = net.training ? std::max(1, repeat / 2) : repeat;
-                const NetworkResult ours =
-                    net.training ? benchSeed2020TrainingStep(8, 128, netRepeat) : benchSeed2020Forward(800, netRepeat);
+                const NetworkResult ours = net.training ? benchSeed2020TrainingStep(8, 128, netRepeat)
+                                                        : benchSeed2020Forward(800, netRepeat);
                 double onednn = 0.0, libtorch = 0.0;
 #if DEJAG_HAVE_ONEDNN
-                if (!net.training) onednn = oneDnnSeed2020Forward(800, netRepeat);  // no oneDNN training loop here
+                if (!net.training)
+                    onednn = oneDnnSeed2020Forward(800, netRepeat);  // no oneDNN training loop here
 #endif
 #if DEJAG_HAVE_LIBTORCH
                 libtorch = net.training ? libtorchSeed2020TrainingStep(8, 128, netRepeat)
                                         : libtorchSeed2020Forward(800, netRepeat);
 #endif
                 const double gmacs = ours.macs / (ours.ms * 1e6);
-                nlohmann::json row = {{"name", net.name},
-                                      {"threads", threads},
-                                      {"simd", simdLevelName(activeSimdLevel())},
-                                      {"ms", ours.ms},
-                                      {"gmacs", gmacs},
-                                      {"peak_gmacs", peak.gmacsTotal},
-                                      {"peak_fraction", gmacs / peak.gmacsTotal},
-                                      {"onednn_ms", onednn > 0 ? nlohmann::json(onednn) : nlohmann::json(nullptr)},
-                                      {"onednn_ratio", onednn > 0 ? nlohmann::json(onednn / ours.ms) : nlohmann::json(nullptr)},
-                                      {"libtorch_ms", libtorch > 0 ? nlohmann::json(libtorch) : nlohmann::json(nullptr)},
-                                      {"libtorch_ratio", libtorch > 0 ? nlohmann::json(libtorch / ours.ms) : nlohmann::json(nullptr)}};
+                nlohmann::json row = {
+                    {"name", net.name},
+                    {"threads", threads},
+                    {"simd", simdLevelName(activeSimdLevel())},
+                    {"ms", ours.ms},
+                    {"gmacs", gmacs},
+                    {"peak_gmacs", peak.gmacsTotal},
+                    {"peak_fraction", gmacs / peak.gmacsTotal},
+                    {"onednn_ms", onednn > 0 ? nlohmann::json(onednn) : nlohmann::json(nullptr)},
+                    {"onednn_ratio", onednn > 0 ? nlohmann::json(onednn / ours.ms) : nlohmann::json(nullptr)},
+                    {"libtorch_ms", libtorch > 0 ? nlohmann::json(libtorch) : nlohmann::json(nullptr)},
+                    {"libtorch_ratio",
+                     libtorch > 0 ? nlohmann::json(libtorch / ours.ms) : nlohmann::json(nullptr)}};
                 if (ours.arenaBytes) row["arena_mb"] = double(ours.arenaBytes) / 1048576.0;
                 if (json) {
                     std::printf("%s\n", row.dump().c_str());
                 } else {
-                    std::printf("%-40s %3d %6s %9.2f %8.2f %6.1f%% | %9.2f %6.2f | %9.2f %6.2f\n", net.name.c_str(),
-                                threads, simdLevelName(activeSimdLevel()), ours.ms, gmacs, 100.0 * gmacs / peak.gmacsTotal,
-                                onednn, onednn > 0 ? onednn / ours.ms : 0.0, libtorch, libtorch > 0 ? libtorch / ours.ms : 0.0);
+                    std::printf("%-40s %3d %6s %9.2f %8.2f %6.1f%% | %9.2f %6.2f | %9.2f %6.2f\n",
+                                net.name.c_str(), threads, simdLevelName(activeSimdLevel()), ours.ms, gmacs,
+                                100.0 * gmacs / peak.gmacsTotal, onednn, onednn > 0 ? onednn / ours.ms : 0.0,
+                                libtorch, libtorch > 0 ? libtorch / ours.ms : 0.0);
                 }
                 std::fflush(stdout);
             }
         }
         struct rusage usage {};
         getrusage(RUSAGE_SELF, &usage);
-        if (!json) std::printf("peak RSS of this process (all libraries): %.0f MB\n", double(usage.ru_maxrss) / 1024.0);
         if (!json)
-            std::printf("ratio = peer ms / dejag ms (above 1: dejag is faster). Peak: measured fp32 FMA rate at that "
-                        "thread count.\n");
+            std::printf("peak RSS of this process (all libraries): %.0f MB\n",
+                        double(usage.ru_maxrss) / 1024.0);
+        if (!json)
+            std::printf(
+                "ratio = peer ms / dejag ms (above 1: dejag is faster). Peak: measured fp32 FMA rate at that "
+                "thread count.\n");
     } catch (const std::exception& e) {
         std::fprintf(stderr, "dejag bench nn: %s\n", e.what());
         return 2;

@@ -113,7 +113,7 @@ const char* activationName(Activation activation);
 Activation parseActivation(const std::string& name);  // throws dejag::Error
 
 struct ActivationDesc {
-    Activation kind = Activation::ReLU;
+    Activation kind = Activation::None;
     float slope = 0.01f;            // LeakyReLU: x < 0 -> slope * x
     float low = 0.0f, high = 1.0f;  // Clamp
 };

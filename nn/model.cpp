@@ -3,8 +3,10 @@
 #include <algorithm>
 #include <cmath>
 #include <cstring>
+#include <optional>
 
 #include "base/error.h"
+#include "nn/fast_conv.h"
 #include "nn/init.h"
 #include "nn/safetensors.h"
 
@@ -17,7 +19,16 @@ using Op = GraphOp;
 struct Node : GraphNode {
     Tensor preActivation, output, gradient, preActivationGradient;  // (N, C, H, W) each
     std::vector<int32_t> argmax;                                    // maxpool2d
+    // Fast kernels (conv2d, conv_transpose2d): the convolution packed for this forward and its input in
+    // the blocked layout, kept for the weight gradient.
+    std::optional<BlockedConv> fastConv;
+    Tensor blockedInput, blockedOutput, blockedGradient, blockedInputGradient, inputGradient;
+    BlockedShape blockedInputShape;
 };
+
+void ensureBlocked(Tensor& t, const BlockedShape& shape) {
+    if (t.numel() != shape.floatCount()) t = allocateBlocked(shape);
+}
 
 Op parseOp(const std::string& name, const std::string& node) {
     for (int i = 0; i < int(Op::Count); ++i)
@@ -40,6 +51,7 @@ struct Model::Impl {
     std::vector<ParameterInfo> parameters;
     std::vector<float> params, grads;
     std::string init = "he_normal";
+    bool fastKernels = true;
     const Tensor* lastInput = nullptr;
     Shape lastInputShape;
 
@@ -429,6 +441,13 @@ const ParameterInfo& Model::parameter(const std::string& name) const {
     throw Error("model '" + impl_->name + "' has no parameter '" + name + "'");
 }
 
+void Model::setFastKernels(bool fast) {
+    impl_->fastKernels = fast;
+}
+bool Model::fastKernels() const {
+    return impl_->fastKernels;
+}
+
 void Model::initialize(uint64_t seed) {
     Rng rng(seed);
     for (const ParameterInfo& p : impl_->parameters) {
@@ -494,10 +513,30 @@ const Tensor& Model::forward(const Tensor& input) {
         }
         switch (n.op) {
             case Op::Conv2d:
-                conv2dForward(target, x, weight, bias, n.convDesc(ins[0]));
-                break;
             case Op::ConvTranspose2d:
-                convTranspose2dForward(target, x, weight, bias, n.convTransposeDesc(ins[0]));
+                if (m.fastKernels) {
+                    n.fastConv.reset();  // weights change between steps: pack again
+                    if (n.op == Op::Conv2d)
+                        n.fastConv.emplace(n.convDesc(ins[0]), weight, bias,
+                                           ActivationDesc{Activation::None});
+                    else
+                        n.fastConv.emplace(n.convTransposeDesc(ins[0]), weight, bias,
+                                           ActivationDesc{Activation::None});
+                    const BlockedShape inShape = n.fastConv->inputShape(n.fastConv->requiredInputBorder());
+                    const BlockedShape outShape = n.fastConv->outputShape(0);
+                    if (n.blockedInput.numel() != inShape.floatCount() ||
+                        n.blockedInputShape.border != inShape.border)
+                        n.blockedInput = allocateBlocked(inShape);  // zero border and unused channels
+                    n.blockedInputShape = inShape;
+                    ensureBlocked(n.blockedOutput, outShape);
+                    toBlocked(n.blockedInput.data(), x, inShape);
+                    n.fastConv->forward(n.blockedOutput.data(), outShape, n.blockedInput.data(), inShape);
+                    fromBlocked(target, n.blockedOutput.data(), outShape);
+                } else if (n.op == Op::Conv2d) {
+                    conv2dForward(target, x, weight, bias, n.convDesc(ins[0]));
+                } else {
+                    convTranspose2dForward(target, x, weight, bias, n.convTransposeDesc(ins[0]));
+                }
                 break;
             case Op::MaxPool2d:
                 n.argmax.resize(size_t(shapeNumel(out)));
@@ -571,10 +610,41 @@ void Model::backward(const Tensor& doutput) {
         }
         switch (n.op) {
             case Op::Conv2d:
-                conv2dBackward(dx, dweight, dbias, g, x, weight, n.convDesc(ins[0]));
-                break;
             case Op::ConvTranspose2d:
-                convTranspose2dBackward(dx, dweight, dbias, g, x, weight, n.convTransposeDesc(ins[0]));
+                if (m.fastKernels && n.fastConv) {
+                    // Weight and bias gradients from the blocked forward input; the input gradient as the
+                    // adjoint convolution when there is one, else the reference kernel.
+                    std::optional<BlockedConv> adjoint;
+                    if (dx)
+                        adjoint = n.op == Op::Conv2d
+                                      ? BlockedConv::inputGradient(n.convDesc(ins[0]), weight)
+                                      : BlockedConv::inputGradient(n.convTransposeDesc(ins[0]), weight);
+                    const int border = adjoint ? adjoint->requiredInputBorder() : 0;
+                    const BlockedShape gShape = n.fastConv->outputShape(border);
+                    if (n.blockedGradient.numel() != gShape.floatCount())
+                        n.blockedGradient = allocateBlocked(gShape);
+                    toBlocked(n.blockedGradient.data(), g, gShape);
+                    n.fastConv->backwardWeights(dweight, dbias, n.blockedGradient.data(), gShape,
+                                                n.blockedInput.data(), n.blockedInputShape);
+                    if (adjoint) {
+                        const BlockedShape dinShape = adjoint->outputShape(0);
+                        ensureBlocked(n.blockedInputGradient, dinShape);
+                        adjoint->forward(n.blockedInputGradient.data(), dinShape, n.blockedGradient.data(),
+                                         gShape);
+                        ensureShape(n.inputGradient, ins[0]);
+                        fromBlocked(n.inputGradient.data(), n.blockedInputGradient.data(), dinShape);
+                        addForward(dx, dx, n.inputGradient.data(), n.inputGradient.numel());
+                    } else if (dx && n.op == Op::Conv2d) {
+                        conv2dBackward<float>(dx, nullptr, nullptr, g, x, weight, n.convDesc(ins[0]));
+                    } else if (dx) {
+                        convTranspose2dBackward<float>(dx, nullptr, nullptr, g, x, weight,
+                                                       n.convTransposeDesc(ins[0]));
+                    }
+                } else if (n.op == Op::Conv2d) {
+                    conv2dBackward(dx, dweight, dbias, g, x, weight, n.convDesc(ins[0]));
+                } else {
+                    convTranspose2dBackward(dx, dweight, dbias, g, x, weight, n.convTransposeDesc(ins[0]));
+                }
                 break;
             case Op::MaxPool2d:
                 if (dx) maxPool2dBackward(dx, g, n.argmax.data(), n.poolDesc(ins[0]));

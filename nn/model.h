@@ -112,6 +112,11 @@ class Model {
     float* gradientData();
     const float* gradientData() const;
 
+    // Convolutions run on the fast blocked kernels (default) or on the reference kernels of nn/layers.h,
+    // the oracle the fast ones are tested against. Both give the same results to float rounding.
+    void setFastKernels(bool fast);
+    bool fastKernels() const;
+
     // Seeded initialisation: the architecture's "init" (glorot_uniform or he_normal) for weights, zero
     // biases.
     void initialize(uint64_t seed);

@@ -59,11 +59,16 @@ TEST(Model, FastFamilyIsResidualAndCheap) {
     for (int64_t i = 0; i < input.numel(); ++i) ASSERT_EQ(output.data()[i], input.data()[i]);
 }
 
-// 5 Adam steps of seed2020 on one batch against PyTorch (tests/golden/make_nn_golden.py).
-TEST(Model, Seed2020AdamStepsMatchPyTorch) {
+// 5 Adam steps of seed2020 on one batch against PyTorch (tests/golden/make_nn_golden.py), with the
+// reference kernels and with the fast ones.
+class Seed2020Golden : public ::testing::TestWithParam<bool> {};
+
+TEST_P(Seed2020Golden, AdamStepsMatchPyTorch) {
     const SafetensorsFile golden =
         readSafetensors(testing::sourcePath("tests/golden/nn/seed2020_adam5.safetensors"));
     Model model = Model::builtin("seed2020");
+    model.setFastKernels(GetParam());
+    std::printf("[golden] seed2020 with the %s kernels\n", GetParam() ? "fast" : "reference");
     for (const ParameterInfo& p : model.parameters()) {
         const std::vector<float> values = golden.at("initial." + p.name).asFloat();
         ASSERT_EQ(int64_t(values.size()), shapeNumel(p.shape)) << p.name;
@@ -129,6 +134,46 @@ TEST(Model, Seed2020AdamStepsMatchPyTorch) {
     EXPECT_LE(worstLoss, 1e-5);
     EXPECT_LE(worstWeight / scale, 1e-3);
     EXPECT_LE(updateRelative, 1e-3);
+}
+
+// The fast kernels against the reference kernels inside the whole graph: outputs and every gradient.
+void expectFastMatchesReference(Model& model, const Shape& shape) {
+    model.initialize(21);
+    const Tensor input = randomTensor(shape, 22);
+    model.setFastKernels(false);
+    const Tensor wantOut = model.forward(input).clone();
+    const Tensor dout = randomTensor(wantOut.shape(), 23, -1.0f, 1.0f);
+    model.backward(dout);
+    const std::vector<float> wantGrad(model.gradientData(), model.gradientData() + model.parameterCount());
+    model.setFastKernels(true);
+    const Tensor& out = model.forward(input);
+    double worst = 0.0, scale = 1e-9;
+    for (int64_t i = 0; i < out.numel(); ++i) {
+        worst = std::max(worst, double(std::abs(out.data()[i] - wantOut.data()[i])));
+        scale = std::max(scale, double(std::abs(wantOut.data()[i])));
+    }
+    EXPECT_LE(worst / scale, 1e-5) << model.name() << " forward";
+    model.backward(dout);
+    for (const ParameterInfo& p : model.parameters()) {
+        double w = 0.0, sc = 1e-9;
+        for (int64_t i = p.offset; i < p.offset + shapeNumel(p.shape); ++i) {
+            w = std::max(w, double(std::abs(model.gradientData()[i] - wantGrad[size_t(i)])));
+            sc = std::max(sc, double(std::abs(wantGrad[size_t(i)])));
+        }
+        EXPECT_LE(w / sc, 1e-4) << model.name() << " gradient of " << p.name;
+    }
+}
+
+INSTANTIATE_TEST_SUITE_P(Kernels, Seed2020Golden, ::testing::Values(false, true),
+                         [](const ::testing::TestParamInfo<bool>& test) {
+                             return std::string(test.param ? "fast" : "reference");
+                         });
+
+TEST(Model, FastKernelsMatchTheReferenceKernelsInTheGraph) {
+    Model seed = Model::builtin("seed2020");
+    expectFastMatchesReference(seed, {2, 1, 24, 20});
+    Model fast = Model::builtin("fast");
+    expectFastMatchesReference(fast, {2, 3, 18, 22});
 }
 
 TEST(Model, SameSeedSameWeightsAndThreadCountDoesNotChangeOutputs) {
