@@ -76,6 +76,8 @@ double benchDejag(const Case& c, int repeat) {
         bias(size_t(c.outChannels));
     for (float& w : weight) w = rng.uniform(-0.1f, 0.1f);
     for (float& b : bias) b = rng.uniform(-0.1f, 0.1f);
+    // A layer reading the network's input (1-3 channels) reads it planar, as InferencePlan does.
+    const int inputBlock = c.inChannels <= 4 ? 1 : 0;
     auto make = [&]() {
         if (c.transposed) {
             ConvTranspose2dDesc d;
@@ -83,14 +85,14 @@ double benchDejag(const Case& c, int repeat) {
             d.inWidth = c.width;
             d.kernelHeight = d.kernelWidth = c.kernel;
             d.strideH = d.strideW = 2, d.padH = d.padW = 1, d.outputPaddingH = d.outputPaddingW = 1;
-            return BlockedConv(d, weight.data(), bias.data(), ActivationDesc{Activation::ReLU});
+            return BlockedConv(d, weight.data(), bias.data(), ActivationDesc{Activation::ReLU}, inputBlock);
         }
         Conv2dDesc d;
         d.inChannels = c.inChannels, d.outChannels = c.outChannels, d.inHeight = c.height,
         d.inWidth = c.width;
         d.kernelHeight = d.kernelWidth = c.kernel;
         d.padTop = d.padBottom = d.padLeft = d.padRight = int(c.kernel / 2);
-        return BlockedConv(d, weight.data(), bias.data(), ActivationDesc{Activation::ReLU});
+        return BlockedConv(d, weight.data(), bias.data(), ActivationDesc{Activation::ReLU}, inputBlock);
     };
     const BlockedConv conv = make();
     const int border = conv.requiredInputBorder();

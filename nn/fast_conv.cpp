@@ -45,8 +45,9 @@ void fromBlocked(float* plain, const float* blocked, const BlockedShape& s) {
 }
 
 BlockedConv::BlockedConv(const Conv2dDesc& d, const float* weight, const float* bias,
-                         const ActivationDesc& activation)
+                         const ActivationDesc& activation, int inputBlock)
     : activation_(activation), block_(simdFloatLanes(activeSimdLevel())) {
+    setInputBlock(inputBlock, d.inChannels);
     d.validate();
     batch_ = d.batch, inChannels_ = d.inChannels, inHeight_ = d.inHeight, inWidth_ = d.inWidth;
     outChannels_ = d.outChannels, outHeight_ = d.outHeight(), outWidth_ = d.outWidth();
@@ -54,7 +55,8 @@ BlockedConv::BlockedConv(const Conv2dDesc& d, const float* weight, const float* 
     Pass pass;
     pass.rows = outHeight_, pass.columns = outWidth_;
     pass.inY0 = -d.padTop, pass.inStepY = d.strideH, pass.inX0 = -d.padLeft, pass.inStepX = d.strideW;
-    const int64_t B = block_, cinBlocks = (inChannels_ + B - 1) / B, coutBlocks = (outChannels_ + B - 1) / B;
+    const int64_t B = block_, Bi = inputBlock_, coutBlocks = (outChannels_ + B - 1) / B;
+    const int64_t cinBlocks = (inChannels_ + Bi - 1) / Bi;
     const int64_t taps = d.kernelHeight * d.kernelWidth;
     kernelArea_ = taps;
     for (int64_t ky = 0; ky < d.kernelHeight; ++ky)
@@ -62,24 +64,26 @@ BlockedConv::BlockedConv(const Conv2dDesc& d, const float* weight, const float* 
             pass.taps.push_back({ky * d.dilationH, kx * d.dilationW});
             pass.kernelTaps.push_back(ky * d.kernelWidth + kx);
         }
-    pass.weights.assign(size_t(coutBlocks * cinBlocks * taps * B * B), 0.0f);
+    pass.weights.assign(size_t(coutBlocks * cinBlocks * taps * Bi * B), 0.0f);
     for (int64_t co = 0; co < outChannels_; ++co)
         for (int64_t ci = 0; ci < inChannels_; ++ci)
             for (int64_t t = 0; t < taps; ++t)
-                pass.weights[size_t((((co / B) * cinBlocks + ci / B) * taps + t) * B * B + (ci % B) * B +
+                pass.weights[size_t((((co / B) * cinBlocks + ci / Bi) * taps + t) * Bi * B + (ci % Bi) * B +
                                     co % B)] = weight[(co * inChannels_ + ci) * taps + t];
     passes_.push_back(std::move(pass));
     finish(d.bias ? bias : nullptr);
 }
 
 BlockedConv::BlockedConv(const ConvTranspose2dDesc& d, const float* weight, const float* bias,
-                         const ActivationDesc& activation)
+                         const ActivationDesc& activation, int inputBlock)
     : activation_(activation), block_(simdFloatLanes(activeSimdLevel())) {
+    setInputBlock(inputBlock, d.inChannels);
     d.validate();
     batch_ = d.batch, inChannels_ = d.inChannels, inHeight_ = d.inHeight, inWidth_ = d.inWidth;
     outChannels_ = d.outChannels, outHeight_ = d.outHeight(), outWidth_ = d.outWidth();
     macs_ = d.macs();
-    const int64_t B = block_, cinBlocks = (inChannels_ + B - 1) / B, coutBlocks = (outChannels_ + B - 1) / B;
+    const int64_t B = block_, Bi = inputBlock_, coutBlocks = (outChannels_ + B - 1) / B;
+    const int64_t cinBlocks = (inChannels_ + Bi - 1) / Bi;
     transposed_ = true;
     kernelArea_ = d.kernelHeight * d.kernelWidth;
     // Output oy = iy * s - pad + ky * dilation. For the outputs oy = py + r * s of parity class py, the
@@ -109,13 +113,13 @@ BlockedConv::BlockedConv(const ConvTranspose2dDesc& d, const float* weight, cons
                     kernelIndex.push_back({ky, kx});
                 }
             const int64_t taps = int64_t(pass.taps.size());
-            pass.weights.assign(size_t(std::max<int64_t>(1, coutBlocks * cinBlocks * taps * B * B)), 0.0f);
+            pass.weights.assign(size_t(std::max<int64_t>(1, coutBlocks * cinBlocks * taps * Bi * B)), 0.0f);
             for (int64_t co = 0; co < outChannels_; ++co)
                 for (int64_t ci = 0; ci < inChannels_; ++ci)
                     for (int64_t t = 0; t < taps; ++t) {
                         const auto [ky, kx] = kernelIndex[size_t(t)];
-                        pass.weights[size_t((((co / B) * cinBlocks + ci / B) * taps + t) * B * B +
-                                            (ci % B) * B + co % B)] =
+                        pass.weights[size_t((((co / B) * cinBlocks + ci / Bi) * taps + t) * Bi * B +
+                                            (ci % Bi) * B + co % B)] =
                             weight[((ci * outChannels_ + co) * d.kernelHeight + ky) * d.kernelWidth + kx];
                     }
             passes_.push_back(std::move(pass));
@@ -142,8 +146,17 @@ void BlockedConv::finish(const float* bias) {
     requiredBorder_ = int(border);
 }
 
+void BlockedConv::setInputBlock(int inputBlock, int64_t inChannels) {
+    inputBlock_ = inputBlock == 0 ? block_ : inputBlock;
+    if (inputBlock_ != block_ && inputBlock_ != 1)
+        throw Error("BlockedConv: the input block is the SIMD width or 1, not " + std::to_string(inputBlock));
+    if (inputBlock_ == 1 && block_ != 1 && inChannels > 8)
+        throw Error("BlockedConv: a planar (block 1) input is for a few channels, not " +
+                    std::to_string(inChannels));
+}
+
 BlockedShape BlockedConv::inputShape(int border) const {
-    return {batch_, inChannels_, inHeight_, inWidth_, block_, border};
+    return {batch_, inChannels_, inHeight_, inWidth_, inputBlock_, border};
 }
 
 BlockedShape BlockedConv::outputShape(int border) const {
@@ -152,7 +165,8 @@ BlockedShape BlockedConv::outputShape(int border) const {
 
 void BlockedConv::forward(float* out, const BlockedShape& outShape, const float* in,
                           const BlockedShape& inShape) const {
-    if (inShape.block != block_ || outShape.block != block_ || block_ != simdFloatLanes(activeSimdLevel()))
+    if (inShape.block != inputBlock_ || outShape.block != block_ ||
+        block_ != simdFloatLanes(activeSimdLevel()))
         throw Error("BlockedConv: blocked layout of " + std::to_string(inShape.block) +
                     " channels, the kernels use " + std::to_string(simdFloatLanes(activeSimdLevel())) +
                     " (the SIMD level changed since packing?)");
@@ -175,7 +189,7 @@ void BlockedConv::forward(float* out, const BlockedShape& outShape, const float*
     for (size_t p = 0; p < passes_.size(); ++p) {
         const Pass& pass = passes_[p];
         for (size_t t = 0; t < pass.taps.size(); ++t)
-            offsets[p][t] = pass.taps[t].dy * inShape.rowStride() + pass.taps[t].dx * block_;
+            offsets[p][t] = pass.taps[t].dy * inShape.rowStride() + pass.taps[t].dx * inputBlock_;
         // Bands small enough for both cores to stay busy on small patches, large enough to amortise.
         const int64_t rowsPerBand =
             std::max<int64_t>(1, std::min<int64_t>(8, pass.rows / (4 * threadCount()) + 1));
@@ -221,12 +235,13 @@ void BlockedConv::forward(float* out, const BlockedShape& outShape, const float*
 void BlockedConv::backwardWeights(float* dweight, float* dbias, const float* dout,
                                   const BlockedShape& doutShape, const float* in,
                                   const BlockedShape& inShape) const {
-    if (inShape.border < requiredBorder_ || inShape.block != block_ || doutShape.block != block_ ||
+    if (inShape.border < requiredBorder_ || inShape.block != inputBlock_ || doutShape.block != block_ ||
         inShape.channels != inChannels_ || doutShape.channels != outChannels_ ||
         doutShape.height != outHeight_ || doutShape.width != outWidth_ || inShape.height != inHeight_ ||
         inShape.width != inWidth_)
         throw Error("BlockedConv::backwardWeights: tensor shapes do not match the convolution");
-    const int64_t B = block_, cinBlocks = inShape.channelBlocks(), coutBlocks = doutShape.channelBlocks();
+    const int64_t B = block_, Bi = inputBlock_, cinBlocks = inShape.channelBlocks(),
+                  coutBlocks = doutShape.channelBlocks();
     struct Item {
         int64_t pass, tap;
     };
@@ -236,11 +251,11 @@ void BlockedConv::backwardWeights(float* dweight, float* dbias, const float* dou
         for (size_t t = 0; t < passes_[p].taps.size(); ++t) {
             taps.push_back({int64_t(p), int64_t(t)});
             offsets[p].push_back(passes_[p].taps[t].dy * inShape.rowStride() +
-                                 passes_[p].taps[t].dx * block_);
+                                 passes_[p].taps[t].dx * inputBlock_);
         }
     const int64_t items = int64_t(taps.size()) * coutBlocks * cinBlocks;
     parallelFor(0, items, 1, [&](int64_t first, int64_t last) {
-        std::vector<float> block(size_t(B * B));
+        std::vector<float> block(size_t(Bi * B));
         for (int64_t item = first; item < last; ++item) {
             const Item& tap = taps[size_t(item / (coutBlocks * cinBlocks))];
             const Pass& pass = passes_[size_t(tap.pass)];
@@ -265,8 +280,8 @@ void BlockedConv::backwardWeights(float* dweight, float* dbias, const float* dou
             a.dw = block.data();
             DEJAG_SIMD_CALL(convWeightGradient, a);
             const int64_t k = pass.kernelTaps[size_t(tap.tap)];
-            for (int64_t c = 0; c < B; ++c) {
-                const int64_t ci = a.inBlock * B + c;
+            for (int64_t c = 0; c < Bi; ++c) {
+                const int64_t ci = a.inBlock * Bi + c;
                 if (ci >= inChannels_) break;
                 for (int64_t o = 0; o < B; ++o) {
                     const int64_t co = a.outBlock * B + o;

@@ -23,10 +23,13 @@ class BlockedConv {
   public:
     // Weights in the PyTorch layouts of nn/layers.h; packed once here. Throws dejag::Error for a sigmoid
     // activation (not fused: apply it afterwards) or an invalid descriptor.
+    // inputBlock: channels per block of the input layout: 0 = the SIMD width (like every activation), or
+    // 1 = planar, for inputs of a few channels (an RGB or grey image), which then cost 1/B of the memory
+    // traffic and need no conversion beyond the zero border.
     BlockedConv(const Conv2dDesc& desc, const float* weight, const float* bias,
-                const ActivationDesc& activation);
+                const ActivationDesc& activation, int inputBlock = 0);
     BlockedConv(const ConvTranspose2dDesc& desc, const float* weight, const float* bias,
-                const ActivationDesc& activation);
+                const ActivationDesc& activation, int inputBlock = 0);
 
     // The input border the taps need (reads there must be zero), for the descriptor's input size.
     int requiredInputBorder() const { return requiredBorder_; }
@@ -64,11 +67,13 @@ class BlockedConv {
         std::vector<float> weights;       // [Cout blocks][Cin blocks][taps][B ci][B co]
     };
     void finish(const float* bias);
+    void setInputBlock(int inputBlock, int64_t inChannels);
 
     int64_t batch_ = 1, inChannels_ = 1, inHeight_ = 1, inWidth_ = 1;
     int64_t outChannels_ = 1, outHeight_ = 1, outWidth_ = 1;
     ActivationDesc activation_;
     int block_;
+    int inputBlock_ = 1;
     int requiredBorder_ = 0;
     int64_t macs_ = 0;
     bool transposed_ = false;  // weights (Cin, Cout, kh, kw) instead of (Cout, Cin, kh, kw)

@@ -41,19 +41,20 @@ template <int TW, int CB>
 inline void convTile(const ConvRowsArgs& a, int64_t cob, int64_t r, int64_t j) {
     const BlockedShape& is = a.inShape;
     const ConvPass& p = a.pass;
+    const int Bi = is.block;  // input channels per block: B, or 1 for planar inputs of few channels
     const int64_t cinBlocks = is.channelBlocks();
-    const int64_t weightBlockStride = cinBlocks * p.taps * B * B;  // floats per output channel block
-    const int64_t inPixelStep = p.inStepX * B;
+    const int64_t weightBlockStride = cinBlocks * p.taps * Bi * B;  // floats per output channel block
+    const int64_t inPixelStep = p.inStepX * Bi;
     VFloat acc[CB][TW];
     for (int b = 0; b < CB; ++b) {
         const VFloat bias = loadu<VFloat>(a.bias + (cob + b) * B);
         for (int i = 0; i < TW; ++i) acc[b][i] = bias;
     }
     for (int64_t cib = 0; cib < cinBlocks; ++cib) {
-        const int channelsInBlock = int(std::min<int64_t>(B, is.channels - cib * B));
+        const int channelsInBlock = int(std::min<int64_t>(Bi, is.channels - cib * Bi));
         const float* base = a.in + is.offset(a.image, cib, p.inY0 + r * p.inStepY, p.inX0 + j * p.inStepX);
-        const float* w = p.weights + cob * weightBlockStride + cib * p.taps * B * B;
-        for (int t = 0; t < p.taps; ++t, w += B * B) {
+        const float* w = p.weights + cob * weightBlockStride + cib * p.taps * Bi * B;
+        for (int t = 0; t < p.taps; ++t, w += Bi * B) {
             const float* pixels = base + p.tapOffsets[t];
             auto accumulateChannel = [&](int c) {
                 VFloat weight[CB];
@@ -109,11 +110,12 @@ void convForwardRows(const ConvRowsArgs& a) {
 
 void convWeightGradient(const WeightGradArgs& a) {
     const ConvPass& p = a.pass;
-    const int channelsInBlock = int(std::min<int64_t>(B, a.inShape.channels - a.inBlock * B));
+    const int Bi = a.inShape.block;
+    const int channelsInBlock = int(std::min<int64_t>(Bi, a.inShape.channels - a.inBlock * Bi));
     VFloat acc[B];
     for (int c = 0; c < B; ++c) acc[c] = splat<VFloat>(0.0f);
     const int64_t offset = p.tapOffsets[a.tap];
-    const int64_t inPixelStep = p.inStepX * B, outPixelStep = p.outStepX * B;
+    const int64_t inPixelStep = p.inStepX * Bi, outPixelStep = p.outStepX * B;
     for (int64_t n = 0; n < a.inShape.batch; ++n)
         for (int64_t r = 0; r < p.rows; ++r) {
             const float* in = a.in + a.inShape.offset(n, a.inBlock, p.inY0 + r * p.inStepY, p.inX0) + offset;
@@ -128,7 +130,7 @@ void convWeightGradient(const WeightGradArgs& a) {
                 }
             }
         }
-    for (int c = 0; c < B; ++c) storeu(a.dw + c * B, acc[c]);
+    for (int c = 0; c < Bi; ++c) storeu(a.dw + c * B, acc[c]);
 }
 
 }  // namespace dejag::nn::DEJAG_SIMD_NAMESPACE

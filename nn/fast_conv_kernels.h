@@ -19,7 +19,7 @@ struct ConvPass {
     int64_t inY0 = 0, inStepY = 1, inX0 = 0, inStepX = 1;
     int taps = 0;
     const int64_t* tapOffsets = nullptr;  // float offset of each tap's input pixel from the base pixel
-    const float* weights = nullptr;       // [Cout blocks][Cin blocks][taps][B ci][B co]
+    const float* weights = nullptr;       // [Cout blocks][Cin blocks][taps][Bi ci][B co], Bi = input block
 };
 
 struct ConvRowsArgs {
@@ -45,7 +45,7 @@ struct WeightGradArgs {
     ConvPass pass;
     int tap = 0;
     int64_t outBlock = 0, inBlock = 0;
-    float* dw = nullptr;  // [B ci][B co], overwritten
+    float* dw = nullptr;  // [Bi ci][B co], overwritten (Bi: the input's block size)
 };
 
 DEJAG_SIMD_DECLARE(void convForwardRows(const ConvRowsArgs& args);

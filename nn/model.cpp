@@ -516,16 +516,19 @@ const Tensor& Model::forward(const Tensor& input) {
             case Op::ConvTranspose2d:
                 if (m.fastKernels) {
                     n.fastConv.reset();  // weights change between steps: pack again
+                    // A few input channels (the RGB or grey image): planar, a 16th of the traffic.
+                    const int inputBlock = n.inChannels <= 4 ? 1 : 0;
                     if (n.op == Op::Conv2d)
-                        n.fastConv.emplace(n.convDesc(ins[0]), weight, bias,
-                                           ActivationDesc{Activation::None});
+                        n.fastConv.emplace(n.convDesc(ins[0]), weight, bias, ActivationDesc{Activation::None},
+                                           inputBlock);
                     else
                         n.fastConv.emplace(n.convTransposeDesc(ins[0]), weight, bias,
-                                           ActivationDesc{Activation::None});
+                                           ActivationDesc{Activation::None}, inputBlock);
                     const BlockedShape inShape = n.fastConv->inputShape(n.fastConv->requiredInputBorder());
                     const BlockedShape outShape = n.fastConv->outputShape(0);
                     if (n.blockedInput.numel() != inShape.floatCount() ||
-                        n.blockedInputShape.border != inShape.border)
+                        n.blockedInputShape.border != inShape.border ||
+                        n.blockedInputShape.block != inShape.block)
                         n.blockedInput = allocateBlocked(inShape);  // zero border and unused channels
                     n.blockedInputShape = inShape;
                     ensureBlocked(n.blockedOutput, outShape);
