@@ -90,6 +90,9 @@ void printRows(const std::vector<bench::Row>& rows, bool json) {
     for (std::string& a : argv) pointers.push_back(a.data());
     pointers.push_back(nullptr);
     std::fflush(stdout);
+    // The peers' OpenMP threads must sleep when idle, not spin: a spinning thread would steal the other
+    // core from dejag's next measurement and from the FMA peak burst. (libgomp reads this at load time.)
+    ::setenv("OMP_WAIT_POLICY", "PASSIVE", 0);
     ::execv(tool.c_str(), pointers.data());
     throw Error("cannot run '" + tool.string() + "': " + std::strerror(errno));
 }

@@ -7,6 +7,7 @@
 // NCHW), with layout conversions outside the timed region, and every library fuses bias and ReLU
 // (libtorch: an in-place relu_ after the convolution, which is how a libtorch user would write it).
 #include <sys/resource.h>
+#include <unistd.h>
 
 #include <cstdio>
 #include <cstdlib>
@@ -358,6 +359,12 @@ double libtorchSeed2020TrainingStep(int64_t batch, int64_t size, int repeat) {
 }  // namespace
 
 int main(int argc, char** argv) {
+    // Idle OpenMP threads of the peers must sleep, not spin, or they steal the other core from the next
+    // measurement. libgomp reads the policy when it loads, so set it and start again if it is missing.
+    if (!std::getenv("OMP_WAIT_POLICY")) {
+        ::setenv("OMP_WAIT_POLICY", "PASSIVE", 1);
+        ::execv("/proc/self/exe", argv);
+    }
     bool json = false;
     int repeat = 7;
     std::vector<int> threadCounts = {1, 2};
