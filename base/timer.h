@@ -26,4 +26,18 @@ inline double median(std::vector<double> values) {
     return n % 2 ? values[n / 2] : 0.5 * (values[n / 2 - 1] + values[n / 2]);
 }
 
+// Median wall time in milliseconds of `repeat` runs of run(), after one untimed warm-up run (scratch
+// buffers, page faults, lazily started threads).
+template <class Fn>
+double medianMilliseconds(int repeat, Fn&& run) {
+    run();
+    std::vector<double> times;
+    for (int i = 0; i < repeat; ++i) {
+        Stopwatch watch;
+        run();
+        times.push_back(watch.elapsedMs());
+    }
+    return median(times);
+}
+
 }  // namespace dejag

@@ -33,18 +33,6 @@ void makePair(int width, int height, Image& reference, Image& test) {
             }
 }
 
-template <class Fn>
-double medianMs(int repeat, Fn&& run) {
-    run();  // warm-up: thread-local scratch, page faults
-    std::vector<double> times;
-    for (int i = 0; i < repeat; ++i) {
-        Stopwatch watch;
-        run();
-        times.push_back(watch.elapsedMs());
-    }
-    return median(times);
-}
-
 }  // namespace
 
 std::vector<Row> benchMetrics(const Options& options) {
@@ -71,10 +59,11 @@ std::vector<Row> benchMetrics(const Options& options) {
             rows.push_back(row);
         };
         double sink = 0.0;
-        const double ssimMs =
-            medianMs(options.repeat, [&] { sink += structuralSimilarity(reference, test, 1.0).mean; });
+        const double ssimMs = medianMilliseconds(
+            options.repeat, [&] { sink += structuralSimilarity(reference, test, 1.0).mean; });
         addRow("ssim", ssimMs, ssimMacs, options.width == 1920 && options.height == 1080 ? 30.0 : 0.0);
-        const double allMs = medianMs(options.repeat, [&] { sink += compareImages(reference, test).psnr; });
+        const double allMs =
+            medianMilliseconds(options.repeat, [&] { sink += compareImages(reference, test).psnr; });
         addRow("metrics (mse+psnr+snr+ssim)", allMs, ssimMacs, 0.0);
         if (!std::isfinite(sink)) rows.back().name += " (non-finite result!)";
     }

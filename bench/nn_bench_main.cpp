@@ -50,17 +50,6 @@ struct Case {
     int64_t macs() const { return inChannels * outChannels * kernel * kernel * height * width; }
 };
 
-double medianMs(int repeat, const std::function<void()>& run) {
-    run();
-    std::vector<double> times;
-    for (int i = 0; i < repeat; ++i) {
-        Stopwatch watch;
-        run();
-        times.push_back(watch.elapsedMs());
-    }
-    return median(times);
-}
-
 void setAllThreads(int threads) {
     setThreadCount(threads);
 #if DEJAG_HAVE_ONEDNN
@@ -102,7 +91,7 @@ double benchDejag(const Case& c, int repeat) {
     std::vector<float> plain(size_t(c.inChannels * c.height * c.width));
     for (float& v : plain) v = rng.uniform(0.0f, 1.0f);
     toBlocked(in.data(), plain.data(), inShape);
-    return medianMs(repeat, [&] { conv.forward(out.data(), outShape, in.data(), inShape); });
+    return medianMilliseconds(repeat, [&] { conv.forward(out.data(), outShape, in.data(), inShape); });
 }
 
 double benchOneDnn(const Case& c, int repeat) {
@@ -151,7 +140,7 @@ double benchOneDnn(const Case& c, int repeat) {
         for (size_t i = 0; i < n; ++i) p[i] = value * float(int(i % 13) - 6);
     };
     fill(srcMem, 0.05f), fill(weiMem, 0.01f), fill(biaMem, 0.01f);
-    return medianMs(repeat, [&] {
+    return medianMilliseconds(repeat, [&] {
         primitiveToRun.execute(s, {{DNNL_ARG_SRC, srcMem},
                                    {DNNL_ARG_WEIGHTS, weiMem},
                                    {DNNL_ARG_BIAS, biaMem},
@@ -172,13 +161,13 @@ double benchLibtorch(const Case& c, int repeat) {
     const auto b = torch::randn({c.outChannels}) * 0.1;
     if (c.transposed) {
         const auto w = torch::randn({c.inChannels, c.outChannels, c.kernel, c.kernel}) * 0.1;
-        return medianMs(repeat, [&] {
+        return medianMilliseconds(repeat, [&] {
             auto y = torch::conv_transpose2d(x, w, b, 2, 1, 1);
             torch::relu_(y);
         });
     }
     const auto w = torch::randn({c.outChannels, c.inChannels, c.kernel, c.kernel}) * 0.1;
-    return medianMs(repeat, [&] {
+    return medianMilliseconds(repeat, [&] {
         auto y = torch::conv2d(x, w, b, 1, c.kernel / 2);
         torch::relu_(y);
     });
@@ -204,7 +193,7 @@ NetworkResult benchSeed2020Forward(int64_t size, int repeat) {
     for (int64_t i = 0; i < input.numel(); ++i) input.data()[i] = rng.uniform();
     InferencePlan plan(model, input.shape());
     NetworkResult r;
-    r.ms = medianMs(repeat, [&] { plan.runUnchecked(input); });
+    r.ms = medianMilliseconds(repeat, [&] { plan.runUnchecked(input); });
     r.macs = double(plan.macs());
     r.arenaBytes = plan.arenaBytes();
     return r;
@@ -221,7 +210,7 @@ NetworkResult benchSeed2020TrainingStep(int64_t batch, int64_t size, int repeat)
     const SsimLossDesc shape{batch, 1, size, size, 1.0};
     Tensor dout({batch, 1, size, size});
     NetworkResult r;
-    r.ms = medianMs(repeat, [&] {
+    r.ms = medianMilliseconds(repeat, [&] {
         const Tensor& out = model.forward(input);
         dout.zero();
         ssimLossBackward(dout.data(), out.data(), target.data(), shape, 1.0);
@@ -302,7 +291,7 @@ double oneDnnSeed2020Forward(int64_t size, int repeat) {
     addConv(128, 3, false, algorithm::eltwise_relu);
     addConv(64, 3, true, algorithm::eltwise_relu);
     addConv(1, 3, true, algorithm::eltwise_logistic);
-    return medianMs(repeat, [&] {
+    return medianMilliseconds(repeat, [&] {
         for (size_t i = 0; i < primitives.size(); ++i) primitives[i].execute(s, arguments[i]);
         s.wait();
     });
@@ -328,7 +317,7 @@ double libtorchSeed2020Forward(int64_t size, int repeat) {
     auto net = torchSeed2020();
     net->eval();
     const auto x = torch::rand({1, 1, size, size});
-    return medianMs(repeat, [&] { net->forward(x); });
+    return medianMilliseconds(repeat, [&] { net->forward(x); });
 }
 
 torch::Tensor torchSsimLoss(const torch::Tensor& pred, const torch::Tensor& target) {
@@ -348,7 +337,7 @@ double libtorchSeed2020TrainingStep(int64_t batch, int64_t size, int repeat) {
     net->train();
     torch::optim::Adam adam(net->parameters(), torch::optim::AdamOptions(1e-3));
     const auto x = torch::rand({batch, 1, size, size}), y = torch::rand({batch, 1, size, size});
-    return medianMs(repeat, [&] {
+    return medianMilliseconds(repeat, [&] {
         adam.zero_grad();
         torchSsimLoss(net->forward(x), y).backward();
         adam.step();

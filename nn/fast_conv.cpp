@@ -205,19 +205,7 @@ void BlockedConv::forward(float* out, const BlockedShape& outShape, const float*
             const Pass& pass = passes_[p];
             ConvRowsArgs a;
             a.in = in, a.inShape = inShape, a.out = out, a.outShape = outShape;
-            a.pass = {pass.rows,
-                      pass.columns,
-                      pass.outY0,
-                      pass.outStepY,
-                      pass.outX0,
-                      pass.outStepX,
-                      pass.inY0,
-                      pass.inStepY,
-                      pass.inX0,
-                      pass.inStepX,
-                      int(pass.taps.size()),
-                      offsets[p].data(),
-                      pass.weights.data()};
+            a.pass = pass.view(offsets[p].data(), pass.weights.data());
             a.bias = paddedBias_.data();
             a.activation = activation_;
             const int64_t bands = items[p].bands;
@@ -261,19 +249,7 @@ void BlockedConv::backwardWeights(float* dweight, float* dbias, const float* dou
             const Pass& pass = passes_[size_t(tap.pass)];
             WeightGradArgs a;
             a.in = in, a.inShape = inShape, a.dout = dout, a.outShape = doutShape;
-            a.pass = {pass.rows,
-                      pass.columns,
-                      pass.outY0,
-                      pass.outStepY,
-                      pass.outX0,
-                      pass.outStepX,
-                      pass.inY0,
-                      pass.inStepY,
-                      pass.inX0,
-                      pass.inStepX,
-                      int(pass.taps.size()),
-                      offsets[size_t(tap.pass)].data(),
-                      nullptr};
+            a.pass = pass.view(offsets[size_t(tap.pass)].data(), nullptr);
             a.tap = int(tap.tap);
             a.outBlock = (item / cinBlocks) % coutBlocks;
             a.inBlock = item % cinBlocks;

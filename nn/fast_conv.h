@@ -15,6 +15,7 @@
 #include <vector>
 
 #include "nn/blocked.h"
+#include "nn/fast_conv_kernels.h"
 #include "nn/layers.h"
 
 namespace dejag::nn {
@@ -65,6 +66,11 @@ class BlockedConv {
         std::vector<Tap> taps;
         std::vector<int64_t> kernelTaps;  // per tap: ky * kernelWidth + kx in the PyTorch weights
         std::vector<float> weights;       // [Cout blocks][Cin blocks][taps][B ci][B co]
+        // The kernel's view of this pass, with tap offsets for one input layout.
+        ConvPass view(const int64_t* tapOffsets, const float* packedWeights) const {
+            return {rows,    columns, outY0,   outStepY,         outX0,      outStepX,     inY0,
+                    inStepY, inX0,    inStepX, int(taps.size()), tapOffsets, packedWeights};
+        }
     };
     void finish(const float* bias);
     void setInputBlock(int inputBlock, int64_t inChannels);

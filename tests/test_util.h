@@ -8,6 +8,11 @@
 
 #include <gtest/gtest.h>
 
+#include <ostream>
+#include <vector>
+
+#include "base/simd.h"
+
 namespace dejag::testing {
 
 inline std::string sourcePath(const std::string& relative) {
@@ -36,4 +41,34 @@ class TempDir {
     std::filesystem::path path_;
 };
 
+// Every SIMD level this CPU can run (all three on the development machine), for tests that cover each.
+inline std::vector<SimdLevel> availableSimdLevels() {
+    std::vector<SimdLevel> levels;
+    for (int level = 0; level <= int(cpuSimdLevel()); ++level) levels.push_back(SimdLevel(level));
+    return levels;
+}
+
+// A test parameterised by SIMD level: runs with that level active, restores the previous one after.
+class SimdLevelTest : public ::testing::TestWithParam<SimdLevel> {
+  protected:
+    void SetUp() override {
+        original_ = activeSimdLevel();
+        setSimdLevel(GetParam());
+    }
+    void TearDown() override { setSimdLevel(original_); }
+
+  private:
+    SimdLevel original_ = SimdLevel::Scalar;
+};
+
+inline std::string simdTestName(const ::testing::TestParamInfo<SimdLevel>& info) {
+    return simdLevelName(info.param);
+}
+
 }  // namespace dejag::testing
+
+namespace dejag {
+inline void PrintTo(SimdLevel level, std::ostream* out) {
+    *out << simdLevelName(level);
+}
+}  // namespace dejag

@@ -23,23 +23,7 @@ double expectedNumber(const nlohmann::json& value) {
     return value.is_string() ? std::numeric_limits<double>::infinity() : value.get<double>();
 }
 
-}  // namespace
-
-void PrintTo(SimdLevel level, std::ostream* out) {
-    *out << simdLevelName(level);
-}
-
-namespace {
-
-class MetricsGolden : public ::testing::TestWithParam<SimdLevel> {
-  protected:
-    void SetUp() override {
-        original_ = activeSimdLevel();
-        setSimdLevel(GetParam());
-    }
-    void TearDown() override { setSimdLevel(original_); }
-    SimdLevel original_ = SimdLevel::Scalar;
-};
+class MetricsGolden : public testing::SimdLevelTest {};
 
 TEST_P(MetricsGolden, AgreesWithScikitImage) {
     const nlohmann::json expected = loadExpected();
@@ -94,17 +78,8 @@ TEST_P(MetricsGolden, SsimMapMatchesScikitImageIncludingBorders) {
     EXPECT_LE(std::abs(meanDifference) / double(want.size()), 1e-5) << "mean per-pixel SSIM difference";
 }
 
-// Every level this CPU can run (all three on the development machine).
-std::vector<SimdLevel> availableSimdLevels() {
-    std::vector<SimdLevel> levels;
-    for (int level = 0; level <= int(cpuSimdLevel()); ++level) levels.push_back(SimdLevel(level));
-    return levels;
-}
-
-INSTANTIATE_TEST_SUITE_P(SimdLevels, MetricsGolden, ::testing::ValuesIn(availableSimdLevels()),
-                         [](const ::testing::TestParamInfo<SimdLevel>& test) {
-                             return std::string(simdLevelName(test.param));
-                         });
+INSTANTIATE_TEST_SUITE_P(SimdLevels, MetricsGolden, ::testing::ValuesIn(testing::availableSimdLevels()),
+                         testing::simdTestName);
 
 }  // namespace
 }  // namespace dejag

@@ -12,33 +12,12 @@
 #include "base/simd.h"
 #include "base/thread_pool.h"
 #include "nn/init.h"
+#include "tests/test_util.h"
 
 namespace dejag::nn {
 namespace {
 
-std::vector<SimdLevel> availableSimdLevels() {
-    std::vector<SimdLevel> levels;
-    for (int level = 0; level <= int(cpuSimdLevel()); ++level) levels.push_back(SimdLevel(level));
-    return levels;
-}
-
-}  // namespace
-
-void PrintTo(SimdLevel level, std::ostream* out) {
-    *out << simdLevelName(level);
-}
-
-namespace {
-
-class FastConv : public ::testing::TestWithParam<SimdLevel> {
-  protected:
-    void SetUp() override {
-        original_ = activeSimdLevel();
-        setSimdLevel(GetParam());
-    }
-    void TearDown() override { setSimdLevel(original_); }
-    SimdLevel original_ = SimdLevel::Scalar;
-};
+class FastConv : public testing::SimdLevelTest {};
 
 std::vector<float> randomValues(size_t n, Rng& rng, float scale = 1.0f) {
     std::vector<float> v(n);
@@ -249,10 +228,8 @@ TEST_P(FastConv, SameResultForEveryThreadCount) {
     EXPECT_EQ(one, three);
 }
 
-INSTANTIATE_TEST_SUITE_P(SimdLevels, FastConv, ::testing::ValuesIn(availableSimdLevels()),
-                         [](const ::testing::TestParamInfo<SimdLevel>& test) {
-                             return std::string(simdLevelName(test.param));
-                         });
+INSTANTIATE_TEST_SUITE_P(SimdLevels, FastConv, ::testing::ValuesIn(testing::availableSimdLevels()),
+                         testing::simdTestName);
 
 TEST(FastConvLimits, RefusesWhatItDoesNotSupport) {
     Conv2dDesc d;

@@ -11,20 +11,9 @@
 #include "base/thread_pool.h"
 #include "nn/init.h"
 #include "tests/alloc_counter.h"
+#include "tests/test_util.h"
 
 namespace dejag::nn {
-namespace {
-
-std::vector<SimdLevel> availableSimdLevels() {
-    std::vector<SimdLevel> levels;
-    for (int level = 0; level <= int(cpuSimdLevel()); ++level) levels.push_back(SimdLevel(level));
-    return levels;
-}
-
-}  // namespace
-
-void PrintTo(SimdLevel level, std::ostream* out);
-
 namespace {
 
 Tensor randomTensor(const Shape& shape, uint64_t seed) {
@@ -90,15 +79,7 @@ nlohmann::json everyOpArchitecture() {
     return {{"name", "every_op"}, {"input_channels", 3}, {"nodes", nodes}};
 }
 
-class Inference : public ::testing::TestWithParam<SimdLevel> {
-  protected:
-    void SetUp() override {
-        original_ = activeSimdLevel();
-        setSimdLevel(GetParam());
-    }
-    void TearDown() override { setSimdLevel(original_); }
-    SimdLevel original_ = SimdLevel::Scalar;
-};
+class Inference : public testing::SimdLevelTest {};
 
 void expectPlanMatchesReference(Model& model, const Shape& shape) {
     model.initialize(11);
@@ -130,10 +111,8 @@ TEST_P(Inference, EveryOpMatchesTheReference) {
     expectPlanMatchesReference(model, {2, 3, 20, 24});
 }
 
-INSTANTIATE_TEST_SUITE_P(SimdLevels, Inference, ::testing::ValuesIn(availableSimdLevels()),
-                         [](const ::testing::TestParamInfo<SimdLevel>& test) {
-                             return std::string(simdLevelName(test.param));
-                         });
+INSTANTIATE_TEST_SUITE_P(SimdLevels, Inference, ::testing::ValuesIn(testing::availableSimdLevels()),
+                         testing::simdTestName);
 
 TEST(InferencePlanning, NoAllocationPerRunAfterWarmUp) {
     Model model = Model::builtin("seed2020");
