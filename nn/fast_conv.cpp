@@ -294,11 +294,10 @@ std::optional<BlockedConv> BlockedConv::inputGradient(const Conv2dDesc& d, const
     t.strideH = d.strideH, t.strideW = d.strideW, t.dilationH = d.dilationH, t.dilationW = d.dilationW;
     t.padH = d.padTop, t.padW = d.padLeft;
     t.bias = false;
-    const int64_t fullH =
-        (t.inHeight - 1) * t.strideH - 2 * int64_t(t.padH) + int64_t(t.dilationH) * (t.kernelHeight - 1) + 1;
-    const int64_t fullW =
-        (t.inWidth - 1) * t.strideW - 2 * int64_t(t.padW) + int64_t(t.dilationW) * (t.kernelWidth - 1) + 1;
-    const int64_t opH = d.inHeight - fullH, opW = d.inWidth - fullW;
+    // With no output padding the transposed conv yields outHeight(); the difference to the input size is
+    // the output padding it needs.
+    t.outputPaddingH = t.outputPaddingW = 0;
+    const int64_t opH = d.inHeight - t.outHeight(), opW = d.inWidth - t.outWidth();
     if (opH < 0 || opW < 0 || (opH >= t.strideH && opH >= t.dilationH) ||
         (opW >= t.strideW && opW >= t.dilationW))
         return std::nullopt;
