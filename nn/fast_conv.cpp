@@ -131,6 +131,20 @@ void BlockedConv::finish(const float* bias) {
     if (activation_.kind == Activation::Sigmoid)
         throw Error("BlockedConv: sigmoid is not fused; apply it afterwards");
     const int64_t B = block_, coutBlocks = (outChannels_ + B - 1) / B;
+    // A few output channels and a blocked input: the narrow kernel, input channels in the lanes.
+    if (inputBlock_ == block_ && outChannels_ <= DEJAG_SIMD_CALL(narrowMaxOutputChannels)) {
+        const int64_t cinBlocks = (inChannels_ + B - 1) / B;
+        for (Pass& p : passes_) {
+            const int64_t taps = int64_t(p.taps.size());
+            p.narrowWeights.assign(size_t(std::max<int64_t>(1, cinBlocks * taps * outChannels_ * B)), 0.0f);
+            for (int64_t cib = 0; cib < cinBlocks; ++cib)
+                for (int64_t t = 0; t < taps; ++t)
+                    for (int64_t co = 0; co < outChannels_; ++co)
+                        for (int64_t c = 0; c < B; ++c)
+                            p.narrowWeights[size_t(((cib * taps + t) * outChannels_ + co) * B + c)] =
+                                p.weights[size_t(((cib * taps + t) * B + c) * B + co)];
+        }
+    }
     paddedBias_.assign(size_t(coutBlocks * B), 0.0f);
     if (bias) std::copy(bias, bias + outChannels_, paddedBias_.begin());
     // The border must hold every input pixel a tap reads outside the image.
@@ -160,7 +174,16 @@ BlockedShape BlockedConv::inputShape(int border) const {
 }
 
 BlockedShape BlockedConv::outputShape(int border) const {
+    if (pool_) return {batch_, outChannels_, outHeight_ / 2, outWidth_ / 2, block_, border};
     return {batch_, outChannels_, outHeight_, outWidth_, block_, border};
+}
+
+void BlockedConv::fuseMaxPool2x2() {
+    if (transposed_ || passes_.size() != 1 || passes_[0].outStepX != 1 || passes_[0].outStepY != 1)
+        throw Error("BlockedConv: max pooling fuses into a Conv2D only");
+    if (outHeight_ < 2 || outWidth_ < 2)
+        throw Error("BlockedConv: a 2x2 pooling needs an output of at least 2x2 pixels");
+    pool_ = true;
 }
 
 void BlockedConv::forward(float* out, const BlockedShape& outShape, const float* in,
@@ -173,8 +196,9 @@ void BlockedConv::forward(float* out, const BlockedShape& outShape, const float*
     if (inShape.border < requiredBorder_)
         throw Error("BlockedConv: the input border (" + std::to_string(inShape.border) +
                     ") is narrower than the " + std::to_string(requiredBorder_) + " pixels the kernel reads");
+    const BlockedShape expected = outputShape(outShape.border);
     if (inShape.channels != inChannels_ || outShape.channels != outChannels_ || inShape.height != inHeight_ ||
-        inShape.width != inWidth_ || outShape.height != outHeight_ || outShape.width != outWidth_ ||
+        inShape.width != inWidth_ || outShape.height != expected.height || outShape.width != expected.width ||
         inShape.batch != batch_ || outShape.batch != batch_)
         throw Error("BlockedConv: tensor shapes do not match the convolution");
     const int64_t coutBlocks = outShape.channelBlocks(), blockGroups = (coutBlocks + 1) / 2;
@@ -191,9 +215,10 @@ void BlockedConv::forward(float* out, const BlockedShape& outShape, const float*
         for (size_t t = 0; t < pass.taps.size(); ++t)
             offsets[p][t] = pass.taps[t].dy * inShape.rowStride() + pass.taps[t].dx * inputBlock_;
         // Bands small enough for both cores to stay busy on small patches, large enough to amortise.
+        const int64_t rows = pool_ ? pass.rows / 2 : pass.rows;
         const int64_t rowsPerBand =
-            std::max<int64_t>(1, std::min<int64_t>(8, pass.rows / (4 * threadCount()) + 1));
-        items[p] = {int64_t(p), (pass.rows + rowsPerBand - 1) / rowsPerBand, rowsPerBand};
+            std::max<int64_t>(1, std::min<int64_t>(8, rows / (4 * threadCount()) + 1));
+        items[p] = {int64_t(p), (rows + rowsPerBand - 1) / rowsPerBand, rowsPerBand};
         totalItems += batch_ * blockGroups * items[p].bands;
     }
     parallelFor(0, totalItems, 1, [&](int64_t first, int64_t last) {
@@ -205,7 +230,8 @@ void BlockedConv::forward(float* out, const BlockedShape& outShape, const float*
             const Pass& pass = passes_[p];
             ConvRowsArgs a;
             a.in = in, a.inShape = inShape, a.out = out, a.outShape = outShape;
-            a.pass = pass.view(offsets[p].data(), pass.weights.data());
+            a.pass = pass.view(offsets[p].data());
+            a.pool2x2 = pool_;
             a.bias = paddedBias_.data();
             a.activation = activation_;
             const int64_t bands = items[p].bands;
@@ -214,7 +240,7 @@ void BlockedConv::forward(float* out, const BlockedShape& outShape, const float*
             a.outBlockBegin = group * 2;
             a.outBlockEnd = std::min(coutBlocks, a.outBlockBegin + 2);
             a.rowBegin = (index % bands) * items[p].rowsPerBand;
-            a.rowEnd = std::min(pass.rows, a.rowBegin + items[p].rowsPerBand);
+            a.rowEnd = std::min(pool_ ? pass.rows / 2 : pass.rows, a.rowBegin + items[p].rowsPerBand);
             DEJAG_SIMD_CALL(convForwardRows, a);
         }
     });
@@ -223,6 +249,7 @@ void BlockedConv::forward(float* out, const BlockedShape& outShape, const float*
 void BlockedConv::backwardWeights(float* dweight, float* dbias, const float* dout,
                                   const BlockedShape& doutShape, const float* in,
                                   const BlockedShape& inShape) const {
+    if (pool_) throw Error("BlockedConv::backwardWeights: a convolution with fused pooling is for inference");
     if (inShape.border < requiredBorder_ || inShape.block != inputBlock_ || doutShape.block != block_ ||
         inShape.channels != inChannels_ || doutShape.channels != outChannels_ ||
         doutShape.height != outHeight_ || doutShape.width != outWidth_ || inShape.height != inHeight_ ||
@@ -249,7 +276,7 @@ void BlockedConv::backwardWeights(float* dweight, float* dbias, const float* dou
             const Pass& pass = passes_[size_t(tap.pass)];
             WeightGradArgs a;
             a.in = in, a.inShape = inShape, a.dout = dout, a.outShape = doutShape;
-            a.pass = pass.view(offsets[size_t(tap.pass)].data(), nullptr);
+            a.pass = pass.view(offsets[size_t(tap.pass)].data());
             a.tap = int(tap.tap);
             a.outBlock = (item / cinBlocks) % coutBlocks;
             a.inBlock = item % cinBlocks;

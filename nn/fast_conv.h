@@ -52,6 +52,12 @@ class BlockedConv {
     static std::optional<BlockedConv> inputGradient(const Conv2dDesc& desc, const float* weight);
     static std::optional<BlockedConv> inputGradient(const ConvTranspose2dDesc& desc, const float* weight);
 
+    // Fuses a 2x2 max pooling of stride 2 (no padding, floor mode) into a stride-1 Conv2D: forward() then
+    // writes the pooled output (outputShape() is pooled) and the full-size output is never stored.
+    // For inference only (backwardWeights() refuses). Throws dejag::Error for a ConvTranspose2D.
+    void fuseMaxPool2x2();
+    bool pooled() const { return pool_; }
+
     int block() const { return block_; }
     int64_t macs() const { return macs_; }
 
@@ -64,12 +70,25 @@ class BlockedConv {
         int64_t outY0 = 0, outStepY = 1, outX0 = 0, outStepX = 1;
         int64_t inY0 = 0, inStepY = 1, inX0 = 0, inStepX = 1;
         std::vector<Tap> taps;
-        std::vector<int64_t> kernelTaps;  // per tap: ky * kernelWidth + kx in the PyTorch weights
-        std::vector<float> weights;       // [Cout blocks][Cin blocks][taps][B ci][B co]
+        std::vector<int64_t> kernelTaps;   // per tap: ky * kernelWidth + kx in the PyTorch weights
+        std::vector<float> weights;        // [Cout blocks][Cin blocks][taps][B ci][B co]
+        std::vector<float> narrowWeights;  // [Cin blocks][taps][Cout][B ci], for a few output channels
         // The kernel's view of this pass, with tap offsets for one input layout.
-        ConvPass view(const int64_t* tapOffsets, const float* packedWeights) const {
-            return {rows,    columns, outY0,   outStepY,         outX0,      outStepX,     inY0,
-                    inStepY, inX0,    inStepX, int(taps.size()), tapOffsets, packedWeights};
+        ConvPass view(const int64_t* tapOffsets) const {
+            return {rows,
+                    columns,
+                    outY0,
+                    outStepY,
+                    outX0,
+                    outStepX,
+                    inY0,
+                    inStepY,
+                    inX0,
+                    inStepX,
+                    int(taps.size()),
+                    tapOffsets,
+                    weights.data(),
+                    narrowWeights.empty() ? nullptr : narrowWeights.data()};
         }
     };
     void finish(const float* bias);
@@ -82,7 +101,9 @@ class BlockedConv {
     int inputBlock_ = 1;
     int requiredBorder_ = 0;
     int64_t macs_ = 0;
-    bool transposed_ = false;  // weights (Cin, Cout, kh, kw) instead of (Cout, Cin, kh, kw)
+    bool transposed_ = false;
+    bool pool_ =
+        false;  // fused 2x2 max pooling  // weights (Cin, Cout, kh, kw) instead of (Cout, Cin, kh, kw)
     int64_t kernelArea_ = 1;
     std::vector<Pass> passes_;
     std::vector<float> paddedBias_;

@@ -3,6 +3,7 @@
 
 #include <algorithm>
 #include <array>
+#include <cstdint>
 #include <utility>
 
 #include "base/simd_vector.h"
@@ -20,92 +21,361 @@ constexpr int kTileWidth = 6, kTileBlocks = 2;  // 12 ymm accumulators + 2 weigh
 #else
 constexpr int kTileWidth = 4, kTileBlocks = 1;
 #endif
+constexpr int kNarrowMaxChannels = 4;  // the narrow kernel's output channels (see below)
 
+template <Activation Kind>
 inline VFloat activate(VFloat v, const ActivationDesc& a) {
+    if constexpr (Kind == Activation::ReLU) {
+        return v > 0.0f ? v : splat<VFloat>(0.0f);
+    } else if constexpr (Kind == Activation::LeakyReLU) {
+        return v > 0.0f ? v : v * a.slope;
+    } else if constexpr (Kind == Activation::Clamp) {
+        v = v < a.low ? splat<VFloat>(a.low) : v;
+        return v > a.high ? splat<VFloat>(a.high) : v;
+    } else {
+        return v;
+    }
+}
+
+// The activation chosen at run time; a predictable branch per vector (a lambda or template per kind
+// would let the accumulators' address escape, and GCC would then keep them in memory).
+[[gnu::always_inline]] inline VFloat applyActivation(VFloat v, const ActivationDesc& a) {
     switch (a.kind) {
         case Activation::ReLU:
-            return v > 0.0f ? v : splat<VFloat>(0.0f);
+            return activate<Activation::ReLU>(v, a);
         case Activation::LeakyReLU:
-            return v > 0.0f ? v : v * a.slope;
-        case Activation::Clamp: {
-            v = v < a.low ? splat<VFloat>(a.low) : v;
-            return v > a.high ? splat<VFloat>(a.high) : v;
-        }
+            return activate<Activation::LeakyReLU>(v, a);
+        case Activation::Clamp:
+            return activate<Activation::Clamp>(v, a);
         default:
             return v;
     }
 }
 
-// One tile: TW lattice columns starting at column j of lattice row r, for CB output blocks from cob.
-template <int TW, int CB>
-inline void convTile(const ConvRowsArgs& a, int64_t cob, int64_t r, int64_t j) {
+inline VFloat maximum(VFloat a, VFloat b) {
+    return a > b ? a : b;
+}
+
+// What every tile of one lattice row shares, computed once per row.
+struct RowContext {
+    const float* in = nullptr;  // input pixel of lattice column 0, channel block 0
+    int64_t inRowStep = 0;      // floats from one lattice row's input pixel to the next (pooling)
+    int64_t inBlockStride = 0;  // floats per input channel block
+    int64_t inPixelStep = 0;    // floats between the input pixels of neighbouring lattice columns
+    int64_t cinBlocks = 0;
+    int lastBlockChannels = 0;  // channels in the last input block
+    int taps = 0;
+    const int64_t* tapOffsets = nullptr;
+    const float* weights = nullptr;
+    const float* narrowWeights = nullptr;
+    int64_t weightBlockStride = 0;  // floats of packed weights per output channel block
+    const float* bias = nullptr;
+    ActivationDesc activation;
+    float* out = nullptr;  // output pixel of lattice column 0 (pooled column 0 when pooling), block 0
+    int64_t outBlockStride = 0;
+    int64_t outPixelStep = 0;
+    VFloat narrowBias{};
+};
+
+RowContext rowContext(const ConvRowsArgs& a, int64_t r) {
     const BlockedShape& is = a.inShape;
+    const BlockedShape& os = a.outShape;
     const ConvPass& p = a.pass;
-    const int Bi = is.block;  // input channels per block: B, or 1 for planar inputs of few channels
-    const int64_t cinBlocks = is.channelBlocks();
-    const int64_t weightBlockStride = cinBlocks * p.taps * Bi * B;  // floats per output channel block
-    const int64_t inPixelStep = p.inStepX * Bi;
-    VFloat acc[CB][TW];
+    RowContext c;
+    const int64_t convRow = a.pool2x2 ? 2 * r : r;
+    c.in = a.in + is.offset(a.image, 0, p.inY0 + convRow * p.inStepY, p.inX0);
+    c.inRowStep = p.inStepY * is.rowStride();
+    c.inBlockStride = is.planeStride();
+    c.inPixelStep = p.inStepX * is.block;
+    c.cinBlocks = is.channelBlocks();
+    c.lastBlockChannels = int(is.channels - (c.cinBlocks - 1) * is.block);
+    c.taps = p.taps;
+    c.tapOffsets = p.tapOffsets;
+    c.weights = p.weights;
+    c.narrowWeights = p.narrowWeights;
+    c.weightBlockStride = c.cinBlocks * p.taps * is.block * B;
+    c.bias = a.bias;
+    c.activation = a.activation;
+    if (a.pool2x2) {
+        c.out = a.out + os.offset(a.image, 0, r, 0);
+        c.outPixelStep = B;
+    } else {
+        c.out = a.out + os.offset(a.image, 0, p.outY0 + r * p.outStepY, p.outX0);
+        c.outPixelStep = p.outStepX * B;
+    }
+    c.outBlockStride = os.planeStride();
+    // The narrow kernel's bias, laid out like its reduced sums: lane k holds output channel k % Cout.
+    if (p.narrowWeights) {
+        float lanes[B] = {};
+        for (int64_t k = 0; k < B / os.channels * os.channels; ++k) lanes[k] = a.bias[k % os.channels];
+        c.narrowBias = loadu<VFloat>(lanes);
+    }
+    return c;
+}
+
+// ---- The wide kernel: lanes = output channels ------------------------------------------------------
+
+// Accumulates TW lattice columns from column j (input row `in`) for CB output blocks from cob.
+// BI: channels per input block (B, or 1 for a planar input); UNIT: the lattice's input step is 1 pixel,
+// so every pixel offset is a compile-time constant.
+template <int TW, int CB, int BI, bool UNIT>
+[[gnu::always_inline]] inline void accumulateWide(const RowContext& c, const float* in, int64_t cob,
+                                                  int64_t j, VFloat (&acc)[CB][TW]) {
+    const int64_t step = UNIT ? BI : c.inPixelStep;
     for (int b = 0; b < CB; ++b) {
-        const VFloat bias = loadu<VFloat>(a.bias + (cob + b) * B);
+        const VFloat bias = loadu<VFloat>(c.bias + (cob + b) * B);
         for (int i = 0; i < TW; ++i) acc[b][i] = bias;
     }
-    for (int64_t cib = 0; cib < cinBlocks; ++cib) {
-        const int channelsInBlock = int(std::min<int64_t>(Bi, is.channels - cib * Bi));
-        const float* base = a.in + is.offset(a.image, cib, p.inY0 + r * p.inStepY, p.inX0 + j * p.inStepX);
-        const float* w = p.weights + cob * weightBlockStride + cib * p.taps * Bi * B;
-        for (int t = 0; t < p.taps; ++t, w += Bi * B) {
-            const float* pixels = base + p.tapOffsets[t];
-            auto accumulateChannel = [&](int c) {
+    const float* weights = c.weights + cob * c.weightBlockStride;
+    for (int64_t cib = 0; cib < c.cinBlocks; ++cib) {
+        const int channels = cib + 1 < c.cinBlocks ? BI : c.lastBlockChannels;
+        const float* base = in + cib * c.inBlockStride + j * step;
+        const float* w = weights + cib * c.taps * BI * B;
+        for (int t = 0; t < c.taps; ++t, w += BI * B) {
+            const float* pixels = base + c.tapOffsets[t];
+            auto accumulateChannel = [&](int ci) {
                 VFloat weight[CB];
-                for (int b = 0; b < CB; ++b) weight[b] = loadu<VFloat>(w + b * weightBlockStride + c * B);
+                for (int b = 0; b < CB; ++b) weight[b] = loadu<VFloat>(w + b * c.weightBlockStride + ci * B);
 #pragma GCC unroll 16
                 for (int i = 0; i < TW; ++i) {
-                    const VFloat value = splat<VFloat>(pixels[i * inPixelStep + c]);
+                    const VFloat value = splat<VFloat>(pixels[i * step + ci]);
                     for (int b = 0; b < CB; ++b) acc[b][i] += value * weight[b];
                 }
             };
-            if (channelsInBlock == B) {
+            if constexpr (BI == 1) {
+                accumulateChannel(0);
+            } else if (channels == BI) {
 #pragma GCC unroll 4
-                for (int c = 0; c < B; ++c) accumulateChannel(c);
+                for (int ci = 0; ci < BI; ++ci) accumulateChannel(ci);
             } else {
                 // A partial last block (e.g. 3 RGB channels): skip the zero channels.
-                for (int c = 0; c < channelsInBlock; ++c) accumulateChannel(c);
+                for (int ci = 0; ci < channels; ++ci) accumulateChannel(ci);
             }
         }
     }
-    const BlockedShape& os = a.outShape;
-    const int64_t outPixelStep = p.outStepX * B;
+}
+
+template <int TW, int CB>
+[[gnu::always_inline]] inline void storeWide(const RowContext& c, int64_t cob, int64_t j,
+                                             const VFloat (&acc)[CB][TW]) {
+    const ActivationDesc activation = c.activation;
     for (int b = 0; b < CB; ++b) {
-        float* out = a.out + os.offset(a.image, cob + b, p.outY0 + r * p.outStepY, p.outX0 + j * p.outStepX);
-        for (int i = 0; i < TW; ++i) storeu(out + i * outPixelStep, activate(acc[b][i], a.activation));
+        float* out = c.out + (cob + b) * c.outBlockStride + j * c.outPixelStep;
+        for (int i = 0; i < TW; ++i) {
+            const VFloat v = applyActivation(acc[b][i], activation);
+            storeu(out + i * c.outPixelStep, v);
+        }
     }
 }
 
-// Row remainders: tiles of 1..kTileWidth-1 pixels, chosen through a table of instantiations.
-template <int CB, size_t... I>
-constexpr auto makeTailTable(std::index_sequence<I...>) {
-    return std::array<void (*)(const ConvRowsArgs&, int64_t, int64_t, int64_t), sizeof...(I)>{
-        &convTile<int(I) + 1, CB>...};
+template <int TW, int CB, int BI, bool UNIT, bool POOL>
+void wideTile(const RowContext& c, int64_t cob, int64_t j) {
+    VFloat acc[CB][TW];
+    accumulateWide<TW, CB, BI, UNIT>(c, c.in, cob, j, acc);
+    if constexpr (!POOL) {
+        storeWide<TW, CB>(c, cob, j, acc);
+    } else if constexpr (TW >= 2) {
+        // 2x2 max pooling of lattice rows 2r, 2r + 1 and columns j..j + TW (j and TW even). The
+        // activations dejag fuses are monotonic, so pooling before them equals pooling after.
+        VFloat below[CB][TW];
+        accumulateWide<TW, CB, BI, UNIT>(c, c.in + c.inRowStep, cob, j, below);
+        VFloat pooled[CB][TW / 2];
+        for (int b = 0; b < CB; ++b)
+            for (int i = 0; i < TW / 2; ++i)
+                pooled[b][i] = maximum(maximum(acc[b][2 * i], acc[b][2 * i + 1]),
+                                       maximum(below[b][2 * i], below[b][2 * i + 1]));
+        storeWide<TW / 2, CB>(c, cob, j / 2, pooled);
+    }
 }
 
-template <int CB>
-void convRow(const ConvRowsArgs& a, int64_t cob, int64_t r) {
-    static constexpr auto tails = makeTailTable<CB>(std::make_index_sequence<kTileWidth - 1>());
-    const int64_t columns = a.pass.columns;
-    int64_t j = 0;
-    for (; j + kTileWidth <= columns; j += kTileWidth) convTile<kTileWidth, CB>(a, cob, r, j);
-    if (j < columns) tails[size_t(columns - j - 1)](a, cob, r, j);
+using TileFunction = void (*)(const RowContext&, int64_t, int64_t);
+
+// Row remainders: tiles of 1..kTileWidth-1 columns, chosen through a table of instantiations.
+template <int CB, int BI, bool UNIT, bool POOL, size_t... I>
+constexpr auto makeWideTails(std::index_sequence<I...>) {
+    return std::array<TileFunction, sizeof...(I)>{&wideTile<int(I) + 1, CB, BI, UNIT, POOL>...};
 }
+
+template <int CB, int BI, bool UNIT, bool POOL>
+void wideRow(const RowContext& c, int64_t cob, int64_t columns) {
+    static constexpr auto tails =
+        makeWideTails<CB, BI, UNIT, POOL>(std::make_index_sequence<kTileWidth - 1>());
+    int64_t j = 0;
+    for (; j + kTileWidth <= columns; j += kTileWidth) wideTile<kTileWidth, CB, BI, UNIT, POOL>(c, cob, j);
+    if (j < columns) tails[size_t(columns - j - 1)](c, cob, j);
+}
+
+template <int BI, bool UNIT, bool POOL>
+void wideRows(const ConvRowsArgs& a) {
+    // Pooling reads lattice columns in pairs; an odd last column has no pooled output.
+    const int64_t columns = POOL ? a.pass.columns / 2 * 2 : a.pass.columns;
+    for (int64_t r = a.rowBegin; r < a.rowEnd; ++r) {
+        const RowContext c = rowContext(a, r);
+        int64_t cob = a.outBlockBegin;
+        for (; cob + kTileBlocks <= a.outBlockEnd; cob += kTileBlocks)
+            wideRow<kTileBlocks, BI, UNIT, POOL>(c, cob, columns);
+        for (; cob < a.outBlockEnd; ++cob) wideRow<1, BI, UNIT, POOL>(c, cob, columns);
+    }
+}
+
+template <int BI>
+void wideRowsFor(const ConvRowsArgs& a) {
+    const bool unit = a.pass.inStepX == 1;
+    if (a.pool2x2) {
+        // Fused pooling is for stride-1 Conv2D layers (see BlockedConv::fuseMaxPool2x2).
+        unit ? wideRows<BI, true, true>(a) : wideRows<BI, false, true>(a);
+    } else {
+        unit ? wideRows<BI, true, false>(a) : wideRows<BI, false, false>(a);
+    }
+}
+
+// ---- The narrow kernel: lanes = input channels, for layers with a few output channels ----------------
+//
+// With 1-4 output channels the wide kernel would leave 12-15 of 16 lanes idle. Here each accumulator
+// holds one (pixel, output channel) pair's products across a block of input channels, and one transposed
+// reduction at the end of the tile sums the lanes of all TW x COUT accumulators at once.
+#if !defined(DEJAG_SIMD_LEVEL_scalar)
+
+typedef int32_t VIndex __attribute__((vector_size(kFloatLanes * sizeof(int32_t))));
+
+// Lane indices (into the concatenation a ++ b) that fold segments of S lanes in half: the `offset` half
+// (0: first, S/2: second) of every segment of a, then of b.
+template <int S>
+constexpr std::array<int32_t, B> foldIndices(int offset) {
+    std::array<int32_t, B> index{};
+    constexpr int half = B / 2;
+    for (int lane = 0; lane < B; ++lane) {
+        const int position = lane % half, segment = position / (S / 2), k = position % (S / 2);
+        index[size_t(lane)] = (lane < half ? 0 : B) + segment * S + offset + k;
+    }
+    return index;
+}
+
+template <int S>
+inline VFloat fold(VFloat a, VFloat b) {
+    static constexpr std::array<int32_t, B> low = foldIndices<S>(0), high = foldIndices<S>(S / 2);
+    VIndex lowIndex, highIndex;
+    std::memcpy(&lowIndex, low.data(), sizeof(lowIndex));
+    std::memcpy(&highIndex, high.data(), sizeof(highIndex));
+    return __builtin_shuffle(a, b, lowIndex) + __builtin_shuffle(a, b, highIndex);
+}
+
+// v holds S vectors; returns the vector whose lane k is the sum of the lanes of v[k] (fixed order).
+template <int S>
+inline VFloat reduceLanes(VFloat* v) {
+    if constexpr (S == 1) {
+        return v[0];
+    } else {
+#pragma GCC unroll 16
+        for (int k = 0; k < S / 2; ++k) v[k] = fold<S>(v[2 * k], v[2 * k + 1]);
+        return reduceLanes<S / 2>(v);
+    }
+}
+
+// Per pixel i of a tile, the lanes of the reduced sums holding its COUT outputs (index B: a zero).
+template <int COUT>
+constexpr std::array<std::array<int32_t, B>, B / COUT> pixelLanes() {
+    std::array<std::array<int32_t, B>, B / COUT> lanes{};
+    for (int i = 0; i < B / COUT; ++i)
+        for (int lane = 0; lane < B; ++lane)
+            lanes[size_t(i)][size_t(lane)] = lane < COUT ? i * COUT + lane : B;
+    return lanes;
+}
+template <int COUT>
+constexpr std::array<std::array<int32_t, B>, B / COUT> kPixelLanes = pixelLanes<COUT>();
+
+template <int TW, int COUT, bool UNIT>
+void narrowTile(const RowContext& c, int64_t j) {
+    static_assert(TW * COUT <= B);
+    const int64_t step = UNIT ? B : c.inPixelStep;
+    VFloat acc[B];
+#pragma GCC unroll 16
+    for (int k = 0; k < B; ++k) acc[k] = splat<VFloat>(0.0f);
+    for (int64_t cib = 0; cib < c.cinBlocks; ++cib) {
+        const float* base = c.in + cib * c.inBlockStride + j * step;
+        const float* w = c.narrowWeights + cib * c.taps * COUT * B;  // [cib][tap][co][ci lanes]
+        for (int t = 0; t < c.taps; ++t, w += COUT * B) {
+            const float* pixels = base + c.tapOffsets[t];
+            VFloat weight[COUT];
+#pragma GCC unroll 4
+            for (int co = 0; co < COUT; ++co) weight[co] = loadu<VFloat>(w + co * B);
+#pragma GCC unroll 16
+            for (int i = 0; i < TW; ++i) {
+                const VFloat value = loadu<VFloat>(pixels + i * step);
+#pragma GCC unroll 4
+                for (int co = 0; co < COUT; ++co) acc[i * COUT + co] += value * weight[co];
+            }
+        }
+    }
+    // Lane i * COUT + co: pixel i, output channel co (plus its bias).
+    const VFloat sums = reduceLanes<B>(acc) + c.narrowBias;
+    const VFloat zero = splat<VFloat>(0.0f);
+    const ActivationDesc activation = c.activation;
+#pragma GCC unroll 16
+    for (int i = 0; i < TW; ++i) {
+        // Pixel i's COUT values to lanes 0..COUT-1, zeros elsewhere (index B: lane 0 of `zero`).
+        VIndex index;
+        std::memcpy(&index, kPixelLanes<COUT>[size_t(i)].data(), sizeof(index));
+        const VFloat v = applyActivation(__builtin_shuffle(sums, zero, index), activation);
+        storeu(c.out + (j + i) * c.outPixelStep, v);
+    }
+}
+
+template <int COUT, bool UNIT, size_t... I>
+constexpr auto makeNarrowTiles(std::index_sequence<I...>) {
+    return std::array<void (*)(const RowContext&, int64_t), sizeof...(I)>{
+        &narrowTile<int(I) + 1, COUT, UNIT>...};
+}
+
+template <int COUT, bool UNIT>
+void narrowRows(const ConvRowsArgs& a) {
+    constexpr int width = B / COUT;
+    static constexpr auto tiles = makeNarrowTiles<COUT, UNIT>(std::make_index_sequence<width>());
+    for (int64_t r = a.rowBegin; r < a.rowEnd; ++r) {
+        const RowContext c = rowContext(a, r);
+        int64_t j = 0;
+        for (; j + width <= a.pass.columns; j += width) narrowTile<width, COUT, UNIT>(c, j);
+        if (j < a.pass.columns) tiles[size_t(a.pass.columns - j - 1)](c, j);
+    }
+}
+
+template <bool UNIT>
+void narrowRowsFor(const ConvRowsArgs& a) {
+    switch (a.outShape.channels) {
+        case 1:
+            return narrowRows<1, UNIT>(a);
+        case 2:
+            return narrowRows<2, UNIT>(a);
+        case 3:
+            return narrowRows<3, UNIT>(a);
+        default:
+            return narrowRows<4, UNIT>(a);
+    }
+}
+#endif
 
 }  // namespace
 
 void convForwardRows(const ConvRowsArgs& a) {
-    for (int64_t r = a.rowBegin; r < a.rowEnd; ++r) {
-        int64_t cob = a.outBlockBegin;
-        for (; cob + kTileBlocks <= a.outBlockEnd; cob += kTileBlocks) convRow<kTileBlocks>(a, cob, r);
-        for (; cob < a.outBlockEnd; ++cob) convRow<1>(a, cob, r);
+#if !defined(DEJAG_SIMD_LEVEL_scalar)
+    if (a.pass.narrowWeights && !a.pool2x2 && a.inShape.block == B &&
+        a.outShape.channels <= kNarrowMaxChannels) {
+        a.pass.inStepX == 1 ? narrowRowsFor<true>(a) : narrowRowsFor<false>(a);
+        return;
     }
+#endif
+    if (a.inShape.block == 1)
+        wideRowsFor<1>(a);
+    else
+        wideRowsFor<B>(a);
+}
+
+int narrowMaxOutputChannels() {
+#if defined(DEJAG_SIMD_LEVEL_scalar)
+    return 0;
+#else
+    return kNarrowMaxChannels;
+#endif
 }
 
 void convWeightGradient(const WeightGradArgs& a) {

@@ -20,6 +20,9 @@ struct ConvPass {
     int taps = 0;
     const int64_t* tapOffsets = nullptr;  // float offset of each tap's input pixel from the base pixel
     const float* weights = nullptr;       // [Cout blocks][Cin blocks][taps][Bi ci][B co], Bi = input block
+    // For layers with at most narrowMaxOutputChannels() outputs and a blocked input (null otherwise):
+    // [Cin blocks][taps][Cout][B ci], read by the kernel that puts input channels in the lanes.
+    const float* narrowWeights = nullptr;
 };
 
 struct ConvRowsArgs {
@@ -32,7 +35,9 @@ struct ConvRowsArgs {
     ActivationDesc activation;    // None, ReLU, LeakyReLU or Clamp (fused into the store)
     int64_t image = 0;
     int64_t outBlockBegin = 0, outBlockEnd = 0;  // output channel blocks of this work item
-    int64_t rowBegin = 0, rowEnd = 0;            // lattice rows of this work item
+    int64_t rowBegin = 0, rowEnd = 0;            // lattice rows of this work item (pooled rows if pool2x2)
+    // Fused 2x2 max pooling (stride 2) of a stride-1 pass: the output holds the pooled lattice.
+    bool pool2x2 = false;
 };
 
 // Weight gradient of one (pass, tap, output block, input block): for every image and lattice point,
@@ -49,6 +54,8 @@ struct WeightGradArgs {
 };
 
 DEJAG_SIMD_DECLARE(void convForwardRows(const ConvRowsArgs& args);
-                   void convWeightGradient(const WeightGradArgs& args);)
+                   void convWeightGradient(const WeightGradArgs& args);
+                   // The most output channels the narrow kernel takes (0: none, on the scalar path).
+                   int narrowMaxOutputChannels();)
 
 }  // namespace dejag::nn

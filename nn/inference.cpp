@@ -116,6 +116,8 @@ struct InferencePlan::Impl {
         std::optional<BlockedConv> conv;  // conv2d, conv_transpose2d
         MaxPool2dDesc pool;               // maxpool2d
         bool sigmoidAfterConv = false;
+        int pooledInto = -1;         // conv2d: the maxpool2d step whose output it writes (pooling fused)
+        bool fusedIntoConv = false;  // maxpool2d: computed by its input's convolution
     };
     Shape inputShape, outputShape;
     BlockedShape inputBlocked;
@@ -179,6 +181,24 @@ InferencePlan::InferencePlan(const Model& model, const Shape& inputShape) : impl
         if (step.conv) border = std::max(border, step.conv->requiredInputBorder());
         m.steps.push_back(std::move(step));
     }
+    // A 2x2 stride-2 max pooling that is its convolution's only consumer is fused into it: the
+    // full-size activation is never stored.
+    for (size_t i = 0; i < graph.size(); ++i) {
+        Impl::Step& pool = m.steps[i];
+        if (pool.node.op != GraphOp::MaxPool2d || pool.pool.kernel != 2 || pool.pool.stride != 2 ||
+            pool.pool.padding != 0)
+            continue;
+        const int source = pool.node.inputs[0];
+        if (source < 0 || source == m.outputStep || graph[size_t(source)].op != GraphOp::Conv2d) continue;
+        int consumers = 0;
+        for (const GraphNode& n : graph)
+            for (int input : n.inputs) consumers += input == source;
+        Impl::Step& conv = m.steps[size_t(source)];
+        if (consumers != 1 || shapes[size_t(source)][2] < 2 || shapes[size_t(source)][3] < 2) continue;
+        conv.conv->fuseMaxPool2x2();
+        conv.pooledInto = int(i);
+        pool.fusedIntoConv = true;
+    }
     auto blockedOf = [&](const Shape& s) { return BlockedShape{s[0], s[1], s[2], s[3], m.block, border}; };
     m.inputBlocked = blockedOf(inputShape);
     if (planarInput) m.inputBlocked.block = 1;
@@ -215,8 +235,16 @@ InferencePlan::InferencePlan(const Model& model, const Shape& inputShape) : impl
         return offset;
     };
     m.inputOffset = place(0, m.inputBlocked.floatCount(), 0);
-    for (int i = 0; i < count; ++i)
-        m.steps[size_t(i)].offset = place(i + 1, m.steps[size_t(i)].shape.floatCount(), i);
+    for (int i = 0; i < count; ++i) {
+        Impl::Step& step = m.steps[size_t(i)];
+        if (step.fusedIntoConv) continue;  // placed with its convolution
+        if (step.pooledInto >= 0) {        // the conv writes the pooled tensor; its own is never stored
+            Impl::Step& pool = m.steps[size_t(step.pooledInto)];
+            pool.offset = place(step.pooledInto + 1, pool.shape.floatCount(), i);
+            continue;
+        }
+        step.offset = place(i + 1, step.shape.floatCount(), i);
+    }
     m.arena = Tensor({std::max<int64_t>(arenaFloats, 16)});
     m.output = Tensor(m.outputShape);
 }
@@ -256,9 +284,11 @@ const Tensor& InferencePlan::runUnchecked(const Tensor& input) {
     toBlocked(m.data(-1), input.data(), m.inputBlocked);
     for (size_t i = 0; i < m.steps.size(); ++i) {
         Impl::Step& step = m.steps[i];
+        if (step.fusedIntoConv) continue;
         const GraphNode& n = step.node;
-        float* out = m.data(int(i));
-        const BlockedShape& os = step.shape;
+        const int target = step.pooledInto >= 0 ? step.pooledInto : int(i);
+        float* out = m.data(target);
+        const BlockedShape& os = m.shape(target);
         const float* in = m.data(n.inputs[0]);
         const BlockedShape& is = m.shape(n.inputs[0]);
         zeroBorder(out, os);

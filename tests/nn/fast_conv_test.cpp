@@ -210,6 +210,49 @@ TEST_P(FastConv, BackwardMatchesTheReference) {
     }
 }
 
+// Conv2D + activation + 2x2 max pooling fused, against the three reference kernels in sequence: odd
+// sizes (the last row and column have no pooled output), strides, planar inputs, few output channels.
+TEST_P(FastConv, FusedMaxPoolingMatchesTheReference) {
+    Rng rng(80);
+    for (int trial = 0; trial < 24; ++trial) {
+        Conv2dDesc d;
+        d.batch = 1 + rng.below(2);
+        d.inChannels = 1 + rng.below(trial < 6 ? 3 : 40);
+        d.outChannels = 1 + rng.below(trial % 3 == 0 ? 4 : 40);
+        const int k = int(1 + 2 * rng.below(3));
+        d.kernelHeight = d.kernelWidth = k;
+        d.padTop = d.padBottom = d.padLeft = d.padRight = k / 2;
+        d.strideH = d.strideW = trial % 4 == 3 ? 2 : 1;
+        d.inHeight = k + 1 + rng.below(20), d.inWidth = k + 1 + rng.below(45);
+        if (d.outHeight() < 2 || d.outWidth() < 2) continue;
+        const Activation activation = kActivations[trial % 4];
+        SCOPED_TRACE("trial " + std::to_string(trial) + ": " + std::to_string(d.inChannels) + "->" +
+                     std::to_string(d.outChannels) + " k" + std::to_string(k) + " " +
+                     std::to_string(d.inHeight) + "x" + std::to_string(d.inWidth));
+        const auto input = randomValues(size_t(d.batch * d.inChannels * d.inHeight * d.inWidth), rng);
+        const auto weight = randomValues(size_t(d.weightCount()), rng, 0.3f);
+        const auto bias = randomValues(size_t(d.outChannels), rng);
+        const int64_t convCount = d.batch * d.outChannels * d.outHeight() * d.outWidth();
+        std::vector<float> conv(static_cast<size_t>(convCount));
+        conv2dForward(conv.data(), input.data(), weight.data(), bias.data(), d);
+        ActivationDesc act;
+        act.kind = activation;
+        activationForward(conv.data(), conv.data(), convCount, act);
+        MaxPool2dDesc pool;
+        pool.batch = d.batch, pool.channels = d.outChannels, pool.inHeight = d.outHeight(),
+        pool.inWidth = d.outWidth();
+        const int64_t outCount = d.batch * d.outChannels * pool.outHeight() * pool.outWidth();
+        std::vector<float> want(static_cast<size_t>(outCount));
+        std::vector<int32_t> argmax(static_cast<size_t>(outCount));
+        maxPool2dForward(want.data(), argmax.data(), conv.data(), pool);
+        BlockedConv fused(d, weight.data(), bias.data(), act, d.inChannels <= 8 && trial % 2 == 1 ? 1 : 0);
+        fused.fuseMaxPool2x2();
+        ASSERT_EQ(fused.outputShape(0).height, pool.outHeight());
+        ASSERT_EQ(fused.outputShape(0).width, pool.outWidth());
+        expectClose(runBlocked(fused, input, outCount), want);
+    }
+}
+
 TEST_P(FastConv, SameResultForEveryThreadCount) {
     Rng rng(5);
     Conv2dDesc d;
@@ -242,6 +285,17 @@ TEST(FastConvLimits, RefusesWhatItDoesNotSupport) {
     Tensor in = allocateBlocked(conv.inputShape(0)), out = allocateBlocked(conv.outputShape(0));
     EXPECT_THROW(conv.forward(out.data(), conv.outputShape(0), in.data(), conv.inputShape(0)),
                  Error);  // border 0 < 1
+    std::vector<float> dw(w.size()), db(4);
+    BlockedConv pooled(d, w.data(), b.data(), ActivationDesc{Activation::None});
+    pooled.fuseMaxPool2x2();
+    Tensor full = allocateBlocked(conv.outputShape(1)), input = allocateBlocked(conv.inputShape(1));
+    EXPECT_THROW(pooled.backwardWeights(dw.data(), db.data(), full.data(), conv.outputShape(1), input.data(),
+                                        conv.inputShape(1)),
+                 Error);  // fused pooling is for inference
+    ConvTranspose2dDesc t;
+    t.inChannels = 4, t.outChannels = 4, t.inHeight = 4, t.inWidth = 4, t.strideH = t.strideW = 2;
+    BlockedConv transposed(t, w.data(), b.data(), ActivationDesc{Activation::None});
+    EXPECT_THROW(transposed.fuseMaxPool2x2(), Error);
 }
 
 }  // namespace
