@@ -13,6 +13,7 @@
 #include "app/commands.h"
 #include "base/error.h"
 #include "bench/bench.h"
+#include "bench/render_bench.h"
 
 namespace dejag::cli {
 namespace {
@@ -107,6 +108,49 @@ void registerBenchCommand(CLI::App& app) {
     nn->prefix_command();  // everything after 'nn' goes to dejag-bench-nn
     nn->set_help_flag();
     nn->callback([nn] { runNnBenchmark(nn->remaining()); });
+
+    struct RenderBenchArguments {
+        int repeat = 5;
+        bool json = false, quick = false;
+    };
+    auto renderArgs = std::make_shared<RenderBenchArguments>();
+    CLI::App* renderBench = bench->add_subcommand(
+        "render",
+        "renderer: ms per frame (colour only, every buffer) at 800x800 and 1920x1080, and the "
+        "128-sample truth with and without --adaptive");
+    renderBench->add_option("--repeat", renderArgs->repeat, "Timed frames per case (median reported)")
+        ->check(CLI::Range(1, 1000))
+        ->capture_default_str();
+    renderBench->add_flag("--quick", renderArgs->quick, "small sizes and one scene (a smoke test)");
+    renderBench->add_flag("--json", renderArgs->json, "One JSON object per case");
+    renderBench->callback([renderArgs] {
+        bench::RenderBenchOptions options;
+        options.repeat = renderArgs->repeat;
+        if (renderArgs->quick) {
+            options.scenes = {"pipe"}, options.sizes = {{96, 64}}, options.truthScenes = {"pipe"};
+            options.truthSize = {96, 64}, options.truthSamples = 16;
+        }
+        const std::vector<nlohmann::json> rows = bench::benchRender(options);
+        if (renderArgs->json) {
+            for (const nlohmann::json& row : rows) std::printf("%s\n", row.dump().c_str());
+            return;
+        }
+        std::printf("%-26s %-13s %9s %10s\n", "case", "scene", "size", "median ms");
+        for (const nlohmann::json& row : rows) {
+            const std::string size =
+                std::to_string(row["width"].get<int>()) + "x" + std::to_string(row["height"].get<int>());
+            std::printf("%-26s %-13s %9s %10.1f", row["name"].get<std::string>().c_str(),
+                        row["scene"].get<std::string>().c_str(), size.c_str(), row["ms"].get<double>());
+            if (row.contains("adaptive_ms"))
+                std::printf(
+                    "  adaptive %.1f ms, %.2fx fewer tile-samples, aliased PSNR %.3f vs %.3f dB (%+.3f)",
+                    row["adaptive_ms"].get<double>(), row["tile_samples_saving"].get<double>(),
+                    row["aliased_psnr_adaptive_truth"].get<double>(),
+                    row["aliased_psnr_full_truth"].get<double>(), row["psnr_difference_db"].get<double>());
+            std::printf("\n");
+        }
+        std::printf("OSMesa llvmpipe renders with its own threads (LP_NUM_THREADS, default: all cores).\n");
+    });
 
     auto args = std::make_shared<BenchArguments>();
     CLI::App* metrics = bench->add_subcommand(

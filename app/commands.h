@@ -7,5 +7,6 @@ namespace dejag::cli {
 
 void registerMetricsCommand(CLI::App& app);
 void registerBenchCommand(CLI::App& app);
+void registerRenderCommand(CLI::App& app);
 
 }  // namespace dejag::cli

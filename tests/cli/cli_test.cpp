@@ -7,6 +7,7 @@
 #include <filesystem>
 #include <fstream>
 #include <nlohmann/json.hpp>
+#include <set>
 #include <sstream>
 
 #include "data/image.h"
@@ -220,6 +221,82 @@ TEST(Cli, BenchNnRunsTheKernelBenchmarkWithPeers) {
     for (const char* key : {"onednn_ratio", "libtorch_ratio"})
         EXPECT_TRUE(j[key].is_number() || j[key].is_null()) << key;
     expectOneLineError(run("bench nn --bogus", dir), "--bogus");
+}
+
+TEST(Cli, RenderWritesBuffersPreviewsTruthAndSidecar) {
+    testing::TempDir dir;
+    const std::string out = dir.file("pipe");
+    const RunResult r =
+        run("render --scene pipe --size 64x48 --frames 2 --jitter halton16 --truth 8 "
+            "--buffers color,depth,motion,id --out '" +
+                out + "' --json",
+            dir);
+    ASSERT_EQ(r.exitCode, 0) << r.err;
+    const nlohmann::json printed = nlohmann::json::parse(r.out);
+    const nlohmann::json sidecar = nlohmann::json::parse(slurp(out + "/render.json"));
+    EXPECT_EQ(printed, sidecar);
+    EXPECT_EQ(sidecar["frames"].size(), 2u);
+    EXPECT_EQ(sidecar["truth"]["samples"].get<int>(), 8);
+    EXPECT_EQ(sidecar["frames"][1]["truth"]["samples"].get<int>(), 8);
+    for (const char* name :
+         {"frame_0000.exr", "frame_0000.png", "frame_0001.exr", "truth_0001.exr", "truth_0001.png"})
+        EXPECT_TRUE(std::filesystem::exists(out + "/" + name)) << name;
+    const Image frame = readImage(out + "/frame_0001.exr");
+    // OpenEXR orders channels by layer; readers find them by name.
+    std::set<std::string> channels(frame.channelNames.begin(), frame.channelNames.end());
+    EXPECT_EQ(channels, (std::set<std::string>{"R", "G", "B", "depth.Z", "motion.X", "motion.Y", "id.ID"}));
+    EXPECT_EQ(frame.width, 64);
+    EXPECT_EQ(frame.storage, PixelType::Float);
+    const Image preview = readImage(out + "/frame_0001.png");
+    EXPECT_EQ(preview.storage, PixelType::UInt8);
+    // The jitter of frame 1 is Halton point 1 times the spread: x = 0.5 -> 0, y = 2/3 -> 1.7/6 up.
+    EXPECT_NEAR(sidecar["frames"][1]["jitter_pixels"][0].get<double>(), 0.0, 1e-12);
+    EXPECT_NEAR(sidecar["frames"][1]["jitter_pixels"][1].get<double>(), -1.7 / 6, 1e-9);
+}
+
+TEST(Cli, RenderBadInputIsOneLineAndWritesNothing) {
+    testing::TempDir dir;
+    const std::string out = dir.file("out");
+    expectOneLineError(run("render --scene teapot --out '" + out + "'", dir), "teapot");
+    expectOneLineError(run("render --scene pipe --size 0x10 --out '" + out + "'", dir), "--size");
+    expectOneLineError(run("render --scene pipe --size 20000x10 --out '" + out + "'", dir), "--size");
+    expectOneLineError(run("render --scene pipe --frames 0 --out '" + out + "'", dir), "--frames");
+    expectOneLineError(run("render --scene pipe --buffers color,normals --out '" + out + "'", dir),
+                       "normals");
+    expectOneLineError(run("render --scene pipe --jitter random --out '" + out + "'", dir), "--jitter");
+    EXPECT_FALSE(std::filesystem::exists(out));
+    std::ofstream(dir.file("a-file")) << "x";
+    expectOneLineError(run("render --scene pipe --size 32x32 --out '" + dir.file("a-file") + "/sub'", dir),
+                       "output folder");
+}
+
+TEST(Cli, BenchRenderQuickPrintsFramesAndTruth) {
+    testing::TempDir dir;
+    const RunResult r = run("bench render --quick --repeat 1 --json", dir);
+    ASSERT_EQ(r.exitCode, 0) << r.err;
+    std::stringstream lines(r.out);
+    std::string line;
+    int frames = 0, truths = 0;
+    while (std::getline(lines, line)) {
+        const nlohmann::json j = nlohmann::json::parse(line);
+        EXPECT_GT(j["ms"].get<double>(), 0.0);
+        if (j.contains("tile_samples_saving")) {
+            ++truths;
+            EXPECT_GE(j["tile_samples_saving"].get<double>(), 1.0);
+        } else {
+            ++frames;
+        }
+    }
+    EXPECT_EQ(frames, 2);
+    EXPECT_EQ(truths, 1);
+}
+
+TEST(Cli, RenderListsTheScenes) {
+    testing::TempDir dir;
+    const RunResult r = run("render --list", dir);
+    ASSERT_EQ(r.exitCode, 0) << r.err;
+    for (const char* scene : {"pipe", "blinds", "hairball-lit-rotating", "planes", "zone-plate", "random"})
+        EXPECT_NE(r.out.find(scene), std::string::npos) << scene;
 }
 
 }  // namespace

@@ -1,0 +1,77 @@
+#include "bench/render_bench.h"
+
+#include <cmath>
+#include <cstdio>
+
+#include "base/timer.h"
+#include "render/renderer.h"
+
+namespace dejag::bench {
+
+namespace {
+double psnr(const render::Frame& a, const render::Frame& b) {
+    double squared = 0;
+    for (size_t i = 0; i < a.pixels.size(); ++i) {
+        const double d = double(a.pixels[i]) - double(b.pixels[i]);
+        squared += d * d;
+    }
+    return 10 * std::log10(double(a.pixels.size()) / std::max(squared, 1e-30));
+}
+}  // namespace
+
+std::vector<nlohmann::json> benchRender(const RenderBenchOptions& options) {
+    std::vector<nlohmann::json> rows;
+    const auto context = render::createOsMesaContext();
+    for (const std::string& name : options.scenes) {
+        const render::Scene scene = render::buildScene(name);
+        for (const auto& [width, height] : options.sizes) {
+            render::Renderer renderer(*context, scene, width, height);
+            for (const bool all : {false, true}) {
+                render::FrameRequest request;
+                request.time = 1, request.previousTime = 0;
+                request.buffers = all ? render::BufferSet::all() : render::BufferSet();
+                renderer.render(request);  // warm-up
+                std::vector<double> times;
+                for (int i = 0; i < options.repeat; ++i) {
+                    const Stopwatch clock;
+                    renderer.render(request);
+                    times.push_back(clock.elapsedMs());
+                }
+                rows.push_back({{"name", "frame " + std::string(all ? "all buffers" : "colour")},
+                                {"scene", name},
+                                {"width", width},
+                                {"height", height},
+                                {"buffers", request.buffers.describe()},
+                                {"triangles", scene.triangleCount()},
+                                {"ms", median(times)}});
+            }
+        }
+    }
+    for (const std::string& name : options.truthScenes) {
+        const render::Scene scene = render::buildScene(name);
+        const auto [width, height] = options.truthSize;
+        render::Renderer renderer(*context, scene, width, height);
+        const render::Frame aliased = renderer.render({});
+        render::TruthOptions truthOptions;
+        truthOptions.samples = options.truthSamples;
+        render::TruthStats full, adaptive;
+        const render::Frame fullTruth = renderer.renderTruth(0, truthOptions, &full);
+        truthOptions.adaptive = true;
+        const render::Frame adaptiveTruth = renderer.renderTruth(0, truthOptions, &adaptive);
+        const double fullPsnr = psnr(aliased, fullTruth), adaptivePsnr = psnr(aliased, adaptiveTruth);
+        rows.push_back({{"name", "truth " + std::to_string(options.truthSamples) + " samples"},
+                        {"scene", name},
+                        {"width", width},
+                        {"height", height},
+                        {"ms", full.milliseconds},
+                        {"adaptive_ms", adaptive.milliseconds},
+                        {"tile_samples_saving", adaptive.saving()},
+                        {"aliased_psnr_full_truth", fullPsnr},
+                        {"aliased_psnr_adaptive_truth", adaptivePsnr},
+                        {"psnr_difference_db", adaptivePsnr - fullPsnr},
+                        {"adaptive_vs_full_truth_psnr", psnr(fullTruth, adaptiveTruth)}});
+    }
+    return rows;
+}
+
+}  // namespace dejag::bench

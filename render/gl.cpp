@@ -1,0 +1,67 @@
+#include "render/gl.h"
+
+#include <GL/osmesa.h>
+
+#include <string>
+
+#include "base/error.h"
+
+namespace dejag::render {
+
+void GlContext::loadFunctions() {
+#define DEJAG_GL_LOAD(type, name)                                                          \
+    gl_.name = reinterpret_cast<PFNGL##type##PROC>(procAddress("gl" #name));               \
+    if (!gl_.name) throw Error("OpenGL: the context has no gl" #name " (OpenGL 3.3+ core needed)");
+    DEJAG_GL_FUNCTIONS(DEJAG_GL_LOAD)
+#undef DEJAG_GL_LOAD
+}
+
+namespace {
+
+class OsMesaContext final : public GlContext {
+  public:
+    OsMesaContext() {
+        // OpenGL 4.5 core first (llvmpipe's level), then 3.3 core, the least the shaders need.
+        for (const int major : {4, 3}) {
+            const int minor = major == 4 ? 5 : 3;
+            const int attributes[] = {OSMESA_FORMAT,        OSMESA_RGBA, OSMESA_DEPTH_BITS,    24,
+                                      OSMESA_STENCIL_BITS,  8,           OSMESA_PROFILE,       OSMESA_CORE_PROFILE,
+                                      OSMESA_CONTEXT_MAJOR_VERSION, major, OSMESA_CONTEXT_MINOR_VERSION, minor,
+                                      0};
+            context_ = OSMesaCreateContextAttribs(attributes, nullptr);
+            if (context_) break;
+        }
+        if (!context_)
+            throw Error("OSMesa unavailable: cannot create an OpenGL 3.3+ core context (is libosmesa6 installed?)");
+        // The default framebuffer is never drawn to (every pass renders into textures), so 1x1 suffices.
+        if (!OSMesaMakeCurrent(context_, buffer_, GL_UNSIGNED_BYTE, 1, 1)) {
+            OSMesaDestroyContext(context_);
+            throw Error("OSMesa unavailable: cannot make the context current");
+        }
+        loadFunctions();
+        const auto text = [&](GLenum name) {
+            const GLubyte* s = gl_.GetString(name);
+            return s ? std::string(reinterpret_cast<const char*>(s)) : std::string("?");
+        };
+        description_ = "OSMesa: " + text(GL_RENDERER) + ", OpenGL " + text(GL_VERSION);
+    }
+    ~OsMesaContext() override { OSMesaDestroyContext(context_); }
+    OsMesaContext(const OsMesaContext&) = delete;
+    OsMesaContext& operator=(const OsMesaContext&) = delete;
+
+    GlProc procAddress(const char* name) const override { return OSMesaGetProcAddress(name); }
+    std::string description() const override { return description_; }
+
+  private:
+    OSMesaContext context_ = nullptr;
+    unsigned char buffer_[16] = {};
+    std::string description_;
+};
+
+}  // namespace
+
+std::unique_ptr<GlContext> createOsMesaContext() {
+    return std::make_unique<OsMesaContext>();
+}
+
+}  // namespace dejag::render

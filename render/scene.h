@@ -1,0 +1,104 @@
+// dejag/render: the procedural scenes of spec/scenes.md. A Scene is meshes + objects (each with an ID,
+// a material and a transform over time) + textures + a camera path + one directional light.
+#pragma once
+
+#include <cstdint>
+#include <functional>
+#include <string>
+#include <vector>
+
+#include "render/math.h"
+#include "render/mesh.h"
+
+namespace dejag::render {
+
+// How a material's colour varies over its surface.
+enum class Pattern {
+    Solid,      // material colour
+    Texture,    // colour x texture (sampled with the scene's sampler)
+    Sweep,      // product of cosines whose frequency rises along u (computed per fragment: no filtering)
+    ZonePlate,  // cos(k r^2) around the uv centre
+    Bumps,      // solid colour with a procedural normal map (shading aliasing on a shiny surface)
+};
+
+struct Material {
+    Vec3 colour{0.8, 0.8, 0.8};
+    bool lit = true;            // false: lit colour = albedo (the thesis' flat-coloured scenes)
+    double specular = 0.0;      // Blinn-Phong
+    double shininess = 32.0;
+    Pattern pattern = Pattern::Solid;
+    int texture = -1;           // index into Scene::textures (Pattern::Texture)
+    bool alphaCutout = false;   // discard where the texture's alpha < 0.5 (foliage)
+    double frequency = 1.0;     // Sweep / ZonePlate / Bumps scale
+};
+
+// 8-bit RGBA texture made on the CPU; mipmapped by the renderer.
+struct TextureImage {
+    std::string name;
+    int width = 0, height = 0;
+    std::vector<uint8_t> rgba;
+};
+
+enum class Sampler { Point, Bilinear, Trilinear, Anisotropic16 };
+const char* samplerName(Sampler sampler);
+Sampler parseSampler(const std::string& name);  // throws dejag::Error listing the choices
+
+struct SceneObject {
+    std::string name;
+    int mesh = 0;
+    Material material;
+    uint32_t id = 1;                      // object ID (0 = background)
+    std::function<Mat4(double)> transform;  // frame time -> model matrix (null: identity)
+    Mat4 at(double t) const { return transform ? transform(t) : Mat4(); }
+};
+
+struct CameraPose {
+    Vec3 eye{0, 0, 5}, target{0, 0, 0}, up{0, 1, 0};
+    double fovY = 45.0 * kPi / 180.0;
+};
+
+struct Scene {
+    std::string name;
+    std::vector<Mesh> meshes;
+    std::vector<SceneObject> objects;
+    std::vector<TextureImage> textures;
+    Sampler sampler = Sampler::Trilinear;
+    std::function<CameraPose(double)> camera;  // frame time -> pose
+    Vec3 lightDirection{-0.4, 0.8, 0.45};      // towards the light
+    Vec3 lightColour{1.0, 0.97, 0.92};
+    Vec3 ambient{0.22, 0.23, 0.26};
+    Vec3 background{0.55, 0.62, 0.72};
+    double near = 0.1, far = 200.0;
+
+    int addMesh(Mesh mesh) {
+        meshes.push_back(std::move(mesh));
+        return int(meshes.size()) - 1;
+    }
+    // Adds an object with the next free ID.
+    SceneObject& addObject(const std::string& name, int mesh, const Material& material,
+                           std::function<Mat4(double)> transform = nullptr);
+    CameraPose cameraAt(double t) const { return camera ? camera(t) : CameraPose(); }
+    size_t triangleCount() const;
+};
+
+struct SceneOptions {
+    uint64_t seed = 1;
+    bool tiltedCamera = false;          // --camera tilted: rolled and turned so no edge is axis-aligned
+    Sampler sampler = Sampler::Trilinear;
+    std::string texture = "checker";    // receding planes: checker, bricks, stripes, text, noise
+};
+
+struct SceneInfo {
+    std::string name, description;
+    std::string family;  // for dataset splits: scenes of one family share a look
+};
+
+// Every scene dejag can draw, in a stable order.
+const std::vector<SceneInfo>& sceneCatalogue();
+// Builds a scene by name (see sceneCatalogue()); throws dejag::Error for an unknown one.
+Scene buildScene(const std::string& name, const SceneOptions& options = {});
+
+// Procedural textures (exposed for tests).
+TextureImage makeTexture(const std::string& kind, int size, uint64_t seed);
+
+}  // namespace dejag::render

@@ -1,0 +1,324 @@
+// The renderer on OSMesa: jitter, buffers, motion vectors against analytic reprojection, IDs,
+// determinism, and the accumulated truth (converged, and every scene actually aliased).
+#include "render/renderer.h"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <set>
+
+#include "base/error.h"
+#include "render/halton.h"
+#include "render/scene.h"
+
+namespace dejag::render {
+namespace {
+
+// One OSMesa context for the whole test program.
+const GlContext& context() {
+    static const std::unique_ptr<GlContext> instance = createOsMesaContext();
+    return *instance;
+}
+
+double psnr(const Frame& a, const Frame& b) {
+    EXPECT_EQ(a.pixels.size(), b.pixels.size());
+    double squared = 0;
+    for (size_t i = 0; i < a.pixels.size(); ++i) {
+        const double d = double(a.pixels[i]) - double(b.pixels[i]);
+        squared += d * d;
+    }
+    const double mse = squared / double(a.pixels.size());
+    return mse > 0 ? 10 * std::log10(1.0 / mse) : INFINITY;
+}
+
+float channel(const Frame& f, int x, int y, const std::string& name) {
+    const auto it = std::find(f.channelNames.begin(), f.channelNames.end(), name);
+    EXPECT_NE(it, f.channelNames.end()) << name;
+    return f.pixels[(size_t(y) * size_t(f.width) + size_t(x)) * size_t(f.channels()) +
+                    size_t(it - f.channelNames.begin())];
+}
+
+TEST(Halton, FirstSixteenPointsAreTheThesisTable) {
+    const double table[16][2] = {{0, 0},           {.5, .666667},    {.25, .333333},   {.75, .222222},
+                                 {.125, .888889},  {.625, .555556},  {.375, .111111},  {.875, .777778},
+                                 {.0625, .444444}, {.5625, .074074}, {.3125, .740741}, {.8125, .407407},
+                                 {.1875, .296296}, {.6875, .962963}, {.4375, .629630}, {.9375, .185185}};
+    for (unsigned i = 0; i < 16; ++i) {
+        const Vec2 p = haltonPoint(i);
+        EXPECT_NEAR(p.x, table[i][0], 1e-6) << i;
+        EXPECT_NEAR(p.y, table[i][1], 1e-6) << i;
+    }
+    EXPECT_DOUBLE_EQ(jitterPixels(1, 1.7).x, 0.0);  // x = 0.5 is the pixel centre
+    EXPECT_NEAR(jitterPixels(0, 1.7).x, -0.85, 1e-12);
+}
+
+TEST(Buffers, ParseNamesAndRefuseUnknownOnes) {
+    const BufferSet all = BufferSet::parse("color,albedo,depth,motion,id,prevdepth");
+    EXPECT_EQ(all.channelNames().size(), 11u);
+    EXPECT_EQ(BufferSet::parse("depth").channelNames(), std::vector<std::string>{"depth.Z"});
+    EXPECT_THROW(BufferSet::parse("colour,normals"), Error);
+    EXPECT_THROW(BufferSet::parse(""), Error);
+}
+
+TEST(Scenes, EveryCatalogueSceneBuildsWithUniqueIds) {
+    for (const SceneInfo& info : sceneCatalogue()) {
+        SCOPED_TRACE(info.name);
+        const Scene scene = buildScene(info.name);
+        ASSERT_FALSE(scene.objects.empty());
+        std::set<uint32_t> ids;
+        for (const SceneObject& o : scene.objects) {
+            ids.insert(o.id);
+            ASSERT_LT(size_t(o.mesh), scene.meshes.size());
+            EXPECT_GT(scene.meshes[size_t(o.mesh)].triangleCount(), 0u);
+        }
+        EXPECT_EQ(ids.size(), scene.objects.size());
+        EXPECT_EQ(*ids.begin(), 1u);
+    }
+    EXPECT_THROW(buildScene("teapot"), Error);
+    EXPECT_THROW(parseSampler("cubic"), Error);
+}
+
+TEST(Render, OnlyTheRequestedBuffersAndTheSameBitsEveryTime) {
+    const Scene scene = buildScene("random", {.seed = 3});
+    FrameRequest request;
+    request.time = 5, request.previousTime = 4, request.jitter = jitterPixels(5, 1.7);
+    request.buffers = BufferSet::all();
+    Renderer first(context(), scene, 96, 72);
+    const Frame a = first.render(request), b = first.render(request);
+    Renderer second(context(), scene, 96, 72);
+    const Frame c = second.render(request);
+    EXPECT_EQ(a.channels(), 11);
+    EXPECT_EQ(a.pixels, b.pixels);
+    EXPECT_EQ(a.pixels, c.pixels);
+    request.buffers = BufferSet::parse("depth,id");
+    const Frame d = first.render(request);
+    EXPECT_EQ(d.channelNames, (std::vector<std::string>{"depth.Z", "id.ID"}));
+    for (int y = 0; y < 72; y += 7)
+        for (int x = 0; x < 96; x += 5) {
+            EXPECT_EQ(channel(d, x, y, "depth.Z"), channel(a, x, y, "depth.Z"));
+            EXPECT_EQ(channel(d, x, y, "id.ID"), channel(a, x, y, "id.ID"));
+        }
+}
+
+TEST(Render, IdsCountTheObjects) {
+    const Scene scene = buildScene("sphere");  // floor + sphere + background
+    Renderer renderer(context(), scene, 160, 120);
+    FrameRequest request;
+    request.buffers = BufferSet::parse("id");
+    const Frame f = renderer.render(request);
+    std::set<float> ids(f.pixels.begin(), f.pixels.end());
+    EXPECT_EQ(ids, (std::set<float>{0.0f, 1.0f, 2.0f}));
+}
+
+// A static scene seen by a moving camera: following each interior pixel's motion vector back must land
+// where the previous camera saw the same surface point, computed here from the depth buffer.
+TEST(Render, MotionVectorsReprojectThePreviousFrame) {
+    Scene scene;
+    scene.addObject("floor", scene.addMesh(makeBox({30, 0.2, 30})), Material{},
+                    [](double) { return Mat4::translation({0, -0.1, 0}); });
+    scene.addObject("box", scene.addMesh(makeBox({1, 2, 1.5})), Material{},
+                    [](double) { return Mat4::translation({0.5, 1, -1}) * Mat4::rotation({0, 1, 0}, 0.4); });
+    scene.addObject("wall", scene.addMesh(makeQuad(30, 10)), Material{},
+                    [](double) { return Mat4::translation({0, 5, -8}); });
+    scene.camera = [](double t) {
+        return CameraPose{{0.4 * t, 2.0 + 0.15 * t, 6 - 0.3 * t}, {0.2 * t, 0.8, 0}, {0, 1, 0}, 50 * kPi / 180};
+    };
+    const int W = 200, H = 150;
+    Renderer renderer(context(), scene, W, H);
+    FrameRequest request;
+    request.time = 1, request.previousTime = 0, request.buffers = BufferSet::parse("depth,motion,id");
+    const Frame f = renderer.render(request);
+    const CameraPose now = scene.cameraAt(1), before = scene.cameraAt(0);
+    const Vec3 forward = normalize(now.target - now.eye), side = normalize(cross(forward, now.up)),
+               up = cross(side, forward);
+    const double tanHalf = std::tan(now.fovY / 2), aspect = double(W) / H;
+    const Mat4 previous = Mat4::perspective(before.fovY, aspect, scene.near, scene.far) *
+                          Mat4::lookAt(before.eye, before.target, before.up);
+    double worst = 0;
+    int checked = 0;
+    for (int y = 1; y < H - 1; ++y)
+        for (int x = 1; x < W - 1; ++x) {
+            const float id = channel(f, x, y, "id.ID"), depth = channel(f, x, y, "depth.Z");
+            bool interior = id != 0;
+            for (int dy = -1; dy <= 1 && interior; ++dy)
+                for (int dx = -1; dx <= 1; ++dx)
+                    interior = interior && channel(f, x + dx, y + dy, "id.ID") == id &&
+                               std::abs(channel(f, x + dx, y + dy, "depth.Z") - depth) < 0.05 * depth;
+            if (!interior) continue;
+            const double ndcX = 2 * (x + 0.5) / W - 1, ndcY = 1 - 2 * (y + 0.5) / H;
+            const Vec3 world = now.eye + side * (ndcX * depth * tanHalf * aspect) + up * (ndcY * depth * tanHalf) +
+                               forward * double(depth);
+            const auto clip = previous.apply(world);
+            const double px = (clip[0] / clip[3] + 1) / 2 * W, py = (1 - clip[1] / clip[3]) / 2 * H;
+            const double ex = (x + 0.5) - px, ey = (y + 0.5) - py;
+            worst = std::max({worst, std::abs(ex - channel(f, x, y, "motion.X")),
+                              std::abs(ey - channel(f, x, y, "motion.Y"))});
+            ++checked;
+        }
+    EXPECT_GT(checked, W * H / 2);
+    EXPECT_LT(worst, 0.01) << "pixels";
+}
+
+// A moving object seen by a still camera: its motion comes from its own previous transform.
+TEST(Render, MotionVectorsFollowAMovingObject) {
+    Scene scene;
+    auto translation = [](double t) { return Vec3{-1.0 + 0.15 * t, 0.2 * t, -0.1 * t}; };
+    auto angle = [](double t) { return 0.3 + 0.05 * t; };
+    scene.addObject("box", scene.addMesh(makeBox({1.5, 1.2, 1.0})), Material{}, [=](double t) {
+        return Mat4::translation(translation(t)) * Mat4::rotation({0, 1, 0}, angle(t));
+    });
+    scene.camera = [](double) { return CameraPose{{0, 1, 5}, {0, 0, 0}, {0, 1, 0}, 45 * kPi / 180}; };
+    const int W = 160, H = 120;
+    Renderer renderer(context(), scene, W, H);
+    FrameRequest request;
+    request.time = 3, request.previousTime = 2, request.buffers = BufferSet::parse("depth,motion,id");
+    const Frame f = renderer.render(request);
+    const CameraPose pose = scene.cameraAt(3);
+    const Vec3 forward = normalize(pose.target - pose.eye), side = normalize(cross(forward, pose.up)),
+               up = cross(side, forward);
+    const double tanHalf = std::tan(pose.fovY / 2), aspect = double(W) / H;
+    const Mat4 viewProjection = Mat4::perspective(pose.fovY, aspect, scene.near, scene.far) *
+                                Mat4::lookAt(pose.eye, pose.target, pose.up);
+    double worst = 0;
+    int checked = 0;
+    for (int y = 1; y < H - 1; ++y)
+        for (int x = 1; x < W - 1; ++x) {
+            const float depth = channel(f, x, y, "depth.Z");
+            bool interior = channel(f, x, y, "id.ID") == 1.0f;
+            for (int dy = -1; dy <= 1 && interior; ++dy)
+                for (int dx = -1; dx <= 1; ++dx)
+                    interior = interior && channel(f, x + dx, y + dy, "id.ID") == 1.0f &&
+                               std::abs(channel(f, x + dx, y + dy, "depth.Z") - depth) < 0.05 * depth;
+            if (!interior) continue;
+            const double ndcX = 2 * (x + 0.5) / W - 1, ndcY = 1 - 2 * (y + 0.5) / H;
+            const Vec3 world = pose.eye + side * (ndcX * depth * tanHalf * aspect) + up * (ndcY * depth * tanHalf) +
+                               forward * double(depth);
+            // Back to object space at t = 3, then out again with the transform of t = 2.
+            const Vec3 local = Mat4::rotation({0, 1, 0}, -angle(3)).transformPoint(world - translation(3));
+            const Vec3 before = translation(2) + Mat4::rotation({0, 1, 0}, angle(2)).transformPoint(local);
+            const auto clip = viewProjection.apply(before);
+            const double px = (clip[0] / clip[3] + 1) / 2 * W, py = (1 - clip[1] / clip[3]) / 2 * H;
+            worst = std::max({worst, std::abs((x + 0.5) - px - channel(f, x, y, "motion.X")),
+                              std::abs((y + 0.5) - py - channel(f, x, y, "motion.Y"))});
+            ++checked;
+        }
+    EXPECT_GT(checked, 500);
+    EXPECT_LT(worst, 0.01) << "pixels";
+}
+
+// A one-pixel-wide line: the camera jitter moves it by the expected sub-pixel offset (+x right, +y up).
+TEST(Render, JitterMovesALineByTheExpectedSubPixelOffset) {
+    const int size = 64;
+    const double pixel = 2 * 10.0 * std::tan(kPi / 4) / size;  // world units per pixel at distance 10
+    Scene scene;
+    scene.background = {0, 0, 0};
+    Material white;
+    white.colour = {1, 1, 1}, white.lit = false;
+    // A vertical line over pixel column 32 and a horizontal one over row 31 (just above the centre).
+    scene.addObject("vertical", scene.addMesh(makeQuad(pixel, 8 * pixel)), white,
+                    [=](double) { return Mat4::translation({pixel / 2, -12 * pixel, -10}); });
+    scene.addObject("horizontal", scene.addMesh(makeQuad(8 * pixel, pixel)), white,
+                    [=](double) { return Mat4::translation({-12 * pixel, pixel / 2, -10}); });
+    scene.camera = [](double) { return CameraPose{{0, 0, 0}, {0, 0, -1}, {0, 1, 0}, kPi / 2}; };
+    Renderer renderer(context(), scene, size, size);
+    auto litColumn = [&](double jitterX) {
+        FrameRequest r;
+        r.jitter = {jitterX, 0};
+        const Frame f = renderer.render(r);
+        std::vector<int> columns;
+        for (int x = 0; x < size; ++x)
+            if (channel(f, x, 44, "R") > 0.5f) columns.push_back(x);
+        return columns;
+    };
+    auto litRow = [&](double jitterY) {
+        FrameRequest r;
+        r.jitter = {0, jitterY};
+        const Frame f = renderer.render(r);
+        std::vector<int> rows;
+        for (int y = 0; y < size; ++y)
+            if (channel(f, 20, y, "R") > 0.5f) rows.push_back(y);
+        return rows;
+    };
+    EXPECT_EQ(litColumn(0.0), std::vector<int>{32});
+    EXPECT_EQ(litColumn(0.4), std::vector<int>{32});
+    EXPECT_EQ(litColumn(0.6), std::vector<int>{33});
+    EXPECT_EQ(litColumn(-0.4), std::vector<int>{32});
+    EXPECT_EQ(litColumn(-0.6), std::vector<int>{31});
+    EXPECT_EQ(litRow(0.0), std::vector<int>{31});
+    EXPECT_EQ(litRow(0.4), std::vector<int>{31});
+    EXPECT_EQ(litRow(0.6), std::vector<int>{30});  // +y is up: the line moves to the row above
+    EXPECT_EQ(litRow(-0.6), std::vector<int>{32});
+}
+
+// Every scene is aliased: the 1-sample frame is far from the truth, while 128 and 256 samples agree
+// (their difference moves the aliased frame's PSNR by < 0.1 dB).
+class EveryScene : public ::testing::TestWithParam<std::string> {};
+
+TEST_P(EveryScene, IsAliasedAndItsTruthConverged) {
+    const Scene scene = buildScene(GetParam());
+    Renderer renderer(context(), scene, 96, 72);
+    const Frame aliased = renderer.render({});
+    TruthOptions options;
+    options.samples = 128;
+    const Frame truth128 = renderer.renderTruth(0, options);
+    options.samples = 256;
+    const Frame truth256 = renderer.renderTruth(0, options);
+    const double aliasedPsnr = psnr(aliased, truth256), truthPsnr = psnr(truth128, truth256);
+    EXPECT_LT(std::abs(psnr(aliased, truth128) - aliasedPsnr), 0.1);
+    EXPECT_LT(aliasedPsnr + 10, truthPsnr) << "aliased " << aliasedPsnr << " dB, 128 vs 256 samples " << truthPsnr;
+}
+
+// The rotating hairballs are the static ones at time 0, so they are not drawn twice here.
+std::vector<std::string> sceneNames() {
+    std::vector<std::string> names;
+    for (const SceneInfo& info : sceneCatalogue())
+        if (info.name.find("-rotating") == std::string::npos) names.push_back(info.name);
+    return names;
+}
+
+INSTANTIATE_TEST_SUITE_P(Scenes, EveryScene, ::testing::ValuesIn(sceneNames()),
+                         [](const ::testing::TestParamInfo<std::string>& param) {
+                             std::string name = param.param;
+                             std::replace(name.begin(), name.end(), '-', '_');
+                             return name;
+                         });
+
+// Adaptive truth: scores against it within 0.1 dB of the full truth, with at least 3x fewer tile-samples
+// on scenes with open areas.
+TEST(Truth, AdaptiveMatchesFullTruthWithFewerSamples) {
+    for (const std::string name : {"pipe", "sphere"}) {
+        SCOPED_TRACE(name);
+        const Scene scene = buildScene(name);
+        Renderer renderer(context(), scene, 200, 150);
+        const Frame aliased = renderer.render({});
+        TruthOptions options;
+        const Frame full = renderer.renderTruth(0, options);
+        options.adaptive = true;
+        TruthStats stats;
+        const Frame adaptive = renderer.renderTruth(0, options, &stats);
+        EXPECT_LT(std::abs(psnr(aliased, full) - psnr(aliased, adaptive)), 0.1);
+        EXPECT_GE(stats.saving(), 3.0);
+        EXPECT_EQ(stats.samples, 128);
+        EXPECT_EQ(stats.fullTileSamples, int64_t(stats.tiles) * 128);
+    }
+}
+
+TEST(Truth, GaussianFilterIsAConvergedTruthToo) {
+    const Scene scene = buildScene("pipe");
+    Renderer renderer(context(), scene, 96, 72);
+    TruthOptions options;
+    options.filter = PixelFilter::Gaussian;
+    const Frame a = renderer.renderTruth(0, options);
+    options.samples = 256;
+    const Frame b = renderer.renderTruth(0, options);
+    EXPECT_GT(psnr(a, b), 50.0);
+}
+
+TEST(Render, RefusesImpossibleSizes) {
+    const Scene scene = buildScene("sphere");
+    EXPECT_THROW(Renderer(context(), scene, 0, 10), Error);
+    EXPECT_THROW(Renderer(context(), scene, 20000, 10), Error);
+}
+
+}  // namespace
+}  // namespace dejag::render
