@@ -24,7 +24,7 @@ namespace {
 struct RenderArguments {
     std::string scene, size = "800x800", out, jitter = "none", buffers = "color", camera = "regular";
     std::string sampler = "trilinear", texture = "checker", filter = "box";
-    int frames = 1, truth = 0, start = 0;
+    int frames = 1, truth = 0, start = 0, msaa = 1;
     uint64_t seed = 1;
     double spread = 1.7, tolerance = 1e-3, pixelTolerance = 2e-3;
     int tile = 8;
@@ -113,15 +113,19 @@ void runRender(const RenderArguments& args) {
     sidecar["sampler"] = args.sampler;
     if (args.scene == "planes") sidecar["texture"] = args.texture;
     sidecar["anisotropy_supported"] = renderer.anisotropySupported();
-    sidecar["jitter"] = {{"mode", args.jitter}, {"spread", args.jitter == "none" ? 0.0 : args.spread},
+    sidecar["jitter"] = {{"mode", args.jitter},
+                         {"spread", args.jitter == "none" ? 0.0 : args.spread},
                          {"sequence", "Halton(2,3), base-3 digits 1<->2 scrambled"}};
     sidecar["buffers"] = buffers.describe();
+    sidecar["msaa"] = args.msaa;
     sidecar["channels"] = buffers.channelNames();
     sidecar["renderer"] = context->description();
     sidecar["triangles"] = scene.triangleCount();
     sidecar["objects"] = scene.objects.size();
     if (args.truth > 0)
-        sidecar["truth"] = {{"samples", args.truth}, {"adaptive", args.adaptive}, {"filter", args.filter},
+        sidecar["truth"] = {{"samples", args.truth},
+                            {"adaptive", args.adaptive},
+                            {"filter", args.filter},
                             {"tolerance", args.adaptive ? args.tolerance : 0.0}};
     nlohmann::json frames = nlohmann::json::array();
 
@@ -135,6 +139,7 @@ void runRender(const RenderArguments& args) {
         request.time = time;
         request.previousTime = index > 0 ? time - 1 : time;
         request.buffers = buffers;
+        request.msaa = args.msaa;
         if (args.jitter == "halton16") {
             request.jitter = render::jitterPixels(unsigned(index % 16), args.spread);
             request.previousJitter = render::jitterPixels(unsigned((index + 15) % 16), args.spread);
@@ -149,8 +154,11 @@ void runRender(const RenderArguments& args) {
                                  {"time", time},
                                  {"file", framePath("", "frame", index, "exr")},
                                  {"jitter_pixels", {request.jitter.x, -request.jitter.y}},
-                                 {"camera", {{"eye", vec(pose.eye)}, {"target", vec(pose.target)}, {"up", vec(pose.up)},
-                                             {"fov_y_degrees", pose.fovY * 180.0 / render::kPi}}}};
+                                 {"camera",
+                                  {{"eye", vec(pose.eye)},
+                                   {"target", vec(pose.target)},
+                                   {"up", vec(pose.up)},
+                                   {"fov_y_degrees", pose.fovY * 180.0 / render::kPi}}}};
         if (args.truth > 0) {
             render::TruthStats stats;
             Image truth = toImage(renderer.renderTruth(time, truthOptions, &stats));
@@ -175,15 +183,17 @@ void runRender(const RenderArguments& args) {
         sidecar["truth_ms_per_frame"] = truthMs / args.frames;
         sidecar["truth_saving"] = tileSamples > 0 ? double(fullTileSamples) / double(tileSamples) : 1.0;
     }
-    writeTextFileAtomically((std::filesystem::path(args.out) / "render.json").string(), sidecar.dump(2) + "\n");
+    writeTextFileAtomically((std::filesystem::path(args.out) / "render.json").string(),
+                            sidecar.dump(2) + "\n");
     if (args.json) {
         std::printf("%s\n", sidecar.dump().c_str());
     } else if (!args.quiet) {
         std::printf("%s: %d frame(s) %dx%d to %s, %.1f ms per frame (%s)\n", args.scene.c_str(), args.frames,
-                    size.width, size.height, args.out.c_str(), renderMs / args.frames, buffers.describe().c_str());
+                    size.width, size.height, args.out.c_str(), renderMs / args.frames,
+                    buffers.describe().c_str());
         if (args.truth > 0)
-            std::printf("truth: %d samples%s, %.0f ms per frame, %.2fx fewer tile-samples than full\n", args.truth,
-                        args.adaptive ? " (adaptive)" : "", truthMs / args.frames,
+            std::printf("truth: %d samples%s, %.0f ms per frame, %.2fx fewer tile-samples than full\n",
+                        args.truth, args.adaptive ? " (adaptive)" : "", truthMs / args.frames,
                         tileSamples > 0 ? double(fullTileSamples) / double(tileSamples) : 1.0);
     }
 }
@@ -192,12 +202,14 @@ void runRender(const RenderArguments& args) {
 
 void registerRenderCommand(CLI::App& app) {
     auto args = std::make_shared<RenderArguments>();
-    CLI::App* command = app.add_subcommand("render", "draw a procedural scene headlessly (OSMesa): EXR buffers, "
-                                                     "PNG previews, accumulated ground truth");
+    CLI::App* command = app.add_subcommand("render",
+                                           "draw a procedural scene headlessly (OSMesa): EXR buffers, "
+                                           "PNG previews, accumulated ground truth");
     command->add_option("--scene", args->scene, "scene name (see --list)");
     command->add_flag("--list", args->list, "print the scenes and exit");
     command->add_option("--size", args->size, "WxH")->capture_default_str();
-    command->add_option("--frames", args->frames, "number of frames (scene time 0, 1, 2, ...)")->capture_default_str();
+    command->add_option("--frames", args->frames, "number of frames (scene time 0, 1, 2, ...)")
+        ->capture_default_str();
     command->add_option("--start", args->start, "first frame index")->capture_default_str();
     command->add_option("--out", args->out, "output folder (created if missing)");
     command->add_option("--seed", args->seed, "seed of random scenes and textures")->capture_default_str();
@@ -210,13 +222,19 @@ void registerRenderCommand(CLI::App& app) {
     command->add_flag("--adaptive", args->adaptive, "stop accumulating tiles whose estimate converged");
     command->add_option("--tolerance", args->tolerance, "adaptive: RMS change per sample doubling")
         ->capture_default_str();
-    command->add_option("--pixel-tolerance", args->pixelTolerance, "adaptive: largest standard error of a pixel")
+    command
+        ->add_option("--pixel-tolerance", args->pixelTolerance, "adaptive: largest standard error of a pixel")
         ->capture_default_str();
     command->add_option("--tile", args->tile, "adaptive: tile size in pixels")->capture_default_str();
-    command->add_option("--filter", args->filter, "truth pixel filter: box | gaussian")->capture_default_str();
-    command->add_option("--buffers", args->buffers, "color,albedo,depth,motion,id,prevdepth")->capture_default_str();
+    command->add_option("--filter", args->filter, "truth pixel filter: box | gaussian")
+        ->capture_default_str();
+    command->add_option("--msaa", args->msaa, "multisample the colour: 1 (off), 2, 4, 8")
+        ->capture_default_str();
+    command->add_option("--buffers", args->buffers, "color,albedo,depth,motion,id,prevdepth")
+        ->capture_default_str();
     command->add_option("--camera", args->camera, "regular | tilted")->capture_default_str();
-    command->add_option("--sampler", args->sampler, "point | bilinear | trilinear | aniso16 (textured scenes)")
+    command
+        ->add_option("--sampler", args->sampler, "point | bilinear | trilinear | aniso16 (textured scenes)")
         ->capture_default_str();
     command->add_option("--texture", args->texture, "planes: checker | bricks | stripes | text | noise")
         ->capture_default_str();

@@ -57,9 +57,9 @@ void Progress::draw(bool final) {
     bar.resize(size_t(width), '.');
     char line[512];
     std::snprintf(line, sizeof line, "%s [%s] %lld/%lld  %.2f/s  %s %s%s%s", label_.c_str(), bar.c_str(),
-                  static_cast<long long>(done_), static_cast<long long>(total_), rate,
-                  final ? "took" : "ETA", formatDuration(final ? elapsed : eta).c_str(),
-                  detail_.empty() ? "" : "  ", detail_.c_str());
+                  static_cast<long long>(done_), static_cast<long long>(total_), rate, final ? "took" : "ETA",
+                  formatDuration(final ? elapsed : eta).c_str(), detail_.empty() ? "" : "  ",
+                  detail_.c_str());
     if (terminal_)
         std::fprintf(stderr, "\r\033[K%s%s", line, final ? "\n" : "");
     else

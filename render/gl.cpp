@@ -9,8 +9,8 @@
 namespace dejag::render {
 
 void GlContext::loadFunctions() {
-#define DEJAG_GL_LOAD(type, name)                                                          \
-    gl_.name = reinterpret_cast<PFNGL##type##PROC>(procAddress("gl" #name));               \
+#define DEJAG_GL_LOAD(type, name)                                            \
+    gl_.name = reinterpret_cast<PFNGL##type##PROC>(procAddress("gl" #name)); \
     if (!gl_.name) throw Error("OpenGL: the context has no gl" #name " (OpenGL 3.3+ core needed)");
     DEJAG_GL_FUNCTIONS(DEJAG_GL_LOAD)
 #undef DEJAG_GL_LOAD
@@ -24,15 +24,25 @@ class OsMesaContext final : public GlContext {
         // OpenGL 4.5 core first (llvmpipe's level), then 3.3 core, the least the shaders need.
         for (const int major : {4, 3}) {
             const int minor = major == 4 ? 5 : 3;
-            const int attributes[] = {OSMESA_FORMAT,        OSMESA_RGBA, OSMESA_DEPTH_BITS,    24,
-                                      OSMESA_STENCIL_BITS,  8,           OSMESA_PROFILE,       OSMESA_CORE_PROFILE,
-                                      OSMESA_CONTEXT_MAJOR_VERSION, major, OSMESA_CONTEXT_MINOR_VERSION, minor,
+            const int attributes[] = {OSMESA_FORMAT,
+                                      OSMESA_RGBA,
+                                      OSMESA_DEPTH_BITS,
+                                      24,
+                                      OSMESA_STENCIL_BITS,
+                                      8,
+                                      OSMESA_PROFILE,
+                                      OSMESA_CORE_PROFILE,
+                                      OSMESA_CONTEXT_MAJOR_VERSION,
+                                      major,
+                                      OSMESA_CONTEXT_MINOR_VERSION,
+                                      minor,
                                       0};
             context_ = OSMesaCreateContextAttribs(attributes, nullptr);
             if (context_) break;
         }
         if (!context_)
-            throw Error("OSMesa unavailable: cannot create an OpenGL 3.3+ core context (is libosmesa6 installed?)");
+            throw Error(
+                "OSMesa unavailable: cannot create an OpenGL 3.3+ core context (is libosmesa6 installed?)");
         // The default framebuffer is never drawn to (every pass renders into textures), so 1x1 suffices.
         if (!OSMesaMakeCurrent(context_, buffer_, GL_UNSIGNED_BYTE, 1, 1)) {
             OSMesaDestroyContext(context_);

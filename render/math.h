@@ -53,7 +53,8 @@ struct Mat4 {
     // Transforms a point (w = 1) and returns the homogeneous result's xyz and w.
     std::array<double, 4> apply(const Vec3& p, double w = 1.0) const {
         std::array<double, 4> r{};
-        for (int i = 0; i < 4; ++i) r[size_t(i)] = at(i, 0) * p.x + at(i, 1) * p.y + at(i, 2) * p.z + at(i, 3) * w;
+        for (int i = 0; i < 4; ++i)
+            r[size_t(i)] = at(i, 0) * p.x + at(i, 1) * p.y + at(i, 2) * p.z + at(i, 3) * w;
         return r;
     }
     Vec3 transformPoint(const Vec3& p) const {
@@ -85,9 +86,12 @@ struct Mat4 {
         const Vec3 a = normalize(axisIn);
         const double c = std::cos(angle), s = std::sin(angle), t = 1 - c;
         Mat4 r;
-        r.at(0, 0) = t * a.x * a.x + c, r.at(0, 1) = t * a.x * a.y - s * a.z, r.at(0, 2) = t * a.x * a.z + s * a.y;
-        r.at(1, 0) = t * a.x * a.y + s * a.z, r.at(1, 1) = t * a.y * a.y + c, r.at(1, 2) = t * a.y * a.z - s * a.x;
-        r.at(2, 0) = t * a.x * a.z - s * a.y, r.at(2, 1) = t * a.y * a.z + s * a.x, r.at(2, 2) = t * a.z * a.z + c;
+        r.at(0, 0) = t * a.x * a.x + c, r.at(0, 1) = t * a.x * a.y - s * a.z,
+                r.at(0, 2) = t * a.x * a.z + s * a.y;
+        r.at(1, 0) = t * a.x * a.y + s * a.z, r.at(1, 1) = t * a.y * a.y + c,
+                r.at(1, 2) = t * a.y * a.z - s * a.x;
+        r.at(2, 0) = t * a.x * a.z - s * a.y, r.at(2, 1) = t * a.y * a.z + s * a.x,
+                r.at(2, 2) = t * a.z * a.z + c;
         return r;
     }
     static Mat4 lookAt(const Vec3& eye, const Vec3& target, const Vec3& up) {

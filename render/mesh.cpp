@@ -68,7 +68,8 @@ Mesh makeTube(const std::vector<Vec3>& path, double radius, int sides) {
     if (path.size() < 2) return m;
     // Parallel transport: carry a normal along the path, rotating it with each tangent change.
     Vec3 tangent = normalize(path[1] - path[0]);
-    Vec3 normal = std::abs(tangent.y) < 0.9 ? normalize(cross(tangent, {0, 1, 0})) : normalize(cross(tangent, {1, 0, 0}));
+    Vec3 normal = std::abs(tangent.y) < 0.9 ? normalize(cross(tangent, {0, 1, 0}))
+                                            : normalize(cross(tangent, {1, 0, 0}));
     double along = 0;
     for (size_t i = 0; i < path.size(); ++i) {
         if (i > 0) along += length(path[i] - path[i - 1]);

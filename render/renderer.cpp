@@ -150,12 +150,18 @@ BufferSet BufferSet::parse(const std::string& list) {
     std::string item;
     bool any = false;
     while (std::getline(stream, item, ',')) {
-        if (item == "color" || item == "colour") b.colour = true;
-        else if (item == "albedo") b.albedo = true;
-        else if (item == "depth") b.depth = true;
-        else if (item == "motion") b.motion = true;
-        else if (item == "id") b.id = true;
-        else if (item == "prevdepth") b.previousDepth = true;
+        if (item == "color" || item == "colour")
+            b.colour = true;
+        else if (item == "albedo")
+            b.albedo = true;
+        else if (item == "depth")
+            b.depth = true;
+        else if (item == "motion")
+            b.motion = true;
+        else if (item == "id")
+            b.id = true;
+        else if (item == "prevdepth")
+            b.previousDepth = true;
         else
             throw Error("unknown buffer '" + item + "' (color, albedo, depth, motion, id, prevdepth)");
         any = true;
@@ -202,8 +208,38 @@ struct Renderer::Impl {
     GLuint gbuffer = 0, accumulation = 0;
     std::array<GLuint, kSlotCount> targets{};
     GLuint accumulationTarget = 0, squaresTarget = 0, depthStencil = 0;
+    // Multisampled colour and depth, created on first use.
+    GLuint msaaFramebuffer = 0, msaaColour = 0, msaaDepth = 0;
+    int msaaSamples = 0;
 
-    Impl(const GlFunctions& functions, const Scene& s, int w, int h) : gl(functions), scene(s), width(w), height(h) {}
+    void prepareMsaa(int samples) {
+        if (samples == msaaSamples) return;
+        if (msaaFramebuffer) {
+            gl.DeleteFramebuffers(1, &msaaFramebuffer);
+            gl.DeleteRenderbuffers(1, &msaaColour);
+            gl.DeleteRenderbuffers(1, &msaaDepth);
+        }
+        GLint most = 0;
+        gl.GetIntegerv(GL_MAX_SAMPLES, &most);
+        if (samples > most)
+            throw Error("MSAA " + std::to_string(samples) + "x: this OpenGL supports at most " +
+                        std::to_string(most));
+        gl.GenRenderbuffers(1, &msaaColour);
+        gl.BindRenderbuffer(GL_RENDERBUFFER, msaaColour);
+        gl.RenderbufferStorageMultisample(GL_RENDERBUFFER, samples, GL_RGBA32F, width, height);
+        gl.GenRenderbuffers(1, &msaaDepth);
+        gl.BindRenderbuffer(GL_RENDERBUFFER, msaaDepth);
+        gl.RenderbufferStorageMultisample(GL_RENDERBUFFER, samples, GL_DEPTH24_STENCIL8, width, height);
+        gl.GenFramebuffers(1, &msaaFramebuffer);
+        gl.BindFramebuffer(GL_FRAMEBUFFER, msaaFramebuffer);
+        gl.FramebufferRenderbuffer(GL_FRAMEBUFFER, GL_COLOR_ATTACHMENT0, GL_RENDERBUFFER, msaaColour);
+        gl.FramebufferRenderbuffer(GL_FRAMEBUFFER, GL_DEPTH_STENCIL_ATTACHMENT, GL_RENDERBUFFER, msaaDepth);
+        checkFramebuffer("MSAA");
+        msaaSamples = samples;
+    }
+
+    Impl(const GlFunctions& functions, const Scene& s, int w, int h)
+        : gl(functions), scene(s), width(w), height(h) {}
 
     GLuint compile(GLenum type, const char* source) {
         const GLuint shader = gl.CreateShader(type);
@@ -350,15 +386,18 @@ Renderer::Renderer(const GlContext& context, const Scene& scene, int width, int 
         gl.BindVertexArray(g.vao);
         gl.GenBuffers(1, &g.vbo);
         gl.BindBuffer(GL_ARRAY_BUFFER, g.vbo);
-        gl.BufferData(GL_ARRAY_BUFFER, GLsizeiptr(mesh.vertices.size() * sizeof(Vertex)), mesh.vertices.data(),
-                      GL_STATIC_DRAW);
+        gl.BufferData(GL_ARRAY_BUFFER, GLsizeiptr(mesh.vertices.size() * sizeof(Vertex)),
+                      mesh.vertices.data(), GL_STATIC_DRAW);
         gl.GenBuffers(1, &g.ebo);
         gl.BindBuffer(GL_ELEMENT_ARRAY_BUFFER, g.ebo);
         gl.BufferData(GL_ELEMENT_ARRAY_BUFFER, GLsizeiptr(mesh.indices.size() * sizeof(uint32_t)),
                       mesh.indices.data(), GL_STATIC_DRAW);
-        gl.VertexAttribPointer(0, 3, GL_FLOAT, GL_FALSE, sizeof(Vertex), reinterpret_cast<void*>(offsetof(Vertex, position)));
-        gl.VertexAttribPointer(1, 3, GL_FLOAT, GL_FALSE, sizeof(Vertex), reinterpret_cast<void*>(offsetof(Vertex, normal)));
-        gl.VertexAttribPointer(2, 2, GL_FLOAT, GL_FALSE, sizeof(Vertex), reinterpret_cast<void*>(offsetof(Vertex, uv)));
+        gl.VertexAttribPointer(0, 3, GL_FLOAT, GL_FALSE, sizeof(Vertex),
+                               reinterpret_cast<void*>(offsetof(Vertex, position)));
+        gl.VertexAttribPointer(1, 3, GL_FLOAT, GL_FALSE, sizeof(Vertex),
+                               reinterpret_cast<void*>(offsetof(Vertex, normal)));
+        gl.VertexAttribPointer(2, 2, GL_FLOAT, GL_FALSE, sizeof(Vertex),
+                               reinterpret_cast<void*>(offsetof(Vertex, uv)));
         for (GLuint a = 0; a < 3; ++a) gl.EnableVertexAttribArray(a);
         g.indexCount = GLsizei(mesh.indices.size());
         m.meshes.push_back(g);
@@ -371,7 +410,8 @@ Renderer::Renderer(const GlContext& context, const Scene& scene, int width, int 
         gl.GenTextures(1, &id);
         gl.BindTexture(GL_TEXTURE_2D, id);
         gl.PixelStorei(GL_UNPACK_ALIGNMENT, 1);
-        gl.TexImage2D(GL_TEXTURE_2D, 0, GL_SRGB8_ALPHA8, t.width, t.height, 0, GL_RGBA, GL_UNSIGNED_BYTE, t.rgba.data());
+        gl.TexImage2D(GL_TEXTURE_2D, 0, GL_SRGB8_ALPHA8, t.width, t.height, 0, GL_RGBA, GL_UNSIGNED_BYTE,
+                      t.rgba.data());
         gl.GenerateMipmap(GL_TEXTURE_2D);
         gl.TexParameteri(GL_TEXTURE_2D, GL_TEXTURE_WRAP_S, GL_REPEAT);
         gl.TexParameteri(GL_TEXTURE_2D, GL_TEXTURE_WRAP_T, GL_REPEAT);
@@ -436,6 +476,11 @@ Renderer::~Renderer() {
     gl.DeleteRenderbuffers(1, &m.depthStencil);
     gl.DeleteFramebuffers(1, &m.gbuffer);
     gl.DeleteFramebuffers(1, &m.accumulation);
+    if (m.msaaFramebuffer) {
+        gl.DeleteFramebuffers(1, &m.msaaFramebuffer);
+        gl.DeleteRenderbuffers(1, &m.msaaColour);
+        gl.DeleteRenderbuffers(1, &m.msaaDepth);
+    }
     gl.DeleteProgram(m.sceneProgram);
     gl.DeleteProgram(m.accumulateProgram);
 }
@@ -451,31 +496,54 @@ Frame Renderer::render(const FrameRequest& request) {
     if (frame.channelNames.empty()) return frame;
     const double previousTime = request.previousTime < 0 ? request.time : request.previousTime;
 
+    const bool msaa = b.colour && request.msaa > 1;
+    if (request.msaa < 1 || request.msaa > 32 || (request.msaa & (request.msaa - 1)) != 0)
+        throw Error("MSAA sample count " + std::to_string(request.msaa) + " is not 1, 2, 4, 8, 16 or 32");
     std::vector<int> slots;
-    if (b.colour) slots.push_back(kColourSlot);
+    if (b.colour && !msaa) slots.push_back(kColourSlot);
     if (b.albedo) slots.push_back(kAlbedoSlot);
     if (b.depth) slots.push_back(kDepthSlot);
     if (b.motion) slots.push_back(kMotionSlot);
     if (b.id) slots.push_back(kIdSlot);
-    gl.BindFramebuffer(GL_FRAMEBUFFER, m.gbuffer);
     gl.Disable(GL_STENCIL_TEST);
     gl.Disable(GL_BLEND);
     gl.Enable(GL_DEPTH_TEST);
+    if (msaa) {
+        // Colour into the multisampled buffer, resolved (averaged) into the G-buffer's colour texture.
+        m.prepareMsaa(request.msaa);
+        gl.BindFramebuffer(GL_FRAMEBUFFER, m.msaaFramebuffer);
+        const GLenum attachment = GL_COLOR_ATTACHMENT0;
+        gl.DrawBuffers(1, &attachment);
+        const std::array<float, 4> bg{float(m.scene.background.x), float(m.scene.background.y),
+                                      float(m.scene.background.z), 1};
+        gl.ClearBufferfv(GL_COLOR, 0, bg.data());
+        gl.ClearBufferfi(GL_DEPTH_STENCIL, 0, 1.0f, 0);
+        gl.Enable(GL_MULTISAMPLE);
+        m.drawScene(request.time, previousTime, request.jitter);
+        gl.BindFramebuffer(GL_READ_FRAMEBUFFER, m.msaaFramebuffer);
+        gl.BindFramebuffer(GL_DRAW_FRAMEBUFFER, m.gbuffer);
+        m.selectDrawBuffers({kColourSlot});
+        gl.BlitFramebuffer(0, 0, m.width, m.height, 0, 0, m.width, m.height, GL_COLOR_BUFFER_BIT, GL_NEAREST);
+    }
+    gl.BindFramebuffer(GL_FRAMEBUFFER, m.gbuffer);
     int offset = 0;
+    if (msaa) m.readInto(frame, GL_COLOR_ATTACHMENT0 + kColourSlot, GL_RGB, 3, offset), offset += 3;
     if (!slots.empty()) {
         // ClearBuffer's index is the draw buffer index: clear each slot with only it selected.
         for (int slot : slots) {
             m.selectDrawBuffers({slot});
             std::array<float, 4> value{0, 0, 0, 0};
             if (slot == kColourSlot || slot == kAlbedoSlot)
-                value = {float(m.scene.background.x), float(m.scene.background.y), float(m.scene.background.z), 1};
+                value = {float(m.scene.background.x), float(m.scene.background.y),
+                         float(m.scene.background.z), 1};
             if (slot == kDepthSlot) value[0] = float(m.scene.far);
             gl.ClearBufferfv(GL_COLOR, slot, value.data());
         }
         gl.ClearBufferfi(GL_DEPTH_STENCIL, 0, 1.0f, 0);
         m.selectDrawBuffers(slots);
         m.drawScene(request.time, previousTime, request.jitter);
-        if (b.colour) m.readInto(frame, GL_COLOR_ATTACHMENT0 + kColourSlot, GL_RGB, 3, offset), offset += 3;
+        if (b.colour && !msaa)
+            m.readInto(frame, GL_COLOR_ATTACHMENT0 + kColourSlot, GL_RGB, 3, offset), offset += 3;
         if (b.albedo) m.readInto(frame, GL_COLOR_ATTACHMENT0 + kAlbedoSlot, GL_RGB, 3, offset), offset += 3;
         if (b.depth) m.readInto(frame, GL_COLOR_ATTACHMENT0 + kDepthSlot, GL_RED, 1, offset), offset += 1;
         if (b.motion) m.readInto(frame, GL_COLOR_ATTACHMENT0 + kMotionSlot, GL_RG, 2, offset), offset += 2;
@@ -506,7 +574,8 @@ Frame Renderer::renderTruth(double time, const TruthOptions& options, TruthStats
     // Sample i: Halton point i. Box: uniform over the pixel (weight 1). Gaussian: sigma 0.5 px over a
     // 3-pixel square, each sample weighted.
     auto jitterOf = [&](int i) {
-        return options.filter == PixelFilter::Box ? jitterPixels(unsigned(i), 1.0) : jitterPixels(unsigned(i), 3.0);
+        return options.filter == PixelFilter::Box ? jitterPixels(unsigned(i), 1.0)
+                                                  : jitterPixels(unsigned(i), 3.0);
     };
     auto weightOf = [&](int i) {
         if (options.filter == PixelFilter::Box) return 1.0;
@@ -514,7 +583,8 @@ Frame Renderer::renderTruth(double time, const TruthOptions& options, TruthStats
         return std::exp(-(j.x * j.x + j.y * j.y) / (2 * 0.25));
     };
     std::vector<double> weightPrefix(size_t(options.samples) + 1, 0.0);
-    for (int i = 0; i < options.samples; ++i) weightPrefix[size_t(i) + 1] = weightPrefix[size_t(i)] + weightOf(i);
+    for (int i = 0; i < options.samples; ++i)
+        weightPrefix[size_t(i) + 1] = weightPrefix[size_t(i)] + weightOf(i);
 
     // The accumulation buffer starts at zero.
     gl.BindFramebuffer(GL_FRAMEBUFFER, m.accumulation);
@@ -632,7 +702,8 @@ Frame Renderer::renderTruth(double time, const TruthOptions& options, TruthStats
                             const double d = current[i + size_t(c)] / wnext - previous[i + size_t(c)] / wn;
                             squared += d * d;
                             const double mean = current[i + size_t(c)] / wnext;
-                            const double variance = std::max(0.0, squares[i + size_t(c)] / wnext - mean * mean);
+                            const double variance =
+                                std::max(0.0, squares[i + size_t(c)] / wnext - mean * mean);
                             largest = std::max(largest, std::sqrt(variance / next));
                         }
                         ++count;
@@ -659,7 +730,8 @@ Frame Renderer::renderTruth(double time, const TruthOptions& options, TruthStats
             const double weight = weightPrefix[size_t(tileSamples[size_t(t)])];
             const size_t src = (size_t(H - 1 - y) * size_t(W) + size_t(x)) * 4;
             for (int c = 0; c < 3; ++c)
-                frame.pixels[(size_t(y) * size_t(W) + size_t(x)) * 3 + size_t(c)] = float(sums[src + size_t(c)] / weight);
+                frame.pixels[(size_t(y) * size_t(W) + size_t(x)) * 3 + size_t(c)] =
+                    float(sums[src + size_t(c)] / weight);
         }
     if (const GLenum error = gl.GetError(); error != GL_NO_ERROR)
         throw Error("OpenGL: error " + std::to_string(error) + " while accumulating the truth");

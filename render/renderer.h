@@ -36,11 +36,14 @@ struct Frame {
 };
 
 struct FrameRequest {
-    double time = 0;          // scene time (frame index)
-    double previousTime = -1; // for motion vectors and prevdepth
-    Vec2 jitter;              // sub-pixel shift of the image in pixels, +x right, +y up (render/halton.h)
-    Vec2 previousJitter;      // the previous frame's, for prevdepth
+    double time = 0;           // scene time (frame index)
+    double previousTime = -1;  // for motion vectors and prevdepth
+    Vec2 jitter;               // sub-pixel shift of the image in pixels, +x right, +y up (render/halton.h)
+    Vec2 previousJitter;       // the previous frame's, for prevdepth
     BufferSet buffers;
+    // Multisampling of the lit colour (1 = off, or 2, 4, 8): resolved by averaging, a cheaper reference
+    // for edges only (no help for texture or shading aliasing). The other buffers stay single-sample.
+    int msaa = 1;
 };
 
 enum class PixelFilter { Box, Gaussian };
@@ -54,7 +57,7 @@ struct TruthOptions {
     double tolerance = 1e-3;
     double pixelTolerance = 2e-3;
     int tileSize = 8;
-    int firstRound = 16;      // adaptive: samples every tile gets before the first convergence test
+    int firstRound = 16;  // adaptive: samples every tile gets before the first convergence test
 };
 
 struct TruthStats {

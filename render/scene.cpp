@@ -20,7 +20,9 @@ class Random {
         z = (z ^ (z >> 27)) * 0x94D049BB133111EBull;
         return z ^ (z >> 31);
     }
-    double uniform(double low = 0.0, double high = 1.0) { return low + (high - low) * double(next() >> 11) * 0x1.0p-53; }
+    double uniform(double low = 0.0, double high = 1.0) {
+        return low + (high - low) * double(next() >> 11) * 0x1.0p-53;
+    }
     int below(int n) { return int(next() % uint64_t(n)); }
     Vec3 unitVector() {
         const double z = uniform(-1, 1), a = uniform(0, 2 * kPi), r = std::sqrt(1 - z * z);
@@ -50,7 +52,8 @@ std::function<CameraPose(double)> tilt(std::function<CameraPose(double)> camera)
         CameraPose pose = camera(t);
         const Vec3 forward = pose.target - pose.eye;
         pose.target = pose.eye + Mat4::rotation({0, 1, 0}, 12.0 * kPi / 180.0).transformDirection(forward);
-        pose.up = Mat4::rotation(normalize(pose.target - pose.eye), 17.0 * kPi / 180.0).transformDirection(pose.up);
+        pose.up =
+            Mat4::rotation(normalize(pose.target - pose.eye), 17.0 * kPi / 180.0).transformDirection(pose.up);
         return pose;
     };
 }
@@ -75,29 +78,38 @@ std::vector<Vec3> arc(const Vec3& centre, double radius, double a0, double a1, i
 
 void sphereScene(Scene& s, const SceneOptions&) {
     s.addObject("floor", s.addMesh(floorMesh(40)), solid({0.45, 0.45, 0.42}));
-    s.addObject("sphere", s.addMesh(makeSphere(1.0, 96, 48)), solid({0.8, 0.15, 0.1}, true, 0.3),
-                [](double) { return Mat4::translation({0, 1, 0}); });
+    s.addObject("sphere", s.addMesh(makeSphere(1.0, 96, 48)), solid({0.8, 0.15, 0.1}, true, 0.3), [](double) {
+        return Mat4::translation({0, 1, 0});
+    });
     s.camera = fixedCamera({0, 2.2, 6}, {0, 0.9, 0});
 }
 
 void corridorScene(Scene& s, const SceneOptions&) {
     // A corridor along -z; the camera looks down it while a sphere comes towards it, weaving sideways.
     const int wall = s.addMesh(makeBox({0.2, 3, 40}));
-    s.addObject("floor", s.addMesh(makeBox({4.4, 0.2, 40})), solid({0.4, 0.4, 0.38}),
-                [](double) { return Mat4::translation({0, -0.1, -12}); });
-    s.addObject("ceiling", s.addMesh(makeBox({4.4, 0.2, 40})), solid({0.85, 0.85, 0.82}),
-                [](double) { return Mat4::translation({0, 3.1, -12}); });
-    s.addObject("left wall", wall, solid({0.7, 0.65, 0.55}), [](double) { return Mat4::translation({-2.1, 1.5, -12}); });
-    s.addObject("right wall", wall, solid({0.55, 0.6, 0.7}), [](double) { return Mat4::translation({2.1, 1.5, -12}); });
+    s.addObject("floor", s.addMesh(makeBox({4.4, 0.2, 40})), solid({0.4, 0.4, 0.38}), [](double) {
+        return Mat4::translation({0, -0.1, -12});
+    });
+    s.addObject("ceiling", s.addMesh(makeBox({4.4, 0.2, 40})), solid({0.85, 0.85, 0.82}), [](double) {
+        return Mat4::translation({0, 3.1, -12});
+    });
+    s.addObject("left wall", wall, solid({0.7, 0.65, 0.55}), [](double) {
+        return Mat4::translation({-2.1, 1.5, -12});
+    });
+    s.addObject("right wall", wall, solid({0.55, 0.6, 0.7}), [](double) {
+        return Mat4::translation({2.1, 1.5, -12});
+    });
     // Door frames along both walls give the moving sphere edges to ghost over.
     const int frame = s.addMesh(makeBox({0.1, 2.4, 0.15}));
     for (int i = 0; i < 12; ++i)
         for (const double x : {-1.98, 1.98})
-            s.addObject("door frame", frame, solid({0.15, 0.12, 0.1}),
-                        [i, x](double) { return Mat4::translation({x, 1.2, 2.0 - 2.5 * i}); });
-    s.addObject("sphere", s.addMesh(makeSphere(0.5, 64, 32)), solid({0.9, 0.8, 0.1}, true, 0.4), [](double t) {
-        return Mat4::translation({1.2 * std::sin(0.09 * t), 0.6, -14.0 + 0.12 * t});
-    });
+            s.addObject("door frame", frame, solid({0.15, 0.12, 0.1}), [i, x](double) {
+                return Mat4::translation({x, 1.2, 2.0 - 2.5 * i});
+            });
+    s.addObject("sphere", s.addMesh(makeSphere(0.5, 64, 32)), solid({0.9, 0.8, 0.1}, true, 0.4),
+                [](double t) {
+                    return Mat4::translation({1.2 * std::sin(0.09 * t), 0.6, -14.0 + 0.12 * t});
+                });
     s.camera = fixedCamera({0, 1.5, 4.5}, {0, 1.1, -10}, 55);
 }
 
@@ -117,8 +129,9 @@ void pipeScene(Scene& s, const SceneOptions&) {
     for (const Vec3& p : arc({1.5, 1.5, 0}, 1.0, kPi / 2, 0, 16)) path.push_back(p);
     path.push_back({2.5, 0, 0});
     s.addObject("pipe", s.addMesh(makeTube(path, 0.3, 32)), solid({0.45, 0.26, 0.12}, true, 0.2));
-    s.addObject("wall", s.addMesh(makeQuad(20, 10)), solid({0.82, 0.8, 0.75}),
-                [](double) { return Mat4::translation({0, 2, -1.5}); });
+    s.addObject("wall", s.addMesh(makeQuad(20, 10)), solid({0.82, 0.8, 0.75}), [](double) {
+        return Mat4::translation({0, 2, -1.5});
+    });
     s.camera = fixedCamera({0, 1.6, 7}, {0, 1.3, 0});
 }
 
@@ -127,8 +140,9 @@ void blindsScene(Scene& s, const SceneOptions&) {
     s.background = {1.0, 0.98, 0.9};  // daylight behind
     const int slat = s.addMesh(makeBox({2.4, 0.08, 0.01}));
     for (int i = 0; i < 36; ++i)
-        s.addObject("slat", slat, solid({0.42, 0.45, 0.5}, false),
-                    [i](double) { return Mat4::translation({0, -1.5 + 0.0852 * i, 0}); });
+        s.addObject("slat", slat, solid({0.42, 0.45, 0.5}, false), [i](double) {
+            return Mat4::translation({0, -1.5 + 0.0852 * i, 0});
+        });
     const int side = s.addMesh(makeBox({0.12, 3.4, 0.12})), top = s.addMesh(makeBox({2.64, 0.12, 0.12}));
     const Material frame = solid({0.35, 0.22, 0.12}, false);
     s.addObject("frame", side, frame, [](double) { return Mat4::translation({-1.26, 0, 0.05}); });
@@ -155,19 +169,25 @@ void archedWindowScene(Scene& s, const SceneOptions&) {
     arch.append(makeTube(arc({0, 1, 0}, 0.6, 0, kPi, 48), 0.02, 8));
     for (int i = 1; i < 8; ++i) {
         const double a = kPi * i / 8;
-        arch.append(makeTube({{0.6 * std::cos(a), 1 + 0.6 * std::sin(a), 0}, {1.2 * std::cos(a), 1 + 1.2 * std::sin(a), 0}},
-                             0.012, 6));
+        arch.append(makeTube(
+            {{0.6 * std::cos(a), 1 + 0.6 * std::sin(a), 0}, {1.2 * std::cos(a), 1 + 1.2 * std::sin(a), 0}},
+            0.012, 6));
     }
     s.addObject("arch", s.addMesh(std::move(arch)), frame);
     const int jamb = s.addMesh(makeBox({0.12, 2.4, 0.12}));
     s.addObject("jamb", jamb, frame, [](double) { return Mat4::translation({-1.2, -0.2, 0}); });
     s.addObject("jamb", jamb, frame, [](double) { return Mat4::translation({1.2, -0.2, 0}); });
-    s.addObject("sill", s.addMesh(makeBox({2.6, 0.1, 0.3})), frame, [](double) { return Mat4::translation({0, -1.4, 0.05}); });
-    const int mullion = s.addMesh(makeBox({0.025, 2.4, 0.025})), transom = s.addMesh(makeBox({2.4, 0.025, 0.025}));
+    s.addObject("sill", s.addMesh(makeBox({2.6, 0.1, 0.3})), frame, [](double) {
+        return Mat4::translation({0, -1.4, 0.05});
+    });
+    const int mullion = s.addMesh(makeBox({0.025, 2.4, 0.025})),
+              transom = s.addMesh(makeBox({2.4, 0.025, 0.025}));
     for (int i = -2; i <= 2; ++i)
         s.addObject("mullion", mullion, bar, [i](double) { return Mat4::translation({0.4 * i, -0.2, 0}); });
     for (int i = 0; i < 5; ++i)
-        s.addObject("transom", transom, bar, [i](double) { return Mat4::translation({0, -1.3 + 0.5 * i, 0}); });
+        s.addObject("transom", transom, bar, [i](double) {
+            return Mat4::translation({0, -1.3 + 0.5 * i, 0});
+        });
     s.camera = fixedCamera({0.4, 0.2, 4.0}, {0, 0.1, 0}, 55);
 }
 
@@ -211,8 +231,9 @@ void atriumScene(Scene& s, const SceneOptions&) {
                 const Mat4 place = Mat4::rotation({0, 1, 0}, angle) * Mat4::translation({i * 1.8, y, -6.3});
                 s.addObject("column", column, stone, [place](double) { return place; });
                 if (i < 3)
-                    s.addObject("arch", archMesh, stone,
-                                [place](double) { return place * Mat4::translation({0.9, 3.0, 0}); });
+                    s.addObject("arch", archMesh, stone, [place](double) {
+                        return place * Mat4::translation({0.9, 3.0, 0});
+                    });
             }
     const int beam = s.addMesh(makeBox({12.6, 0.25, 0.5}));
     for (int side = 0; side < 4; ++side)
@@ -221,8 +242,9 @@ void atriumScene(Scene& s, const SceneOptions&) {
                                Mat4::translation({0, 3.9 + storey * 3.9 + 0.12, -6.3});
             s.addObject("entablature", beam, stone, [place](double) { return place; });
         }
-    s.addObject("sphere", s.addMesh(makeSphere(0.8, 64, 32)), solid({0.7, 0.2, 0.15}, true, 0.4),
-                [](double) { return Mat4::translation({0, 0.8, 0}); });
+    s.addObject("sphere", s.addMesh(makeSphere(0.8, 64, 32)), solid({0.7, 0.2, 0.15}, true, 0.4), [](double) {
+        return Mat4::translation({0, 0.8, 0});
+    });
     s.camera = fixedCamera({1.5, 1.7, 5.2}, {-0.5, 2.2, -6}, 60);
 }
 
@@ -253,19 +275,23 @@ void flowersScene(Scene& s, const SceneOptions& o) {
 void hardEdgesScene(Scene& s, const SceneOptions&) {
     s.background = {0.75, 0.85, 0.95};
     // A building front far away: a wall with rows of small dark windows and white frames.
-    s.addObject("facade", s.addMesh(makeQuad(30, 14)), solid({0.78, 0.7, 0.6}),
-                [](double) { return Mat4::translation({0, 5, -25}); });
+    s.addObject("facade", s.addMesh(makeQuad(30, 14)), solid({0.78, 0.7, 0.6}), [](double) {
+        return Mat4::translation({0, 5, -25});
+    });
     const int window = s.addMesh(makeBox({0.7, 1.0, 0.05})), frame = s.addMesh(makeBox({0.85, 1.15, 0.02}));
     for (int row = 0; row < 5; ++row)
         for (int column = -8; column <= 8; ++column) {
             const Vec3 at{column * 1.6, 0.5 + row * 2.3, -24.9};
-            s.addObject("window", window, solid({0.1, 0.12, 0.18}, true, 0.6),
-                        [at](double) { return Mat4::translation(at + Vec3{0, 0, 0.04}); });
-            s.addObject("frame", frame, solid({0.95, 0.95, 0.95}), [at](double) { return Mat4::translation(at); });
+            s.addObject("window", window, solid({0.1, 0.12, 0.18}, true, 0.6), [at](double) {
+                return Mat4::translation(at + Vec3{0, 0, 0.04});
+            });
+            s.addObject("frame", frame, solid({0.95, 0.95, 0.95}),
+                        [at](double) { return Mat4::translation(at); });
         }
     // Near: a garden wall and a pipe along it.
-    s.addObject("wall", s.addMesh(makeBox({12, 1.2, 0.3})), solid({0.55, 0.5, 0.48}),
-                [](double) { return Mat4::translation({0, 0.6, -3}); });
+    s.addObject("wall", s.addMesh(makeBox({12, 1.2, 0.3})), solid({0.55, 0.5, 0.48}), [](double) {
+        return Mat4::translation({0, 0.6, -3});
+    });
     s.addObject("pipe", s.addMesh(makeTube({{-6, 1.35, -2.95}, {6, 1.35, -2.95}}, 0.08, 16)),
                 solid({0.45, 0.26, 0.12}, true, 0.3));
     s.addObject("ground", s.addMesh(floorMesh(80)), solid({0.35, 0.4, 0.3}));
@@ -280,10 +306,14 @@ void planesScene(Scene& s, const SceneOptions& o) {
     // A floor receding to the horizon and a wall at a grazing angle, both tiled many times.
     Mesh floor;
     floor.append(makeQuad(40, 200, 20, 100), Mat4::rotation({1, 0, 0}, -kPi / 2));
-    s.addObject("floor", s.addMesh(std::move(floor)), m, [](double) { return Mat4::translation({0, 0, -95}); });
+    s.addObject("floor", s.addMesh(std::move(floor)), m, [](double) {
+        return Mat4::translation({0, 0, -95});
+    });
     Mesh wall;
     wall.append(makeQuad(200, 12, 100, 6), Mat4::rotation({0, 1, 0}, kPi / 2));
-    s.addObject("wall", s.addMesh(std::move(wall)), m, [](double) { return Mat4::translation({-6, 6, -95}); });
+    s.addObject("wall", s.addMesh(std::move(wall)), m, [](double) {
+        return Mat4::translation({-6, 6, -95});
+    });
     s.camera = fixedCamera({0, 1.2, 4}, {0.5, 0.6, -10}, 60);
 }
 
@@ -291,8 +321,9 @@ void sweepScene(Scene& s, const SceneOptions&, Pattern pattern) {
     Material m = solid({1, 1, 1}, false);
     m.pattern = pattern;
     m.frequency = pattern == Pattern::Sweep ? 160.0 : 900.0;
-    s.addObject(pattern == Pattern::Sweep ? "sweep" : "zone plate", s.addMesh(makeQuad(4, 4)), m,
-                [](double) { return Mat4::rotation({1, 0, 0}, -0.5); });
+    s.addObject(pattern == Pattern::Sweep ? "sweep" : "zone plate", s.addMesh(makeQuad(4, 4)), m, [](double) {
+        return Mat4::rotation({1, 0, 0}, -0.5);
+    });
     s.camera = fixedCamera({0, 0, 4.2}, {0, 0, 0}, 50);
 }
 
@@ -304,8 +335,9 @@ void lineFanScene(Scene& s, const SceneOptions&) {
         spokes.append(makeBox({1.8, 0.006, 0.002}),
                       Mat4::rotation({0, 0, 1}, 2 * kPi * i / 90) * Mat4::translation({0.9, 0, 0}));
     spokes.append(makeTube(arc({0, 0, 0}, 1.8, 0, 2 * kPi, 128), 0.01, 6));
-    s.addObject("wheel", s.addMesh(std::move(spokes)), solid({0.05, 0.05, 0.05}, false),
-                [](double t) { return Mat4::rotation({0, 0, 1}, 7.0 * kPi / 180.0 * t); });
+    s.addObject("wheel", s.addMesh(std::move(spokes)), solid({0.05, 0.05, 0.05}, false), [](double t) {
+        return Mat4::rotation({0, 0, 1}, 7.0 * kPi / 180.0 * t);
+    });
     s.camera = fixedCamera({0, 0, 4.5}, {0, 0, 0}, 50);
 }
 
@@ -315,7 +347,9 @@ void normalMapScene(Scene& s, const SceneOptions&) {
     Mesh floor;
     floor.append(makeQuad(12, 12, 6, 6), Mat4::rotation({1, 0, 0}, -kPi / 2));
     s.addObject("plate", s.addMesh(std::move(floor)), shiny);
-    s.addObject("sphere", s.addMesh(makeSphere(0.8, 96, 48)), shiny, [](double) { return Mat4::translation({0.8, 0.8, -1}); });
+    s.addObject("sphere", s.addMesh(makeSphere(0.8, 96, 48)), shiny, [](double) {
+        return Mat4::translation({0.8, 0.8, -1});
+    });
     s.lightDirection = {0.2, 0.5, -0.8};  // behind the objects: grazing highlights
     s.camera = fixedCamera({0, 1.6, 3.5}, {0, 0.2, -1}, 55);
 }
@@ -330,7 +364,8 @@ void randomScene(Scene& s, const SceneOptions& o) {
     s.textures.push_back(makeTexture(textures[size_t(random.below(5))], 512, o.seed));
     s.sampler = Sampler(random.below(4));
     Material ground = solid(random.colour());
-    if (random.below(2) == 0) ground.pattern = Pattern::Texture, ground.texture = 0, ground.colour = {1, 1, 1};
+    if (random.below(2) == 0)
+        ground.pattern = Pattern::Texture, ground.texture = 0, ground.colour = {1, 1, 1};
     Mesh floor;
     floor.append(makeQuad(60, 60, 30, 30), Mat4::rotation({1, 0, 0}, -kPi / 2));
     s.addObject("ground", s.addMesh(std::move(floor)), ground);
@@ -374,15 +409,17 @@ void randomScene(Scene& s, const SceneOptions& o) {
         const Vec3 at{random.uniform(-2.5, 2.5), random.uniform(0.3, 1.8), random.uniform(-3, 1)};
         const Vec3 axis = random.unitVector();
         const double angle = random.uniform(0, 2 * kPi), spin = random.uniform(-1.5, 1.5) * kPi / 180.0;
-        s.addObject("object", s.addMesh(std::move(mesh)), m, [=](double t) {
-            return Mat4::translation(at) * Mat4::rotation(axis, angle + spin * t);
-        });
+        s.addObject("object", s.addMesh(std::move(mesh)), m,
+                    [=](double t) { return Mat4::translation(at) * Mat4::rotation(axis, angle + spin * t); });
     }
-    const double radius = random.uniform(4, 7), height = random.uniform(0.8, 3), phase = random.uniform(0, 2 * kPi);
+    const double radius = random.uniform(4, 7), height = random.uniform(0.8, 3),
+                 phase = random.uniform(0, 2 * kPi);
     const double speed = random.uniform(-0.4, 0.4) * kPi / 180.0, fov = random.uniform(40, 65);
     s.camera = [=](double t) {
         const double a = phase + speed * t;
-        return CameraPose{{radius * std::sin(a), height, radius * std::cos(a) - 1}, {0, 0.8, -1}, {0, 1, 0},
+        return CameraPose{{radius * std::sin(a), height, radius * std::cos(a) - 1},
+                          {0, 0.8, -1},
+                          {0, 1, 0},
                           fov * kPi / 180.0};
     };
 }
@@ -395,9 +432,11 @@ struct Entry {
 const std::vector<Entry>& entries() {
     static const std::vector<Entry> list = {
         {{"sphere", "a lit red sphere on a floor", "shapes"}, sphereScene},
-        {{"corridor", "a sphere moving through a corridor (100 frames; ghosting test)", "shapes"}, corridorScene},
+        {{"corridor", "a sphere moving through a corridor (100 frames; ghosting test)", "shapes"},
+         corridorScene},
         {{"text-wall", "white wall with black letters", "text"}, textWallScene},
-        {{"pipe", "brown bent pipe in front of a wall (--camera tilted for the tilted view)", "pipes"}, pipeScene},
+        {{"pipe", "brown bent pipe in front of a wall (--camera tilted for the tilted view)", "pipes"},
+         pipeScene},
         {{"blinds", "window with closed blinds: pixel-wide gaps", "thin"}, blindsScene},
         {{"arched-window", "arched window with glazing bars", "thin"}, archedWindowScene},
         {{"hairball", "2,500 thin strands, flat colour", "hair"},
@@ -408,17 +447,21 @@ const std::vector<Entry>& entries() {
          [](Scene& s, const SceneOptions& o) { hairballScene(s, o, false, true); }},
         {{"hairball-lit-rotating", "the lit hairball turning 1.2 degrees per frame (ghosting test)", "hair"},
          [](Scene& s, const SceneOptions& o) { hairballScene(s, o, true, true); }},
-        {{"atrium", "a courtyard of columns and arches with a sphere in the middle", "architecture"}, atriumScene},
+        {{"atrium", "a courtyard of columns and arches with a sphere in the middle", "architecture"},
+         atriumScene},
         {{"flowers", "alpha-cutout flowers on stems", "foliage"}, flowersScene},
-        {{"hard-edges", "a facade of windows far away, a wall and a pipe near", "architecture"}, hardEdgesScene},
+        {{"hard-edges", "a facade of windows far away, a wall and a pipe near", "architecture"},
+         hardEdgesScene},
         {{"planes", "receding textured planes (--texture, --sampler)", "textures"}, planesScene},
         {{"sweep", "product-of-cosines frequency sweep", "procedural"},
          [](Scene& s, const SceneOptions& o) { sweepScene(s, o, Pattern::Sweep); }},
         {{"zone-plate", "zone plate cos(k r^2)", "procedural"},
          [](Scene& s, const SceneOptions& o) { sweepScene(s, o, Pattern::ZonePlate); }},
         {{"line-fan", "a turning wheel of thin spokes (wagon-wheel aliasing)", "procedural"}, lineFanScene},
-        {{"normal-map", "shiny normal-mapped plate and sphere (shading aliasing)", "shading"}, normalMapScene},
-        {{"random", "random composition from --seed: shapes, hair, grilles, textures, an orbiting camera", "random"},
+        {{"normal-map", "shiny normal-mapped plate and sphere (shading aliasing)", "shading"},
+         normalMapScene},
+        {{"random", "random composition from --seed: shapes, hair, grilles, textures, an orbiting camera",
+          "random"},
          randomScene},
     };
     return list;
@@ -509,13 +552,14 @@ TextureImage makeTexture(const std::string& kind, int size, uint64_t seed) {
             for (int x = 0; x < size; ++x)
                 if ((x % period) < period / 2) image.at<cv::Vec4b>(y, x) = {0, 0, 0, 255};
     } else if (kind == "text") {
-        const char* lines[] = {"The quick brown fox", "jumps over the lazy", "dog. SPHINX OF BLACK", "QUARTZ, JUDGE MY",
-                               "VOW 0123456789", "aliasing steps &", "crawling edges #%@"};
+        const char* lines[] = {"The quick brown fox", "jumps over the lazy", "dog. SPHINX OF BLACK",
+                               "QUARTZ, JUDGE MY",    "VOW 0123456789",      "aliasing steps &",
+                               "crawling edges #%@"};
         const double scale = size / 520.0;
         for (int i = 0; i < 14; ++i)
             cv::putText(image, lines[i % 7], cv::Point(int(10 * scale), int((34 + i * 36) * scale)),
-                        cv::FONT_HERSHEY_SIMPLEX, 1.0 * scale, cv::Scalar(0, 0, 0, 255), std::max(1, int(2 * scale)),
-                        cv::LINE_8);
+                        cv::FONT_HERSHEY_SIMPLEX, 1.0 * scale, cv::Scalar(0, 0, 0, 255),
+                        std::max(1, int(2 * scale)), cv::LINE_8);
     } else if (kind == "noise") {
         // Value noise of a few octaves: a texture with energy at every frequency.
         std::vector<double> lattice(64 * 64);
@@ -528,7 +572,9 @@ TextureImage makeTexture(const std::string& kind, int size, uint64_t seed) {
                     const double fx = x * cells / size, fy = y * cells / size;
                     const int ix = int(fx), iy = int(fy);
                     const double tx = fx - ix, ty = fy - iy;
-                    auto at = [&](int i, int j) { return lattice[size_t(((j & 63) * 64) + (i & 63) + octave * 7)  % lattice.size()]; };
+                    auto at = [&](int i, int j) {
+                        return lattice[size_t(((j & 63) * 64) + (i & 63) + octave * 7) % lattice.size()];
+                    };
                     const double v = (1 - ty) * ((1 - tx) * at(ix, iy) + tx * at(ix + 1, iy)) +
                                      ty * ((1 - tx) * at(ix, iy + 1) + tx * at(ix + 1, iy + 1));
                     value += amplitude * v, amplitude *= 0.5;
@@ -543,7 +589,9 @@ TextureImage makeTexture(const std::string& kind, int size, uint64_t seed) {
         const cv::Scalar petal(60 + random.below(80), 80 + random.below(60), 230, 255);
         for (int i = 0; i < 6; ++i) {
             const double a = i * 60.0;
-            cv::ellipse(image, c + cv::Point(int(size * 0.22 * std::cos(a * kPi / 180)), int(size * 0.22 * std::sin(a * kPi / 180))),
+            cv::ellipse(image,
+                        c + cv::Point(int(size * 0.22 * std::cos(a * kPi / 180)),
+                                      int(size * 0.22 * std::sin(a * kPi / 180))),
                         cv::Size(size / 5, size / 10), a, 0, 360, petal, cv::FILLED, cv::LINE_8);
         }
         cv::circle(image, c, size / 10, cv::Scalar(30, 200, 250, 255), cv::FILLED, cv::LINE_8);

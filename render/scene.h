@@ -23,13 +23,13 @@ enum class Pattern {
 
 struct Material {
     Vec3 colour{0.8, 0.8, 0.8};
-    bool lit = true;            // false: lit colour = albedo (the thesis' flat-coloured scenes)
-    double specular = 0.0;      // Blinn-Phong
+    bool lit = true;        // false: lit colour = albedo (the thesis' flat-coloured scenes)
+    double specular = 0.0;  // Blinn-Phong
     double shininess = 32.0;
     Pattern pattern = Pattern::Solid;
-    int texture = -1;           // index into Scene::textures (Pattern::Texture)
-    bool alphaCutout = false;   // discard where the texture's alpha < 0.5 (foliage)
-    double frequency = 1.0;     // Sweep / ZonePlate / Bumps scale
+    int texture = -1;          // index into Scene::textures (Pattern::Texture)
+    bool alphaCutout = false;  // discard where the texture's alpha < 0.5 (foliage)
+    double frequency = 1.0;    // Sweep / ZonePlate / Bumps scale
 };
 
 // 8-bit RGBA texture made on the CPU; mipmapped by the renderer.
@@ -47,7 +47,7 @@ struct SceneObject {
     std::string name;
     int mesh = 0;
     Material material;
-    uint32_t id = 1;                      // object ID (0 = background)
+    uint32_t id = 1;                        // object ID (0 = background)
     std::function<Mat4(double)> transform;  // frame time -> model matrix (null: identity)
     Mat4 at(double t) const { return transform ? transform(t) : Mat4(); }
 };
@@ -83,9 +83,9 @@ struct Scene {
 
 struct SceneOptions {
     uint64_t seed = 1;
-    bool tiltedCamera = false;          // --camera tilted: rolled and turned so no edge is axis-aligned
+    bool tiltedCamera = false;  // --camera tilted: rolled and turned so no edge is axis-aligned
     Sampler sampler = Sampler::Trilinear;
-    std::string texture = "checker";    // receding planes: checker, bricks, stripes, text, noise
+    std::string texture = "checker";  // receding planes: checker, bricks, stripes, text, noise
 };
 
 struct SceneInfo {

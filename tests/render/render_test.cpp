@@ -114,14 +114,18 @@ TEST(Render, IdsCountTheObjects) {
 // where the previous camera saw the same surface point, computed here from the depth buffer.
 TEST(Render, MotionVectorsReprojectThePreviousFrame) {
     Scene scene;
-    scene.addObject("floor", scene.addMesh(makeBox({30, 0.2, 30})), Material{},
-                    [](double) { return Mat4::translation({0, -0.1, 0}); });
-    scene.addObject("box", scene.addMesh(makeBox({1, 2, 1.5})), Material{},
-                    [](double) { return Mat4::translation({0.5, 1, -1}) * Mat4::rotation({0, 1, 0}, 0.4); });
-    scene.addObject("wall", scene.addMesh(makeQuad(30, 10)), Material{},
-                    [](double) { return Mat4::translation({0, 5, -8}); });
+    scene.addObject("floor", scene.addMesh(makeBox({30, 0.2, 30})), Material{}, [](double) {
+        return Mat4::translation({0, -0.1, 0});
+    });
+    scene.addObject("box", scene.addMesh(makeBox({1, 2, 1.5})), Material{}, [](double) {
+        return Mat4::translation({0.5, 1, -1}) * Mat4::rotation({0, 1, 0}, 0.4);
+    });
+    scene.addObject("wall", scene.addMesh(makeQuad(30, 10)), Material{}, [](double) {
+        return Mat4::translation({0, 5, -8});
+    });
     scene.camera = [](double t) {
-        return CameraPose{{0.4 * t, 2.0 + 0.15 * t, 6 - 0.3 * t}, {0.2 * t, 0.8, 0}, {0, 1, 0}, 50 * kPi / 180};
+        return CameraPose{
+            {0.4 * t, 2.0 + 0.15 * t, 6 - 0.3 * t}, {0.2 * t, 0.8, 0}, {0, 1, 0}, 50 * kPi / 180};
     };
     const int W = 200, H = 150;
     Renderer renderer(context(), scene, W, H);
@@ -146,8 +150,8 @@ TEST(Render, MotionVectorsReprojectThePreviousFrame) {
                                std::abs(channel(f, x + dx, y + dy, "depth.Z") - depth) < 0.05 * depth;
             if (!interior) continue;
             const double ndcX = 2 * (x + 0.5) / W - 1, ndcY = 1 - 2 * (y + 0.5) / H;
-            const Vec3 world = now.eye + side * (ndcX * depth * tanHalf * aspect) + up * (ndcY * depth * tanHalf) +
-                               forward * double(depth);
+            const Vec3 world = now.eye + side * (ndcX * depth * tanHalf * aspect) +
+                               up * (ndcY * depth * tanHalf) + forward * double(depth);
             const auto clip = previous.apply(world);
             const double px = (clip[0] / clip[3] + 1) / 2 * W, py = (1 - clip[1] / clip[3]) / 2 * H;
             const double ex = (x + 0.5) - px, ey = (y + 0.5) - py;
@@ -191,8 +195,8 @@ TEST(Render, MotionVectorsFollowAMovingObject) {
                                std::abs(channel(f, x + dx, y + dy, "depth.Z") - depth) < 0.05 * depth;
             if (!interior) continue;
             const double ndcX = 2 * (x + 0.5) / W - 1, ndcY = 1 - 2 * (y + 0.5) / H;
-            const Vec3 world = pose.eye + side * (ndcX * depth * tanHalf * aspect) + up * (ndcY * depth * tanHalf) +
-                               forward * double(depth);
+            const Vec3 world = pose.eye + side * (ndcX * depth * tanHalf * aspect) +
+                               up * (ndcY * depth * tanHalf) + forward * double(depth);
             // Back to object space at t = 3, then out again with the transform of t = 2.
             const Vec3 local = Mat4::rotation({0, 1, 0}, -angle(3)).transformPoint(world - translation(3));
             const Vec3 before = translation(2) + Mat4::rotation({0, 1, 0}, angle(2)).transformPoint(local);
@@ -215,10 +219,12 @@ TEST(Render, JitterMovesALineByTheExpectedSubPixelOffset) {
     Material white;
     white.colour = {1, 1, 1}, white.lit = false;
     // A vertical line over pixel column 32 and a horizontal one over row 31 (just above the centre).
-    scene.addObject("vertical", scene.addMesh(makeQuad(pixel, 8 * pixel)), white,
-                    [=](double) { return Mat4::translation({pixel / 2, -12 * pixel, -10}); });
-    scene.addObject("horizontal", scene.addMesh(makeQuad(8 * pixel, pixel)), white,
-                    [=](double) { return Mat4::translation({-12 * pixel, pixel / 2, -10}); });
+    scene.addObject("vertical", scene.addMesh(makeQuad(pixel, 8 * pixel)), white, [=](double) {
+        return Mat4::translation({pixel / 2, -12 * pixel, -10});
+    });
+    scene.addObject("horizontal", scene.addMesh(makeQuad(8 * pixel, pixel)), white, [=](double) {
+        return Mat4::translation({-12 * pixel, pixel / 2, -10});
+    });
     scene.camera = [](double) { return CameraPose{{0, 0, 0}, {0, 0, -1}, {0, 1, 0}, kPi / 2}; };
     Renderer renderer(context(), scene, size, size);
     auto litColumn = [&](double jitterX) {
@@ -265,7 +271,8 @@ TEST_P(EveryScene, IsAliasedAndItsTruthConverged) {
     const Frame truth256 = renderer.renderTruth(0, options);
     const double aliasedPsnr = psnr(aliased, truth256), truthPsnr = psnr(truth128, truth256);
     EXPECT_LT(std::abs(psnr(aliased, truth128) - aliasedPsnr), 0.1);
-    EXPECT_LT(aliasedPsnr + 10, truthPsnr) << "aliased " << aliasedPsnr << " dB, 128 vs 256 samples " << truthPsnr;
+    EXPECT_LT(aliasedPsnr + 10, truthPsnr)
+        << "aliased " << aliasedPsnr << " dB, 128 vs 256 samples " << truthPsnr;
 }
 
 // The rotating hairballs are the static ones at time 0, so they are not drawn twice here.
@@ -312,6 +319,30 @@ TEST(Truth, GaussianFilterIsAConvergedTruthToo) {
     options.samples = 256;
     const Frame b = renderer.renderTruth(0, options);
     EXPECT_GT(psnr(a, b), 50.0);
+}
+
+TEST(Render, Msaa4xIsCloserToTheTruthOnEdgesAndLeavesTheOtherBuffersAlone) {
+    const Scene scene = buildScene("pipe");
+    Renderer renderer(context(), scene, 128, 96);
+    FrameRequest request;
+    request.buffers = BufferSet::parse("color");
+    const Frame aliased = renderer.render(request);
+    request.msaa = 4;
+    const Frame msaa = renderer.render(request);
+    const Frame truth = renderer.renderTruth(0, TruthOptions{});
+    EXPECT_GT(psnr(msaa, truth), psnr(aliased, truth) + 3.0);
+    request.buffers = BufferSet::parse("color,depth,id");
+    const Frame withBuffers = renderer.render(request);
+    request.msaa = 1;
+    const Frame single = renderer.render(request);
+    for (int y = 0; y < 96; y += 3)
+        for (int x = 0; x < 128; x += 3) {
+            EXPECT_EQ(channel(withBuffers, x, y, "depth.Z"), channel(single, x, y, "depth.Z"));
+            EXPECT_EQ(channel(withBuffers, x, y, "id.ID"), channel(single, x, y, "id.ID"));
+            EXPECT_EQ(channel(withBuffers, x, y, "R"), channel(msaa, x, y, "R"));
+        }
+    request.msaa = 3;
+    EXPECT_THROW(renderer.render(request), Error);
 }
 
 TEST(Render, RefusesImpossibleSizes) {
