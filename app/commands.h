@@ -8,5 +8,6 @@ namespace dejag::cli {
 void registerMetricsCommand(CLI::App& app);
 void registerBenchCommand(CLI::App& app);
 void registerRenderCommand(CLI::App& app);
+void registerDataCommand(CLI::App& app);
 
 }  // namespace dejag::cli

@@ -257,6 +257,9 @@ void writeImage(const std::string& path, const Image& image, const WriteOptions&
         spec.channelnames = image.channelNames;
         spec.alpha_channel = image.findChannel("A");
         spec.attribute("oiio:UnassociatedAlpha", 1);
+        // No time stamp (the EXR writer would add the current time): the same image gives the same bytes,
+        // so datasets can be checksummed and compared.
+        spec.attribute("DateTime", "");
         if (extension == ".jpg" || extension == ".jpeg")
             spec.attribute("Compression", "jpeg:" + std::to_string(options.jpegQuality));
         if (!output->open(temporary, spec))

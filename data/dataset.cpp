@@ -1,0 +1,565 @@
+#include "data/dataset.h"
+
+#include <fcntl.h>
+#include <poll.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <map>
+#include <set>
+#include <sstream>
+
+#include "base/error.h"
+#include "base/files.h"
+#include "base/progress.h"
+#include "base/timer.h"
+#include "data/image.h"
+#include "render/gl.h"
+#include "render/renderer.h"
+#include "render/scene.h"
+
+namespace dejag::data {
+
+namespace fs = std::filesystem;
+using nlohmann::json;
+
+namespace {
+
+uint64_t mix(uint64_t z) {
+    z += 0x9E3779B97F4A7C15ull;
+    z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ull;
+    z = (z ^ (z >> 27)) * 0x94D049BB133111EBull;
+    return z ^ (z >> 31);
+}
+
+// Uniform double in [low, high) from a 64-bit state, advancing it.
+double uniform(uint64_t& state, double low, double high) {
+    state = mix(state);
+    return low + (high - low) * double(state >> 11) * 0x1.0p-53;
+}
+
+std::string join(const std::vector<std::string>& items) {
+    std::string s;
+    for (const std::string& item : items) s += (s.empty() ? "" : ", ") + item;
+    return s;
+}
+
+}  // namespace
+
+const std::vector<FamilyInfo>& datasetFamilies() {
+    static const std::vector<FamilyInfo> families = [] {
+        std::vector<FamilyInfo> list;
+        for (const render::SceneInfo& scene : render::sceneCatalogue()) {
+            auto it = std::find_if(list.begin(), list.end(), [&](const FamilyInfo& f) { return f.name == scene.family; });
+            if (it == list.end()) {
+                list.push_back({scene.family, {}, ""});
+                it = list.end() - 1;
+            }
+            it->scenes.push_back(scene.name);
+        }
+        for (FamilyInfo& f : list) f.description = "scenes: " + join(f.scenes);
+        return list;
+    }();
+    return families;
+}
+
+const std::vector<std::string>& defaultTestFamilies() {
+    static const std::vector<std::string> names = {"architecture", "foliage"};
+    return names;
+}
+
+void DatasetSpec::validate() const {
+    std::vector<std::string> known;
+    for (const FamilyInfo& f : datasetFamilies()) known.push_back(f.name);
+    if (families.empty()) throw Error("no families given (" + join(known) + ")");
+    for (const std::string& f : families)
+        if (std::find(known.begin(), known.end(), f) == known.end())
+            throw Error("unknown family '" + f + "' (" + join(known) + ")");
+    for (const std::string& f : testFamilies)
+        if (std::find(families.begin(), families.end(), f) == families.end())
+            throw Error("test family '" + f + "' is not one of the dataset's families (" + join(families) + ")");
+    if (testFamilies.size() >= families.size())
+        throw Error("every family is held out for testing: nothing is left to train on");
+    if (count < 1) throw Error("--count must be at least 1, not " + std::to_string(count));
+    if (width < 16 || height < 16 || width > 8192 || height > 8192)
+        throw Error("item size " + std::to_string(width) + "x" + std::to_string(height) + " is outside 16..8192");
+    if (truthSamples < 1 || truthSamples > 4096)
+        throw Error("--truth must be 1..4096 samples, not " + std::to_string(truthSamples));
+    if (!(validationFraction >= 0 && validationFraction < 1)) throw Error("the validation fraction must be in [0, 1)");
+}
+
+json DatasetSpec::toJson() const {
+    return {{"format", "dejag-dataset-1"},
+            {"families", families},
+            {"test_families", testFamilies},
+            {"count", count},
+            {"size", {width, height}},
+            {"truth_samples", truthSamples},
+            {"adaptive", adaptive},
+            {"seed", seed},
+            {"validation_fraction", validationFraction}};
+}
+
+DatasetSpec DatasetSpec::fromJson(const json& j) {
+    DatasetSpec s;
+    try {
+        if (j.at("format") != "dejag-dataset-1") throw Error("unknown dataset format " + j.at("format").dump());
+        s.families = j.at("families").get<std::vector<std::string>>();
+        s.testFamilies = j.at("test_families").get<std::vector<std::string>>();
+        s.count = j.at("count").get<int>();
+        s.width = j.at("size").at(0).get<int>(), s.height = j.at("size").at(1).get<int>();
+        s.truthSamples = j.at("truth_samples").get<int>();
+        s.adaptive = j.at("adaptive").get<bool>();
+        s.seed = j.at("seed").get<uint64_t>();
+        s.validationFraction = j.at("validation_fraction").get<double>();
+    } catch (const json::exception& e) {
+        throw Error(std::string("dataset.json is not a dejag dataset description: ") + e.what());
+    }
+    return s;
+}
+
+const char* splitName(Split split) {
+    switch (split) {
+        case Split::Train:
+            return "train";
+        case Split::Validation:
+            return "validation";
+        case Split::Test:
+            return "test";
+    }
+    return "?";
+}
+
+ItemPlan planItem(const DatasetSpec& spec, int index) {
+    ItemPlan p;
+    p.index = index;
+    char id[16];
+    std::snprintf(id, sizeof id, "%06d", index);
+    p.id = id;
+    p.family = spec.families[size_t(index) % spec.families.size()];
+    p.seed = mix(spec.seed * 0x100000001B3ull ^ uint64_t(index));
+    const FamilyInfo& family =
+        *std::find_if(datasetFamilies().begin(), datasetFamilies().end(), [&](const FamilyInfo& f) { return f.name == p.family; });
+    uint64_t state = p.seed;
+    p.scene = family.scenes[size_t(uniform(state, 0, double(family.scenes.size())))];
+    p.time = std::floor(uniform(state, 1, 100));
+    const bool test = std::find(spec.testFamilies.begin(), spec.testFamilies.end(), p.family) != spec.testFamilies.end();
+    const double draw = double(mix(p.seed ^ 0x5EEDull) >> 11) * 0x1.0p-53;
+    p.split = test ? Split::Test : draw < spec.validationFraction ? Split::Validation : Split::Train;
+    return p;
+}
+
+std::string fileChecksum(const std::string& path) {
+    std::ifstream in(path, std::ios::binary);
+    if (!in) throw Error("cannot read '" + path + "'");
+    uint64_t hash = 0xCBF29CE484222325ull;
+    char buffer[1 << 16];
+    while (in) {
+        in.read(buffer, sizeof buffer);
+        for (std::streamsize i = 0; i < in.gcount(); ++i) {
+            hash ^= uint8_t(buffer[i]);
+            hash *= 0x100000001B3ull;
+        }
+    }
+    char text[17];
+    std::snprintf(text, sizeof text, "%016llx", static_cast<unsigned long long>(hash));
+    return text;
+}
+
+// ---- Rendering one item ---------------------------------------------------------------------------------
+
+struct ItemRenderer::Impl {
+    std::unique_ptr<render::GlContext> context = render::createOsMesaContext();
+};
+
+ItemRenderer::ItemRenderer() : impl_(std::make_unique<Impl>()) {}
+ItemRenderer::~ItemRenderer() = default;
+
+namespace {
+
+// The item's variation on its scene: camera orbit, distance and field of view, light, colours.
+void vary(render::Scene& scene, uint64_t seed) {
+    uint64_t state = seed ^ 0xC0FFEEull;
+    const double yaw = uniform(state, -0.35, 0.35), pitch = uniform(state, -0.12, 0.12);
+    const double distance = uniform(state, 0.75, 1.25), zoom = uniform(state, 0.85, 1.15);
+    const auto camera = scene.camera;
+    scene.camera = [=](double t) {
+        render::CameraPose pose = camera ? camera(t) : render::CameraPose();
+        const render::Vec3 offset = pose.eye - pose.target;
+        const render::Vec3 side = render::normalize(render::cross(offset, pose.up));
+        const render::Mat4 turn = render::Mat4::rotation(side, pitch) * render::Mat4::rotation(pose.up, yaw);
+        pose.eye = pose.target + turn.transformDirection(offset) * distance;
+        pose.fovY = std::clamp(pose.fovY * zoom, 0.3, 2.0);
+        return pose;
+    };
+    scene.lightDirection = render::normalize(
+        {uniform(state, -1, 1), uniform(state, 0.25, 1), uniform(state, -0.2, 1)});
+    const double warmth = uniform(state, -0.08, 0.08);
+    scene.lightColour = {1.0 + warmth, 1.0, 1.0 - warmth};
+    for (render::SceneObject& o : scene.objects) {
+        if (o.material.pattern == render::Pattern::Texture) continue;  // textures keep their colours
+        render::Vec3& c = o.material.colour;
+        c = {std::clamp(c.x * uniform(state, 0.75, 1.25), 0.02, 1.0), std::clamp(c.y * uniform(state, 0.75, 1.25), 0.02, 1.0),
+             std::clamp(c.z * uniform(state, 0.75, 1.25), 0.02, 1.0)};
+    }
+}
+
+Image toImage(render::Frame frame) {
+    Image image;
+    image.width = frame.width, image.height = frame.height;
+    image.channelNames = std::move(frame.channelNames);
+    image.storage = PixelType::Float;
+    image.pixels = std::move(frame.pixels);
+    return image;
+}
+
+json fileRecord(const std::string& folder, const std::string& relative) {
+    const std::string path = (fs::path(folder) / relative).string();
+    return {{"path", relative}, {"bytes", fs::file_size(path)}, {"checksum", fileChecksum(path)}};
+}
+
+}  // namespace
+
+json ItemRenderer::render(const DatasetSpec& spec, const ItemPlan& plan, const std::string& folder) {
+    uint64_t state = plan.seed ^ 0x0B7Eull;
+    render::SceneOptions options;
+    options.seed = plan.seed;
+    options.tiltedCamera = uniform(state, 0, 1) < 0.4;
+    options.sampler = render::Sampler(int(uniform(state, 0, 4)));
+    const char* textures[] = {"checker", "bricks", "stripes", "text", "noise"};
+    options.texture = textures[int(uniform(state, 0, 5))];
+    render::Scene scene = render::buildScene(plan.scene, options);
+    vary(scene, plan.seed);
+
+    render::Renderer renderer(*impl_->context, scene, spec.width, spec.height);
+    render::FrameRequest request;
+    request.time = plan.time, request.previousTime = plan.time - 1;
+    request.buffers = render::BufferSet::parse("color,albedo,depth,motion,id");
+    const Image input = toImage(renderer.render(request));
+    render::TruthOptions truthOptions;
+    truthOptions.samples = spec.truthSamples;
+    truthOptions.adaptive = spec.adaptive;
+    render::TruthStats stats;
+    const Image truth = toImage(renderer.renderTruth(plan.time, truthOptions, &stats));
+
+    // Edge pixels (an ID or a depth jump of > 5 % to the right or below) and the aliased frame's PSNR.
+    int64_t edges = 0;
+    double squared = 0;
+    const int id = input.findChannel("id.ID"), depth = input.findChannel("depth.Z"), r = input.findChannel("R");
+    for (int y = 0; y < input.height; ++y)
+        for (int x = 0; x < input.width; ++x) {
+            bool edge = false;
+            for (const auto& [dx, dy] : {std::pair{1, 0}, std::pair{0, 1}}) {
+                if (x + dx >= input.width || y + dy >= input.height) continue;
+                const float d0 = input.at(x, y, depth), d1 = input.at(x + dx, y + dy, depth);
+                edge = edge || input.at(x, y, id) != input.at(x + dx, y + dy, id) ||
+                       std::abs(d0 - d1) > 0.05f * std::min(d0, d1);
+            }
+            edges += edge;
+            for (int c = 0; c < 3; ++c) {
+                const double d = double(input.at(x, y, r + c)) - double(truth.at(x, y, c));
+                squared += d * d;
+            }
+        }
+    const double mse = squared / (3.0 * double(input.pixelCount()));
+
+    fs::create_directories(fs::path(folder) / "items" / plan.family);
+    writeImage((fs::path(folder) / plan.inputFile()).string(), input);
+    writeImage((fs::path(folder) / plan.truthFile()).string(), truth);
+    const render::CameraPose pose = scene.cameraAt(plan.time);
+    auto vec = [](const render::Vec3& v) { return json{v.x, v.y, v.z}; };
+    return {{"index", plan.index},
+            {"id", plan.id},
+            {"family", plan.family},
+            {"scene", plan.scene},
+            {"seed", plan.seed},
+            {"split", splitName(plan.split)},
+            {"time", plan.time},
+            {"size", {spec.width, spec.height}},
+            {"camera",
+             {{"eye", vec(pose.eye)}, {"target", vec(pose.target)}, {"up", vec(pose.up)}, {"fov_y", pose.fovY},
+              {"tilted", options.tiltedCamera}}},
+            {"sampler", render::samplerName(options.sampler)},
+            {"light", vec(scene.lightDirection)},
+            {"samples", {{"input", 1}, {"truth", stats.samples}, {"truth_tile_samples", stats.tileSamples},
+                         {"adaptive", spec.adaptive}}},
+            {"edge_fraction", double(edges) / double(input.pixelCount())},
+            {"aliased_psnr", mse > 0 ? 10 * std::log10(1.0 / mse) : 999.0},
+            {"files", {{"input", fileRecord(folder, plan.inputFile())}, {"truth", fileRecord(folder, plan.truthFile())}}}};
+}
+
+// ---- Manifest, generation -------------------------------------------------------------------------------
+
+std::vector<json> readManifest(const std::string& folder) {
+    std::vector<json> records;
+    std::ifstream in(fs::path(folder) / "manifest.jsonl");
+    std::string line;
+    while (std::getline(in, line)) {
+        if (line.empty()) continue;
+        try {
+            records.push_back(json::parse(line));
+        } catch (const json::exception&) {
+            if (in.peek() == EOF) break;  // an interrupted last append
+            throw Error("manifest.jsonl in '" + folder + "' has a corrupt line: " + line.substr(0, 60));
+        }
+    }
+    return records;
+}
+
+namespace {
+
+void writeManifest(const std::string& folder, std::vector<json> records) {
+    std::sort(records.begin(), records.end(),
+              [](const json& a, const json& b) { return a["index"].get<int>() < b["index"].get<int>(); });
+    std::string text;
+    for (const json& r : records) text += r.dump() + "\n";
+    writeTextFileAtomically((fs::path(folder) / "manifest.jsonl").string(), text);
+}
+
+bool filesPresent(const std::string& folder, const json& record) {
+    for (const char* which : {"input", "truth"}) {
+        const json& f = record["files"][which];
+        const fs::path path = fs::path(folder) / f["path"].get<std::string>();
+        std::error_code ec;
+        if (!fs::is_regular_file(path, ec) || fs::file_size(path, ec) != f["bytes"].get<uintmax_t>()) return false;
+    }
+    return true;
+}
+
+// The worker loop of one child process: render its share and report each record on `out`.
+[[noreturn]] void runWorker(const DatasetSpec& spec, const std::string& folder, const std::vector<int>& items, int out) {
+    int status = 0;
+    try {
+        ItemRenderer renderer;
+        for (int index : items) {
+            const std::string line = "item " + renderer.render(spec, planItem(spec, index), folder).dump() + "\n";
+            if (::write(out, line.data(), line.size()) != ssize_t(line.size())) _exit(3);
+        }
+    } catch (const std::exception& e) {
+        std::string line = std::string("error ") + e.what();
+        std::replace(line.begin(), line.end(), '\n', ' ');
+        line += "\n";
+        [[maybe_unused]] const ssize_t written = ::write(out, line.data(), line.size());
+        status = 1;
+    }
+    ::close(out);
+    _exit(status);
+}
+
+}  // namespace
+
+GenerateResult generateDataset(const DatasetSpec& spec, const std::string& folder, const GenerateOptions& options) {
+    spec.validate();
+    if (options.workers < 1 || options.workers > 64) throw Error("--workers must be 1..64");
+    const Stopwatch clock;
+    std::error_code ec;
+    fs::create_directories(folder, ec);
+    if (ec || !fs::is_directory(folder) || ::access(folder.c_str(), W_OK) != 0)
+        throw Error("cannot write to the dataset folder '" + folder + "'");
+    const fs::path description = fs::path(folder) / "dataset.json";
+    if (fs::exists(description)) {
+        std::ifstream in(description);
+        json existing;
+        try {
+            existing = json::parse(in);
+        } catch (const json::exception&) {
+            throw Error("'" + description.string() + "' is corrupt; the folder is not a dataset dejag can resume");
+        }
+        if (existing != spec.toJson())
+            throw Error("'" + folder + "' holds a different dataset (" + existing.dump() +
+                        "); choose another folder or repeat its arguments");
+    } else {
+        if (!fs::is_empty(folder)) throw Error("'" + folder + "' is not empty and holds no dataset.json");
+        writeTextFileAtomically(description.string(), spec.toJson().dump(2) + "\n");
+    }
+    // Temporary files of an interrupted run.
+    if (fs::exists(fs::path(folder) / "items"))
+        for (const auto& entry : fs::recursive_directory_iterator(fs::path(folder) / "items"))
+            if (entry.is_regular_file() && entry.path().filename().string().find(".tmp-") != std::string::npos)
+                fs::remove(entry.path(), ec);
+
+    std::map<int, json> done;
+    for (json& r : readManifest(folder)) {
+        const int index = r.value("index", -1);
+        if (index >= 0 && index < spec.count && filesPresent(folder, r)) done[index] = std::move(r);
+    }
+    std::vector<int> pending;
+    for (int i = 0; i < spec.count; ++i)
+        if (!done.count(i)) pending.push_back(i);
+    GenerateResult result;
+    result.skipped = int(done.size());
+    // The manifest so far, cleaned of partial or stale records, before appending.
+    std::vector<json> records;
+    for (auto& [index, r] : done) records.push_back(r);
+    writeManifest(folder, records);
+
+    if (!pending.empty()) {
+        const int workers = std::min<int>(options.workers, int(pending.size()));
+        std::vector<pid_t> children;
+        std::vector<int> pipes;
+        for (int k = 0; k < workers; ++k) {
+            std::vector<int> share;
+            for (size_t i = size_t(k); i < pending.size(); i += size_t(workers)) share.push_back(pending[i]);
+            int fds[2];
+            if (::pipe(fds) != 0) throw Error("cannot create a pipe for a worker");
+            std::fflush(nullptr);
+            const pid_t pid = ::fork();
+            if (pid < 0) throw Error("cannot start a worker process");
+            if (pid == 0) {
+                ::close(fds[0]);
+                for (int other : pipes) ::close(other);
+                runWorker(spec, folder, share, fds[1]);
+            }
+            ::close(fds[1]);
+            children.push_back(pid);
+            pipes.push_back(fds[0]);
+        }
+        const int manifest = ::open((fs::path(folder) / "manifest.jsonl").c_str(), O_WRONLY | O_APPEND | O_CREAT, 0644);
+        if (manifest < 0) throw Error("cannot append to the manifest in '" + folder + "'");
+        Progress progress("data generate", int64_t(pending.size()), options.quiet);
+        std::vector<std::string> buffers(pipes.size());
+        std::vector<bool> open(pipes.size(), true);
+        std::string firstError;
+        size_t openCount = pipes.size();
+        while (openCount > 0) {
+            std::vector<pollfd> fds;
+            std::vector<size_t> which;
+            for (size_t k = 0; k < pipes.size(); ++k)
+                if (open[k]) fds.push_back({pipes[k], POLLIN, 0}), which.push_back(k);
+            if (::poll(fds.data(), fds.size(), -1) < 0) continue;
+            for (size_t f = 0; f < fds.size(); ++f) {
+                if (!(fds[f].revents & (POLLIN | POLLHUP | POLLERR))) continue;
+                const size_t k = which[f];
+                char chunk[8192];
+                const ssize_t n = ::read(pipes[k], chunk, sizeof chunk);
+                if (n <= 0) {
+                    open[k] = false, --openCount;
+                    ::close(pipes[k]);
+                    continue;
+                }
+                buffers[k].append(chunk, size_t(n));
+                size_t newline;
+                while ((newline = buffers[k].find('\n')) != std::string::npos) {
+                    const std::string line = buffers[k].substr(0, newline);
+                    buffers[k].erase(0, newline + 1);
+                    if (line.rfind("item ", 0) == 0) {
+                        const std::string record = line.substr(5) + "\n";
+                        if (::write(manifest, record.data(), record.size()) != ssize_t(record.size()))
+                            throw Error("cannot append to the manifest in '" + folder + "'");
+                        records.push_back(json::parse(line.substr(5)));
+                        ++result.rendered;
+                        progress.advance(1, records.back()["scene"].get<std::string>());
+                    } else if (line.rfind("error ", 0) == 0 && firstError.empty()) {
+                        firstError = line.substr(6);
+                    }
+                }
+            }
+        }
+        ::close(manifest);
+        bool crashed = false;
+        for (pid_t pid : children) {
+            int status = 0;
+            ::waitpid(pid, &status, 0);
+            crashed = crashed || !WIFEXITED(status) || WEXITSTATUS(status) != 0;
+        }
+        if (!firstError.empty()) throw Error(firstError);
+        if (crashed) throw Error("a dataset worker died; run the same command again to resume");
+    }
+    writeManifest(folder, records);
+    result.seconds = clock.elapsedMs() / 1000.0;
+    return result;
+}
+
+// ---- Verify, stats --------------------------------------------------------------------------------------
+
+VerifyReport verifyDataset(const std::string& folder) {
+    VerifyReport report;
+    const fs::path description = fs::path(folder) / "dataset.json";
+    if (!fs::exists(description)) throw Error("'" + folder + "' is not a dataset (no dataset.json)");
+    std::ifstream in(description);
+    const DatasetSpec spec = DatasetSpec::fromJson(json::parse(in, nullptr, false));
+    const std::vector<json> records = readManifest(folder);
+    report.items = int(records.size());
+    std::set<std::string> referenced;
+    std::set<int> indices;
+    for (const json& r : records) {
+        const std::string id = r.value("id", std::string("?"));
+        const int index = r.value("index", -1);
+        if (!indices.insert(index).second) report.problems.push_back("item " + id + ": listed twice");
+        if (index < 0 || index >= spec.count) report.problems.push_back("item " + id + ": index outside the dataset");
+        const ItemPlan plan = planItem(spec, std::max(0, index));
+        if (r.value("family", std::string()) != plan.family || r.value("split", std::string()) != splitName(plan.split))
+            report.problems.push_back("item " + id + ": family or split differs from the dataset's plan");
+        for (const char* which : {"input", "truth"}) {
+            const json& f = r["files"][which];
+            const std::string relative = f.value("path", std::string());
+            referenced.insert(relative);
+            const fs::path path = fs::path(folder) / relative;
+            std::error_code ec;
+            if (!fs::is_regular_file(path, ec)) {
+                report.problems.push_back("item " + id + ": missing " + relative);
+                continue;
+            }
+            if (fs::file_size(path, ec) != f.value("bytes", uintmax_t(0))) {
+                report.problems.push_back("item " + id + ": " + relative + " has " + std::to_string(fs::file_size(path, ec)) +
+                                          " bytes, the manifest says " + std::to_string(f.value("bytes", uintmax_t(0))));
+                continue;
+            }
+            if (fileChecksum(path.string()) != f.value("checksum", std::string()))
+                report.problems.push_back("item " + id + ": " + relative + " checksum differs (corrupt)");
+        }
+    }
+    if (int(records.size()) < spec.count)
+        report.problems.push_back(std::to_string(spec.count - int(records.size())) + " of " + std::to_string(spec.count) +
+                                  " items are not generated yet");
+    if (fs::exists(fs::path(folder) / "items"))
+        for (const auto& entry : fs::recursive_directory_iterator(fs::path(folder) / "items")) {
+            if (!entry.is_regular_file()) continue;
+            const std::string relative = fs::relative(entry.path(), folder).string();
+            if (!referenced.count(relative)) report.problems.push_back("extra file " + relative);
+        }
+    return report;
+}
+
+json datasetStats(const std::string& folder) {
+    const std::vector<json> records = readManifest(folder);
+    if (records.empty()) throw Error("'" + folder + "' has no generated items (manifest.jsonl)");
+    std::map<std::string, std::map<std::string, int>> counts;  // family -> split -> items
+    std::map<std::string, std::vector<double>> psnr;             // family -> aliased PSNRs
+    std::map<std::string, double> edges;
+    for (const json& r : records) {
+        const std::string family = r["family"], split = r["split"];
+        ++counts[family][split];
+        psnr[family].push_back(r["aliased_psnr"].get<double>());
+        edges[family] += r["edge_fraction"].get<double>();
+    }
+    auto summary = [](std::vector<double> v) {
+        std::sort(v.begin(), v.end());
+        double sum = 0;
+        for (double x : v) sum += x;
+        return json{{"min", v.front()}, {"median", v[v.size() / 2]}, {"mean", sum / double(v.size())}, {"max", v.back()}};
+    };
+    json out;
+    std::vector<double> all;
+    std::map<std::string, int> splits;
+    for (const auto& [family, bySplit] : counts) {
+        int total = 0;
+        for (const auto& [split, n] : bySplit) total += n, splits[split] += n;
+        out["families"][family] = {{"items", total},
+                                   {"splits", bySplit},
+                                   {"edge_fraction", edges[family] / total},
+                                   {"aliased_psnr", summary(psnr[family])}};
+        all.insert(all.end(), psnr[family].begin(), psnr[family].end());
+    }
+    out["items"] = records.size();
+    out["splits"] = splits;
+    out["aliased_psnr"] = summary(all);
+    return out;
+}
+
+}  // namespace dejag::data

@@ -1,0 +1,108 @@
+// dejag/data: datasets of aliased frames and their supersampled truth, rendered from scene families.
+//
+// A dataset folder holds dataset.json (the arguments that define it), manifest.jsonl (one record per
+// complete item, sorted by index once generation finishes) and items/FAMILY/ID_input.exr (lit colour +
+// albedo, depth, motion, IDs of the aliased frame: unjittered, one sample per pixel) and ID_truth.exr
+// (the accumulated truth of the same pose). Items are independent: item i's scene, camera, light,
+// colours and time come from hash(seed, i) and its family from i, so a dataset renders the same on any
+// number of workers and in any order.
+#pragma once
+
+#include <cstdint>
+#include <functional>
+#include <memory>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+namespace dejag::data {
+
+struct FamilyInfo {
+    std::string name;
+    std::vector<std::string> scenes;  // render scene names drawn from
+    std::string description;
+};
+// Every family (from the renderer's scene catalogue), in a stable order.
+const std::vector<FamilyInfo>& datasetFamilies();
+// Default held-out test families: scenes a network trained on the others has never seen.
+const std::vector<std::string>& defaultTestFamilies();
+
+struct DatasetSpec {
+    std::vector<std::string> families;      // drawn round-robin by item index
+    std::vector<std::string> testFamilies;  // held out entirely (a subset of families)
+    int count = 0;
+    int width = 256, height = 256;
+    int truthSamples = 128;
+    bool adaptive = true;
+    uint64_t seed = 1;
+    double validationFraction = 0.1;  // of the non-test items, chosen by item seed
+
+    // Throws dejag::Error for an unknown family, count < 1, a bad size or sample count.
+    void validate() const;
+    nlohmann::json toJson() const;
+    static DatasetSpec fromJson(const nlohmann::json& j);
+};
+
+enum class Split { Train, Validation, Test };
+const char* splitName(Split split);
+
+// What item `index` of a dataset is, before it is rendered.
+struct ItemPlan {
+    int index = 0;
+    std::string id;  // "000042"
+    std::string family, scene;
+    uint64_t seed = 0;
+    Split split = Split::Train;
+    double time = 0;  // scene time (animated scenes)
+    std::string inputFile() const { return "items/" + family + "/" + id + "_input.exr"; }
+    std::string truthFile() const { return "items/" + family + "/" + id + "_truth.exr"; }
+};
+ItemPlan planItem(const DatasetSpec& spec, int index);
+
+// Renders item `plan` into `folder` (files written atomically) and returns its manifest record.
+// Needs a current OpenGL context in this process (render::createOsMesaContext()).
+class ItemRenderer {
+  public:
+    ItemRenderer();
+    ~ItemRenderer();
+    ItemRenderer(const ItemRenderer&) = delete;
+    ItemRenderer& operator=(const ItemRenderer&) = delete;
+    nlohmann::json render(const DatasetSpec& spec, const ItemPlan& plan, const std::string& folder);
+
+  private:
+    struct Impl;
+    std::unique_ptr<Impl> impl_;
+};
+
+// FNV-1a 64-bit of a file's bytes, as 16 hex digits. Throws dejag::Error if unreadable.
+std::string fileChecksum(const std::string& path);
+
+// manifest.jsonl: records in file order; a truncated last line (an interrupted append) is ignored.
+std::vector<nlohmann::json> readManifest(const std::string& folder);
+
+struct GenerateOptions {
+    int workers = 1;     // processes, each with its own OpenGL context
+    bool quiet = false;  // no progress bar
+};
+struct GenerateResult {
+    int rendered = 0, skipped = 0;
+    double seconds = 0;
+};
+// Renders every missing item of the dataset in `folder` (creating it), resuming an interrupted run:
+// complete items (in the manifest, files present) are skipped, partial ones redone. Throws
+// dejag::Error if the folder holds a different dataset.
+GenerateResult generateDataset(const DatasetSpec& spec, const std::string& folder, const GenerateOptions& options);
+
+struct VerifyReport {
+    int items = 0;
+    std::vector<std::string> problems;  // one line each: missing, wrong size, checksum, extra file
+    bool ok() const { return problems.empty(); }
+};
+VerifyReport verifyDataset(const std::string& folder);
+
+// Items per family and split, fraction of edge pixels, aliased-vs-truth PSNR distribution.
+nlohmann::json datasetStats(const std::string& folder);
+
+}  // namespace dejag::data

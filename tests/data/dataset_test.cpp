@@ -1,0 +1,221 @@
+// Datasets: item plans and splits, generation through the binary (worker processes), resume after
+// kill -9, verify and stats, bad input.
+#include "data/dataset.h"
+
+#include <gtest/gtest.h>
+#include <signal.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <chrono>
+#include <filesystem>
+#include <fstream>
+#include <set>
+#include <sstream>
+#include <thread>
+
+#include "base/error.h"
+#include "tests/test_util.h"
+
+namespace dejag::data {
+namespace {
+
+namespace fs = std::filesystem;
+
+DatasetSpec allFamilies(int count) {
+    DatasetSpec spec;
+    for (const FamilyInfo& f : datasetFamilies()) spec.families.push_back(f.name);
+    spec.testFamilies = defaultTestFamilies();
+    spec.count = count;
+    return spec;
+}
+
+TEST(DatasetPlan, FamiliesRoundRobinAndTestFamiliesNeverLeak) {
+    const DatasetSpec spec = allFamilies(2000);
+    std::set<std::string> trainFamilies, testFamilies;
+    int validation = 0, nonTest = 0;
+    for (int i = 0; i < spec.count; ++i) {
+        const ItemPlan p = planItem(spec, i);
+        EXPECT_EQ(p.family, spec.families[size_t(i) % spec.families.size()]);
+        if (p.split == Split::Test) {
+            testFamilies.insert(p.family);
+        } else {
+            trainFamilies.insert(p.family);
+            ++nonTest;
+            validation += p.split == Split::Validation;
+        }
+        const ItemPlan again = planItem(spec, i);
+        EXPECT_EQ(again.seed, p.seed);
+        EXPECT_EQ(again.scene, p.scene);
+    }
+    EXPECT_EQ(testFamilies, (std::set<std::string>(spec.testFamilies.begin(), spec.testFamilies.end())));
+    for (const std::string& f : testFamilies) EXPECT_FALSE(trainFamilies.count(f)) << f;
+    EXPECT_NEAR(double(validation) / nonTest, 0.1, 0.03);
+}
+
+TEST(DatasetPlan, RefusesBadSpecs) {
+    DatasetSpec spec = allFamilies(10);
+    spec.families.push_back("teapots");
+    EXPECT_THROW(spec.validate(), Error);
+    spec = allFamilies(0);
+    EXPECT_THROW(spec.validate(), Error);
+    spec = allFamilies(10);
+    spec.testFamilies = {"nowhere"};
+    EXPECT_THROW(spec.validate(), Error);
+    spec = allFamilies(10);
+    spec.testFamilies = spec.families;
+    EXPECT_THROW(spec.validate(), Error);
+    EXPECT_NO_THROW(allFamilies(10).validate());
+    EXPECT_EQ(DatasetSpec::fromJson(allFamilies(7).toJson()).toJson(), allFamilies(7).toJson());
+}
+
+// ---- Through the binary -------------------------------------------------------------------------------
+
+int run(const std::string& arguments, std::string* err = nullptr) {
+    const std::string errFile = fs::temp_directory_path() / ("dejag-data-err-" + std::to_string(::getpid()));
+    const int status = std::system(("'" + std::string(DEJAG_BINARY) + "' " + arguments + " >/dev/null 2>'" + errFile + "'").c_str());
+    if (err) {
+        std::ifstream in(errFile);
+        std::stringstream s;
+        s << in.rdbuf();
+        *err = s.str();
+    }
+    fs::remove(errFile);
+    return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+}
+
+std::string slurp(const fs::path& path) {
+    std::ifstream in(path, std::ios::binary);
+    std::stringstream s;
+    s << in.rdbuf();
+    return s.str();
+}
+
+// Every file of a dataset folder (relative path -> bytes).
+std::map<std::string, std::string> contents(const fs::path& folder) {
+    std::map<std::string, std::string> files;
+    for (const auto& entry : fs::recursive_directory_iterator(folder))
+        if (entry.is_regular_file()) files[fs::relative(entry.path(), folder).string()] = slurp(entry.path());
+    return files;
+}
+
+// Same file names and bytes (reported by name, not by dumping the bytes).
+void expectSameFiles(const fs::path& a, const fs::path& b) {
+    const auto left = contents(a), right = contents(b);
+    std::set<std::string> names;
+    for (const auto& [name, bytes] : left) names.insert(name);
+    for (const auto& [name, bytes] : right) names.insert(name);
+    for (const std::string& name : names) {
+        const bool inLeft = left.count(name) > 0, inRight = right.count(name) > 0;
+        EXPECT_TRUE(inLeft && inRight) << name << " is only in " << (inLeft ? a : b);
+        if (inLeft && inRight) {
+            EXPECT_TRUE(left.at(name) == right.at(name)) << name << " differs";
+        }
+    }
+}
+
+const std::string kTiny = "data generate --families shapes,pipes,thin,foliage,random --test-families foliage "
+                          "--count 10 --size 48x48 --truth 8 --quiet";
+
+TEST(DatasetGenerate, TinyRecipeVerifiesAndKeepsFamiliesApart) {
+    testing::TempDir dir;
+    const std::string out = dir.file("tiny");
+    ASSERT_EQ(run(kTiny + " --workers 2 --out '" + out + "'"), 0);
+    EXPECT_TRUE(verifyDataset(out).ok());
+    const std::vector<nlohmann::json> records = readManifest(out);
+    ASSERT_EQ(records.size(), 10u);
+    std::set<std::string> train, test;
+    for (size_t i = 0; i < records.size(); ++i) {
+        EXPECT_EQ(records[i]["index"].get<int>(), int(i));  // sorted once complete
+        (records[i]["split"] == "test" ? test : train).insert(records[i]["family"].get<std::string>());
+    }
+    EXPECT_EQ(test, std::set<std::string>{"foliage"});
+    EXPECT_FALSE(train.count("foliage"));
+    const nlohmann::json stats = datasetStats(out);
+    EXPECT_EQ(stats["items"].get<int>(), 10);
+    EXPECT_EQ(stats["families"]["foliage"]["splits"]["test"].get<int>(), 2);
+    // Running the same command again renders nothing and changes nothing.
+    const auto before = contents(out);
+    ASSERT_EQ(run(kTiny + " --workers 2 --out '" + out + "'"), 0);
+    EXPECT_TRUE(contents(out) == before);
+}
+
+TEST(DatasetGenerate, KillNineThenTheSameCommandEqualsAnUninterruptedRun) {
+    testing::TempDir dir;
+    const std::string whole = dir.file("whole"), broken = dir.file("broken");
+    const std::string slow = "data generate --families shapes,pipes,thin --test-families none --count 9 "
+                             "--size 128x128 --truth 64 --quiet";
+    ASSERT_EQ(run(slow + " --workers 2 --out '" + whole + "'"), 0);
+    // Start the same generation in its own process group and kill the whole group mid-way.
+    const pid_t pid = ::fork();
+    ASSERT_GE(pid, 0);
+    if (pid == 0) {
+        ::setpgid(0, 0);
+        const std::string command = "exec '" + std::string(DEJAG_BINARY) + "' " + slow + " --workers 1 --out '" + broken + "' 2>/dev/null";
+        ::execl("/bin/sh", "sh", "-c", command.c_str(), static_cast<char*>(nullptr));
+        _exit(127);
+    }
+    ::setpgid(pid, pid);
+    const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(120);
+    bool killedMidway = false;
+    while (std::chrono::steady_clock::now() < deadline) {
+        if (readManifest(broken).size() >= 3) {
+            killedMidway = ::kill(-pid, SIGKILL) == 0;
+            break;
+        }
+        std::this_thread::sleep_for(std::chrono::milliseconds(20));
+    }
+    int status = 0;
+    ::waitpid(pid, &status, 0);
+    ASSERT_TRUE(killedMidway);
+    EXPECT_TRUE(WIFSIGNALED(status));
+    EXPECT_LT(readManifest(broken).size(), 9u);
+    ASSERT_EQ(run(slow + " --workers 2 --out '" + broken + "'"), 0);
+    expectSameFiles(broken, whole);
+}
+
+TEST(DatasetVerify, CatchesCorruptMissingAndExtraFiles) {
+    testing::TempDir dir;
+    const std::string out = dir.file("tiny");
+    ASSERT_EQ(run(kTiny + " --out '" + out + "'"), 0);
+    const std::vector<nlohmann::json> records = readManifest(out);
+    const fs::path truth = fs::path(out) / records[3]["files"]["truth"]["path"].get<std::string>();
+    std::string bytes = slurp(truth);
+    bytes[bytes.size() / 2] ^= 0x20;
+    std::ofstream(truth, std::ios::binary) << bytes;
+    std::string err;
+    EXPECT_EQ(run("data verify '" + out + "'", &err), 2);
+    EXPECT_NE(err.find("000003"), std::string::npos) << err;
+    EXPECT_NE(err.find("checksum"), std::string::npos) << err;
+    fs::remove(fs::path(out) / records[5]["files"]["input"]["path"].get<std::string>());
+    std::ofstream(fs::path(out) / "items" / "stray.exr") << "x";
+    const VerifyReport report = verifyDataset(out);
+    EXPECT_EQ(report.problems.size(), 3u);
+    std::string all;
+    for (const std::string& p : report.problems) all += p + "\n";
+    EXPECT_NE(all.find("missing"), std::string::npos) << all;
+    EXPECT_NE(all.find("extra file items/stray.exr"), std::string::npos) << all;
+}
+
+TEST(DatasetGenerate, BadInputIsOneLineAndOverwritesNothing) {
+    testing::TempDir dir;
+    const std::string out = dir.file("tiny");
+    std::string err;
+    EXPECT_EQ(run("data generate --families shapes,teapots --count 4 --out '" + out + "'", &err), 2);
+    EXPECT_NE(err.find("teapots"), std::string::npos) << err;
+    EXPECT_EQ(run("data generate --families shapes --count 0 --out '" + out + "'", &err), 2);
+    EXPECT_NE(err.find("--count"), std::string::npos) << err;
+    EXPECT_FALSE(fs::exists(out));
+    ASSERT_EQ(run(kTiny + " --out '" + out + "'"), 0);
+    const auto before = contents(out);
+    EXPECT_EQ(run("data generate --families shapes,pipes,thin,foliage,random --test-families foliage --count 10 "
+                  "--size 64x64 --truth 8 --quiet --out '" + out + "'",
+                  &err),
+              2);
+    EXPECT_NE(err.find("different dataset"), std::string::npos) << err;
+    EXPECT_EQ(std::count(err.begin(), err.end(), '\n'), 1) << err;
+    EXPECT_TRUE(contents(out) == before);
+}
+
+}  // namespace
+}  // namespace dejag::data
