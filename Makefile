@@ -2,6 +2,7 @@
 #   make test    install what is missing, configure, build, run every test
 #   make bench   build and run the benchmarks
 #   make build   configure and build (Release)
+#   make dataset render the default training dataset into out/dataset (resumable: run it again)
 # PRESET=debug|asan|tsan selects another build; CI=true turns warnings into errors.
 
 PRESET ?= release
@@ -12,7 +13,7 @@ ifneq ($(CI),)
 CMAKE_FLAGS += -DDEJAG_WERROR=ON
 endif
 
-.PHONY: all deps configure build test test-asan test-tsan bench golden format clean
+.PHONY: all deps configure build test test-asan test-tsan bench dataset golden format clean
 
 all: build
 
@@ -27,6 +28,14 @@ build: configure
 
 test: build
 	cd $(BUILD_DIR) && ctest --output-on-failure -j $(JOBS)
+
+# The default recipe: 200 items of every family at 256x256, 128-sample adaptive truth, two worker
+# processes (docs/data.md has the measured time).
+DATASET ?= out/dataset
+dataset: build
+	$(BUILD_DIR)/dejag data generate --families all --count 2200 --size 256x256 --truth 128 --adaptive \
+		--workers 2 --out $(DATASET)
+	$(BUILD_DIR)/dejag data stats $(DATASET)
 
 test-asan:
 	$(MAKE) test PRESET=asan

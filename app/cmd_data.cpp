@@ -6,6 +6,7 @@
 #include "app/commands.h"
 #include "base/error.h"
 #include "data/dataset.h"
+#include "data/patches.h"
 
 namespace dejag::cli {
 namespace {
@@ -77,23 +78,27 @@ void runGenerate(const GenerateArguments& args) {
 }  // namespace
 
 void registerDataCommand(CLI::App& app) {
-    CLI::App* data = app.add_subcommand("data", "datasets: generate aliased/truth pairs, verify them, print statistics");
+    CLI::App* data =
+        app.add_subcommand("data", "datasets: generate aliased/truth pairs, verify them, print statistics");
     data->require_subcommand(1);
 
     auto args = std::make_shared<GenerateArguments>();
     CLI::App* generate = data->add_subcommand(
-        "generate", "render a dataset: aliased frames + buffers and their accumulated truth, with a manifest");
+        "generate",
+        "render a dataset: aliased frames + buffers and their accumulated truth, with a manifest");
     generate->add_option("--families", args->families, "comma-separated families, or all (--list-families)")
         ->capture_default_str();
-    generate->add_option("--test-families", args->testFamilies,
-                         "families held out for the test split: default (architecture, foliage), none, or a list")
+    generate
+        ->add_option("--test-families", args->testFamilies,
+                     "families held out for the test split: default (architecture, foliage), none, or a list")
         ->capture_default_str();
     generate->add_option("--count", args->count, "number of items");
     generate->add_option("--size", args->size, "WxH of every item")->capture_default_str();
     generate->add_option("--truth", args->truth, "samples accumulated for the truth")->capture_default_str();
     generate->add_flag("--adaptive", args->adaptive, "adaptive truth (stop converged tiles early)");
     generate->add_option("--out", args->out, "dataset folder (created; re-running resumes it)");
-    generate->add_option("--workers", args->workers, "worker processes, one OpenGL context each")->capture_default_str();
+    generate->add_option("--workers", args->workers, "worker processes, one OpenGL context each")
+        ->capture_default_str();
     generate->add_option("--seed", args->seed, "dataset seed")->capture_default_str();
     generate->add_flag("--list-families", args->listFamilies, "print the families and exit");
     generate->add_flag("--json", args->json, "print a JSON summary");
@@ -102,51 +107,83 @@ void registerDataCommand(CLI::App& app) {
     generate->footer(
         "Writes DIR/dataset.json, DIR/manifest.jsonl (one JSON record per complete item: id, family, scene,\n"
         "seed, split, camera, sample counts, size, checksums) and DIR/items/FAMILY/ID_input.exr (R G B,\n"
-        "albedo, depth, motion, id of the aliased frame) + ID_truth.exr. Test split: whole families held out;\n"
+        "albedo, depth, motion, id of the aliased frame) + ID_truth.exr. Test split: whole families held "
+        "out;\n"
         "validation: a tenth of the other items by seed. Interrupted? Run the same command again.");
     generate->callback([args] { runGenerate(*args); });
 
     auto folder = std::make_shared<std::string>();
     auto json = std::make_shared<bool>(false);
-    CLI::App* verify = data->add_subcommand("verify", "check a dataset: checksums, missing or extra files, sizes");
+    CLI::App* verify =
+        data->add_subcommand("verify", "check a dataset: checksums, missing or extra files, sizes");
     verify->add_option("folder", *folder, "dataset folder")->required();
     verify->add_flag("--json", *json, "print the report as JSON");
     verify->callback([folder, json] {
         const data::VerifyReport report = data::verifyDataset(*folder);
         if (*json)
-            std::printf("%s\n", nlohmann::json{{"items", report.items}, {"problems", report.problems}, {"ok", report.ok()}}
-                                    .dump()
-                                    .c_str());
+            std::printf(
+                "%s\n",
+                nlohmann::json{{"items", report.items}, {"problems", report.problems}, {"ok", report.ok()}}
+                    .dump()
+                    .c_str());
         else
             for (const std::string& p : report.problems) std::printf("%s\n", p.c_str());
         if (!report.ok())
-            throw Error(std::to_string(report.problems.size()) + " problem(s) in '" + *folder + "': " +
-                        report.problems.front());
-        if (!*json) std::printf("%s: %d items, all files present and intact\n", folder->c_str(), report.items);
+            throw Error(std::to_string(report.problems.size()) + " problem(s) in '" + *folder +
+                        "': " + report.problems.front());
+        if (!*json)
+            std::printf("%s: %d items, all files present and intact\n", folder->c_str(), report.items);
     });
 
     auto statsFolder = std::make_shared<std::string>();
     auto statsJson = std::make_shared<bool>(false);
-    CLI::App* stats = data->add_subcommand("stats", "items per family and split, edge pixels, aliased-vs-truth PSNR");
+    auto statsSampler = std::make_shared<bool>(false);
+    auto statsPatch = std::make_shared<int>(96);
+    CLI::App* stats =
+        data->add_subcommand("stats", "items per family and split, edge pixels, aliased-vs-truth PSNR");
     stats->add_option("folder", *statsFolder, "dataset folder")->required();
     stats->add_flag("--json", *statsJson, "print JSON");
-    stats->callback([statsFolder, statsJson] {
-        const nlohmann::json s = data::datasetStats(*statsFolder);
+    stats->add_flag(
+        "--sampler", *statsSampler,
+        "also measure the patch sampler's aliasing bias on the train split (loads it into memory)");
+    stats->add_option("--patch", *statsPatch, "patch size for --sampler")->capture_default_str();
+    stats->callback([statsFolder, statsJson, statsSampler, statsPatch] {
+        nlohmann::json s = data::datasetStats(*statsFolder);
+        if (*statsSampler) {
+            // Fraction of aliasing-source pixels in sampled patches: the default bias vs uniform crops.
+            data::PatchOptions options;
+            options.patchSize = *statsPatch;
+            double fractions[2] = {0, 0};
+            for (int uniform = 0; uniform < 2; ++uniform) {
+                if (uniform) options.uniformFraction = 1.0;
+                data::PatchSampler sampler(*statsFolder, options);
+                for (uint64_t i = 0; i < 50; ++i) fractions[uniform] += sampler.assemble(i).edgeFraction / 50;
+            }
+            s["patch_sampler"] = {{"patch", *statsPatch},
+                                  {"uniform_fraction", data::PatchOptions().uniformFraction},
+                                  {"aliasing_pixels_biased", fractions[0]},
+                                  {"aliasing_pixels_uniform", fractions[1]}};
+        }
         if (*statsJson) {
             std::printf("%s\n", s.dump().c_str());
             return;
         }
-        std::printf("%-13s %6s %6s %6s %6s %7s   aliased PSNR dB: min / median / max\n", "family", "items", "train",
-                    "val", "test", "edges");
+        std::printf("%-13s %6s %6s %6s %6s %7s   aliased PSNR dB: min / median / max\n", "family", "items",
+                    "train", "val", "test", "edges");
         for (const auto& [family, f] : s["families"].items()) {
             auto count = [&](const char* split) { return f["splits"].value(split, 0); };
-            std::printf("%-13s %6d %6d %6d %6d %6.1f%%   %.2f / %.2f / %.2f\n", family.c_str(), f["items"].get<int>(),
-                        count("train"), count("validation"), count("test"), 100 * f["edge_fraction"].get<double>(),
-                        f["aliased_psnr"]["min"].get<double>(), f["aliased_psnr"]["median"].get<double>(),
-                        f["aliased_psnr"]["max"].get<double>());
+            std::printf("%-13s %6d %6d %6d %6d %6.1f%%   %.2f / %.2f / %.2f\n", family.c_str(),
+                        f["items"].get<int>(), count("train"), count("validation"), count("test"),
+                        100 * f["edge_fraction"].get<double>(), f["aliased_psnr"]["min"].get<double>(),
+                        f["aliased_psnr"]["median"].get<double>(), f["aliased_psnr"]["max"].get<double>());
         }
         std::printf("%d items; aliased PSNR median %.2f dB\n", s["items"].get<int>(),
                     s["aliased_psnr"]["median"].get<double>());
+        if (s.contains("patch_sampler"))
+            std::printf(
+                "patch sampler (%d px): %.1f %% aliasing pixels per patch, %.1f %% with uniform crops\n",
+                *statsPatch, 100 * s["patch_sampler"]["aliasing_pixels_biased"].get<double>(),
+                100 * s["patch_sampler"]["aliasing_pixels_uniform"].get<double>());
     });
 }
 

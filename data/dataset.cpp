@@ -55,7 +55,8 @@ const std::vector<FamilyInfo>& datasetFamilies() {
     static const std::vector<FamilyInfo> families = [] {
         std::vector<FamilyInfo> list;
         for (const render::SceneInfo& scene : render::sceneCatalogue()) {
-            auto it = std::find_if(list.begin(), list.end(), [&](const FamilyInfo& f) { return f.name == scene.family; });
+            auto it = std::find_if(list.begin(), list.end(),
+                                   [&](const FamilyInfo& f) { return f.name == scene.family; });
             if (it == list.end()) {
                 list.push_back({scene.family, {}, ""});
                 it = list.end() - 1;
@@ -82,15 +83,18 @@ void DatasetSpec::validate() const {
             throw Error("unknown family '" + f + "' (" + join(known) + ")");
     for (const std::string& f : testFamilies)
         if (std::find(families.begin(), families.end(), f) == families.end())
-            throw Error("test family '" + f + "' is not one of the dataset's families (" + join(families) + ")");
+            throw Error("test family '" + f + "' is not one of the dataset's families (" + join(families) +
+                        ")");
     if (testFamilies.size() >= families.size())
         throw Error("every family is held out for testing: nothing is left to train on");
     if (count < 1) throw Error("--count must be at least 1, not " + std::to_string(count));
     if (width < 16 || height < 16 || width > 8192 || height > 8192)
-        throw Error("item size " + std::to_string(width) + "x" + std::to_string(height) + " is outside 16..8192");
+        throw Error("item size " + std::to_string(width) + "x" + std::to_string(height) +
+                    " is outside 16..8192");
     if (truthSamples < 1 || truthSamples > 4096)
         throw Error("--truth must be 1..4096 samples, not " + std::to_string(truthSamples));
-    if (!(validationFraction >= 0 && validationFraction < 1)) throw Error("the validation fraction must be in [0, 1)");
+    if (!(validationFraction >= 0 && validationFraction < 1))
+        throw Error("the validation fraction must be in [0, 1)");
 }
 
 json DatasetSpec::toJson() const {
@@ -108,7 +112,8 @@ json DatasetSpec::toJson() const {
 DatasetSpec DatasetSpec::fromJson(const json& j) {
     DatasetSpec s;
     try {
-        if (j.at("format") != "dejag-dataset-1") throw Error("unknown dataset format " + j.at("format").dump());
+        if (j.at("format") != "dejag-dataset-1")
+            throw Error("unknown dataset format " + j.at("format").dump());
         s.families = j.at("families").get<std::vector<std::string>>();
         s.testFamilies = j.at("test_families").get<std::vector<std::string>>();
         s.count = j.at("count").get<int>();
@@ -143,12 +148,13 @@ ItemPlan planItem(const DatasetSpec& spec, int index) {
     p.id = id;
     p.family = spec.families[size_t(index) % spec.families.size()];
     p.seed = mix(spec.seed * 0x100000001B3ull ^ uint64_t(index));
-    const FamilyInfo& family =
-        *std::find_if(datasetFamilies().begin(), datasetFamilies().end(), [&](const FamilyInfo& f) { return f.name == p.family; });
+    const FamilyInfo& family = *std::find_if(datasetFamilies().begin(), datasetFamilies().end(),
+                                             [&](const FamilyInfo& f) { return f.name == p.family; });
     uint64_t state = p.seed;
     p.scene = family.scenes[size_t(uniform(state, 0, double(family.scenes.size())))];
     p.time = std::floor(uniform(state, 1, 100));
-    const bool test = std::find(spec.testFamilies.begin(), spec.testFamilies.end(), p.family) != spec.testFamilies.end();
+    const bool test =
+        std::find(spec.testFamilies.begin(), spec.testFamilies.end(), p.family) != spec.testFamilies.end();
     const double draw = double(mix(p.seed ^ 0x5EEDull) >> 11) * 0x1.0p-53;
     p.split = test ? Split::Test : draw < spec.validationFraction ? Split::Validation : Split::Train;
     return p;
@@ -197,14 +203,15 @@ void vary(render::Scene& scene, uint64_t seed) {
         pose.fovY = std::clamp(pose.fovY * zoom, 0.3, 2.0);
         return pose;
     };
-    scene.lightDirection = render::normalize(
-        {uniform(state, -1, 1), uniform(state, 0.25, 1), uniform(state, -0.2, 1)});
+    scene.lightDirection =
+        render::normalize({uniform(state, -1, 1), uniform(state, 0.25, 1), uniform(state, -0.2, 1)});
     const double warmth = uniform(state, -0.08, 0.08);
     scene.lightColour = {1.0 + warmth, 1.0, 1.0 - warmth};
     for (render::SceneObject& o : scene.objects) {
         if (o.material.pattern == render::Pattern::Texture) continue;  // textures keep their colours
         render::Vec3& c = o.material.colour;
-        c = {std::clamp(c.x * uniform(state, 0.75, 1.25), 0.02, 1.0), std::clamp(c.y * uniform(state, 0.75, 1.25), 0.02, 1.0),
+        c = {std::clamp(c.x * uniform(state, 0.75, 1.25), 0.02, 1.0),
+             std::clamp(c.y * uniform(state, 0.75, 1.25), 0.02, 1.0),
              std::clamp(c.z * uniform(state, 0.75, 1.25), 0.02, 1.0)};
     }
 }
@@ -250,7 +257,8 @@ json ItemRenderer::render(const DatasetSpec& spec, const ItemPlan& plan, const s
     // Edge pixels (an ID or a depth jump of > 5 % to the right or below) and the aliased frame's PSNR.
     int64_t edges = 0;
     double squared = 0;
-    const int id = input.findChannel("id.ID"), depth = input.findChannel("depth.Z"), r = input.findChannel("R");
+    const int id = input.findChannel("id.ID"), depth = input.findChannel("depth.Z"),
+              r = input.findChannel("R");
     for (int y = 0; y < input.height; ++y)
         for (int x = 0; x < input.width; ++x) {
             bool edge = false;
@@ -273,24 +281,32 @@ json ItemRenderer::render(const DatasetSpec& spec, const ItemPlan& plan, const s
     writeImage((fs::path(folder) / plan.truthFile()).string(), truth);
     const render::CameraPose pose = scene.cameraAt(plan.time);
     auto vec = [](const render::Vec3& v) { return json{v.x, v.y, v.z}; };
-    return {{"index", plan.index},
-            {"id", plan.id},
-            {"family", plan.family},
-            {"scene", plan.scene},
-            {"seed", plan.seed},
-            {"split", splitName(plan.split)},
-            {"time", plan.time},
-            {"size", {spec.width, spec.height}},
-            {"camera",
-             {{"eye", vec(pose.eye)}, {"target", vec(pose.target)}, {"up", vec(pose.up)}, {"fov_y", pose.fovY},
-              {"tilted", options.tiltedCamera}}},
-            {"sampler", render::samplerName(options.sampler)},
-            {"light", vec(scene.lightDirection)},
-            {"samples", {{"input", 1}, {"truth", stats.samples}, {"truth_tile_samples", stats.tileSamples},
-                         {"adaptive", spec.adaptive}}},
-            {"edge_fraction", double(edges) / double(input.pixelCount())},
-            {"aliased_psnr", mse > 0 ? 10 * std::log10(1.0 / mse) : 999.0},
-            {"files", {{"input", fileRecord(folder, plan.inputFile())}, {"truth", fileRecord(folder, plan.truthFile())}}}};
+    return {
+        {"index", plan.index},
+        {"id", plan.id},
+        {"family", plan.family},
+        {"scene", plan.scene},
+        {"seed", plan.seed},
+        {"split", splitName(plan.split)},
+        {"time", plan.time},
+        {"size", {spec.width, spec.height}},
+        {"camera",
+         {{"eye", vec(pose.eye)},
+          {"target", vec(pose.target)},
+          {"up", vec(pose.up)},
+          {"fov_y", pose.fovY},
+          {"tilted", options.tiltedCamera}}},
+        {"sampler", render::samplerName(options.sampler)},
+        {"light", vec(scene.lightDirection)},
+        {"samples",
+         {{"input", 1},
+          {"truth", stats.samples},
+          {"truth_tile_samples", stats.tileSamples},
+          {"adaptive", spec.adaptive}}},
+        {"edge_fraction", double(edges) / double(input.pixelCount())},
+        {"aliased_psnr", mse > 0 ? 10 * std::log10(1.0 / mse) : 999.0},
+        {"files",
+         {{"input", fileRecord(folder, plan.inputFile())}, {"truth", fileRecord(folder, plan.truthFile())}}}};
 }
 
 // ---- Manifest, generation -------------------------------------------------------------------------------
@@ -326,18 +342,21 @@ bool filesPresent(const std::string& folder, const json& record) {
         const json& f = record["files"][which];
         const fs::path path = fs::path(folder) / f["path"].get<std::string>();
         std::error_code ec;
-        if (!fs::is_regular_file(path, ec) || fs::file_size(path, ec) != f["bytes"].get<uintmax_t>()) return false;
+        if (!fs::is_regular_file(path, ec) || fs::file_size(path, ec) != f["bytes"].get<uintmax_t>())
+            return false;
     }
     return true;
 }
 
 // The worker loop of one child process: render its share and report each record on `out`.
-[[noreturn]] void runWorker(const DatasetSpec& spec, const std::string& folder, const std::vector<int>& items, int out) {
+[[noreturn]] void runWorker(const DatasetSpec& spec, const std::string& folder, const std::vector<int>& items,
+                            int out) {
     int status = 0;
     try {
         ItemRenderer renderer;
         for (int index : items) {
-            const std::string line = "item " + renderer.render(spec, planItem(spec, index), folder).dump() + "\n";
+            const std::string line =
+                "item " + renderer.render(spec, planItem(spec, index), folder).dump() + "\n";
             if (::write(out, line.data(), line.size()) != ssize_t(line.size())) _exit(3);
         }
     } catch (const std::exception& e) {
@@ -353,7 +372,8 @@ bool filesPresent(const std::string& folder, const json& record) {
 
 }  // namespace
 
-GenerateResult generateDataset(const DatasetSpec& spec, const std::string& folder, const GenerateOptions& options) {
+GenerateResult generateDataset(const DatasetSpec& spec, const std::string& folder,
+                               const GenerateOptions& options) {
     spec.validate();
     if (options.workers < 1 || options.workers > 64) throw Error("--workers must be 1..64");
     const Stopwatch clock;
@@ -368,7 +388,8 @@ GenerateResult generateDataset(const DatasetSpec& spec, const std::string& folde
         try {
             existing = json::parse(in);
         } catch (const json::exception&) {
-            throw Error("'" + description.string() + "' is corrupt; the folder is not a dataset dejag can resume");
+            throw Error("'" + description.string() +
+                        "' is corrupt; the folder is not a dataset dejag can resume");
         }
         if (existing != spec.toJson())
             throw Error("'" + folder + "' holds a different dataset (" + existing.dump() +
@@ -380,7 +401,8 @@ GenerateResult generateDataset(const DatasetSpec& spec, const std::string& folde
     // Temporary files of an interrupted run.
     if (fs::exists(fs::path(folder) / "items"))
         for (const auto& entry : fs::recursive_directory_iterator(fs::path(folder) / "items"))
-            if (entry.is_regular_file() && entry.path().filename().string().find(".tmp-") != std::string::npos)
+            if (entry.is_regular_file() &&
+                entry.path().filename().string().find(".tmp-") != std::string::npos)
                 fs::remove(entry.path(), ec);
 
     std::map<int, json> done;
@@ -419,7 +441,8 @@ GenerateResult generateDataset(const DatasetSpec& spec, const std::string& folde
             children.push_back(pid);
             pipes.push_back(fds[0]);
         }
-        const int manifest = ::open((fs::path(folder) / "manifest.jsonl").c_str(), O_WRONLY | O_APPEND | O_CREAT, 0644);
+        const int manifest =
+            ::open((fs::path(folder) / "manifest.jsonl").c_str(), O_WRONLY | O_APPEND | O_CREAT, 0644);
         if (manifest < 0) throw Error("cannot append to the manifest in '" + folder + "'");
         Progress progress("data generate", int64_t(pending.size()), options.quiet);
         std::vector<std::string> buffers(pipes.size());
@@ -491,9 +514,11 @@ VerifyReport verifyDataset(const std::string& folder) {
         const std::string id = r.value("id", std::string("?"));
         const int index = r.value("index", -1);
         if (!indices.insert(index).second) report.problems.push_back("item " + id + ": listed twice");
-        if (index < 0 || index >= spec.count) report.problems.push_back("item " + id + ": index outside the dataset");
+        if (index < 0 || index >= spec.count)
+            report.problems.push_back("item " + id + ": index outside the dataset");
         const ItemPlan plan = planItem(spec, std::max(0, index));
-        if (r.value("family", std::string()) != plan.family || r.value("split", std::string()) != splitName(plan.split))
+        if (r.value("family", std::string()) != plan.family ||
+            r.value("split", std::string()) != splitName(plan.split))
             report.problems.push_back("item " + id + ": family or split differs from the dataset's plan");
         for (const char* which : {"input", "truth"}) {
             const json& f = r["files"][which];
@@ -506,8 +531,9 @@ VerifyReport verifyDataset(const std::string& folder) {
                 continue;
             }
             if (fs::file_size(path, ec) != f.value("bytes", uintmax_t(0))) {
-                report.problems.push_back("item " + id + ": " + relative + " has " + std::to_string(fs::file_size(path, ec)) +
-                                          " bytes, the manifest says " + std::to_string(f.value("bytes", uintmax_t(0))));
+                report.problems.push_back(
+                    "item " + id + ": " + relative + " has " + std::to_string(fs::file_size(path, ec)) +
+                    " bytes, the manifest says " + std::to_string(f.value("bytes", uintmax_t(0))));
                 continue;
             }
             if (fileChecksum(path.string()) != f.value("checksum", std::string()))
@@ -515,8 +541,8 @@ VerifyReport verifyDataset(const std::string& folder) {
         }
     }
     if (int(records.size()) < spec.count)
-        report.problems.push_back(std::to_string(spec.count - int(records.size())) + " of " + std::to_string(spec.count) +
-                                  " items are not generated yet");
+        report.problems.push_back(std::to_string(spec.count - int(records.size())) + " of " +
+                                  std::to_string(spec.count) + " items are not generated yet");
     if (fs::exists(fs::path(folder) / "items"))
         for (const auto& entry : fs::recursive_directory_iterator(fs::path(folder) / "items")) {
             if (!entry.is_regular_file()) continue;
@@ -530,7 +556,7 @@ json datasetStats(const std::string& folder) {
     const std::vector<json> records = readManifest(folder);
     if (records.empty()) throw Error("'" + folder + "' has no generated items (manifest.jsonl)");
     std::map<std::string, std::map<std::string, int>> counts;  // family -> split -> items
-    std::map<std::string, std::vector<double>> psnr;             // family -> aliased PSNRs
+    std::map<std::string, std::vector<double>> psnr;           // family -> aliased PSNRs
     std::map<std::string, double> edges;
     for (const json& r : records) {
         const std::string family = r["family"], split = r["split"];
@@ -542,7 +568,10 @@ json datasetStats(const std::string& folder) {
         std::sort(v.begin(), v.end());
         double sum = 0;
         for (double x : v) sum += x;
-        return json{{"min", v.front()}, {"median", v[v.size() / 2]}, {"mean", sum / double(v.size())}, {"max", v.back()}};
+        return json{{"min", v.front()},
+                    {"median", v[v.size() / 2]},
+                    {"mean", sum / double(v.size())},
+                    {"max", v.back()}};
     };
     json out;
     std::vector<double> all;

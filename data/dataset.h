@@ -93,7 +93,8 @@ struct GenerateResult {
 // Renders every missing item of the dataset in `folder` (creating it), resuming an interrupted run:
 // complete items (in the manifest, files present) are skipped, partial ones redone. Throws
 // dejag::Error if the folder holds a different dataset.
-GenerateResult generateDataset(const DatasetSpec& spec, const std::string& folder, const GenerateOptions& options);
+GenerateResult generateDataset(const DatasetSpec& spec, const std::string& folder,
+                               const GenerateOptions& options);
 
 struct VerifyReport {
     int items = 0;

@@ -73,7 +73,8 @@ TEST(DatasetPlan, RefusesBadSpecs) {
 
 int run(const std::string& arguments, std::string* err = nullptr) {
     const std::string errFile = fs::temp_directory_path() / ("dejag-data-err-" + std::to_string(::getpid()));
-    const int status = std::system(("'" + std::string(DEJAG_BINARY) + "' " + arguments + " >/dev/null 2>'" + errFile + "'").c_str());
+    const int status = std::system(
+        ("'" + std::string(DEJAG_BINARY) + "' " + arguments + " >/dev/null 2>'" + errFile + "'").c_str());
     if (err) {
         std::ifstream in(errFile);
         std::stringstream s;
@@ -114,8 +115,9 @@ void expectSameFiles(const fs::path& a, const fs::path& b) {
     }
 }
 
-const std::string kTiny = "data generate --families shapes,pipes,thin,foliage,random --test-families foliage "
-                          "--count 10 --size 48x48 --truth 8 --quiet";
+const std::string kTiny =
+    "data generate --families shapes,pipes,thin,foliage,random --test-families foliage "
+    "--count 10 --size 48x48 --truth 8 --quiet";
 
 TEST(DatasetGenerate, TinyRecipeVerifiesAndKeepsFamiliesApart) {
     testing::TempDir dir;
@@ -143,15 +145,17 @@ TEST(DatasetGenerate, TinyRecipeVerifiesAndKeepsFamiliesApart) {
 TEST(DatasetGenerate, KillNineThenTheSameCommandEqualsAnUninterruptedRun) {
     testing::TempDir dir;
     const std::string whole = dir.file("whole"), broken = dir.file("broken");
-    const std::string slow = "data generate --families shapes,pipes,thin --test-families none --count 9 "
-                             "--size 128x128 --truth 64 --quiet";
+    const std::string slow =
+        "data generate --families shapes,pipes,thin --test-families none --count 9 "
+        "--size 128x128 --truth 64 --quiet";
     ASSERT_EQ(run(slow + " --workers 2 --out '" + whole + "'"), 0);
     // Start the same generation in its own process group and kill the whole group mid-way.
     const pid_t pid = ::fork();
     ASSERT_GE(pid, 0);
     if (pid == 0) {
         ::setpgid(0, 0);
-        const std::string command = "exec '" + std::string(DEJAG_BINARY) + "' " + slow + " --workers 1 --out '" + broken + "' 2>/dev/null";
+        const std::string command = "exec '" + std::string(DEJAG_BINARY) + "' " + slow +
+                                    " --workers 1 --out '" + broken + "' 2>/dev/null";
         ::execl("/bin/sh", "sh", "-c", command.c_str(), static_cast<char*>(nullptr));
         _exit(127);
     }
@@ -208,10 +212,12 @@ TEST(DatasetGenerate, BadInputIsOneLineAndOverwritesNothing) {
     EXPECT_FALSE(fs::exists(out));
     ASSERT_EQ(run(kTiny + " --out '" + out + "'"), 0);
     const auto before = contents(out);
-    EXPECT_EQ(run("data generate --families shapes,pipes,thin,foliage,random --test-families foliage --count 10 "
-                  "--size 64x64 --truth 8 --quiet --out '" + out + "'",
-                  &err),
-              2);
+    EXPECT_EQ(
+        run("data generate --families shapes,pipes,thin,foliage,random --test-families foliage --count 10 "
+            "--size 64x64 --truth 8 --quiet --out '" +
+                out + "'",
+            &err),
+        2);
     EXPECT_NE(err.find("different dataset"), std::string::npos) << err;
     EXPECT_EQ(std::count(err.begin(), err.end(), '\n'), 1) << err;
     EXPECT_TRUE(contents(out) == before);

@@ -1,0 +1,175 @@
+#include "data/patches.h"
+
+#include <algorithm>
+#include <cmath>
+#include <filesystem>
+
+#include "base/error.h"
+#include "data/image.h"
+
+namespace dejag::data {
+
+namespace fs = std::filesystem;
+
+namespace {
+
+uint64_t mix(uint64_t z) {
+    z += 0x9E3779B97F4A7C15ull;
+    z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ull;
+    z = (z ^ (z >> 27)) * 0x94D049BB133111EBull;
+    return z ^ (z >> 31);
+}
+
+class Random {
+  public:
+    explicit Random(uint64_t seed) : state_(seed) {}
+    uint64_t next() { return state_ = mix(state_); }
+    double uniform(double low = 0, double high = 1) { return low + (high - low) * double(next() >> 11) * 0x1.0p-53; }
+    int below(int n) { return n <= 1 ? 0 : int(next() % uint64_t(n)); }
+
+  private:
+    uint64_t state_;
+};
+
+uint16_t encode(float linear) {
+    const float s = std::clamp(linearToSrgb(std::max(linear, 0.0f)), 0.0f, 1.0f);
+    return uint16_t(std::lround(s * 65535.0f));
+}
+
+}  // namespace
+
+PatchSampler::PatchSampler(const std::string& folder, const PatchOptions& options) : options_(options) {
+    if (options.patchSize < 8 || options.batchSize < 1) throw Error("patch size must be >= 8 and batch size >= 1");
+    const int P = options.patchSize;
+    for (const nlohmann::json& record : readManifest(folder)) {
+        if (record["split"] != splitName(options.split)) continue;
+        Item item;
+        item.index = record["index"].get<int>();
+        const Image input = readImage((fs::path(folder) / record["files"]["input"]["path"].get<std::string>()).string());
+        const Image truth = readImage((fs::path(folder) / record["files"]["truth"]["path"].get<std::string>()).string());
+        if (input.width < P || input.height < P)
+            throw Error("patches of " + std::to_string(P) + " px do not fit item " + record["id"].get<std::string>() +
+                        " (" + std::to_string(input.width) + "x" + std::to_string(input.height) + ")");
+        item.width = input.width, item.height = input.height;
+        const int r = input.findChannel("R"), id = input.findChannel("id.ID"), depth = input.findChannel("depth.Z");
+        if (r < 0 || truth.findChannel("R") < 0) throw Error("item " + record["id"].get<std::string>() + " has no colour");
+        const size_t n = input.pixelCount();
+        item.input.resize(n * 3), item.truth.resize(n * 3), item.aliasing.assign(n, 0);
+        for (size_t p = 0; p < n; ++p)
+            for (int c = 0; c < 3; ++c) {
+                item.input[p * 3 + size_t(c)] = encode(input.pixels[p * size_t(input.channels()) + size_t(r + c)]);
+                item.truth[p * 3 + size_t(c)] = encode(truth.pixels[p * size_t(truth.channels()) + size_t(truth.findChannel("R") + c)]);
+            }
+        // Aliasing sources: an ID or depth discontinuity with a neighbour, or an aliased-vs-truth
+        // difference above 4 % of the range (texture and shading aliasing have no discontinuity).
+        for (int y = 0; y < item.height; ++y)
+            for (int x = 0; x < item.width; ++x) {
+                const size_t p = size_t(y) * size_t(item.width) + size_t(x);
+                bool source = false;
+                if (id >= 0 && depth >= 0)
+                    for (const auto& [dx, dy] : {std::pair{1, 0}, std::pair{0, 1}, std::pair{-1, 0}, std::pair{0, -1}}) {
+                        const int nx = x + dx, ny = y + dy;
+                        if (nx < 0 || ny < 0 || nx >= item.width || ny >= item.height) continue;
+                        const float d0 = input.at(x, y, depth), d1 = input.at(nx, ny, depth);
+                        source = source || input.at(x, y, id) != input.at(nx, ny, id) ||
+                                 std::abs(d0 - d1) > 0.05f * std::min(d0, d1);
+                    }
+                for (int c = 0; c < 3 && !source; ++c)
+                    source = std::abs(int(item.input[p * 3 + size_t(c)]) - int(item.truth[p * 3 + size_t(c)])) > 2621;
+                item.aliasing[p] = source;
+                if (source) item.aliasingPixels.push_back(int(p));
+            }
+        items_.push_back(std::move(item));
+    }
+    if (items_.empty())
+        throw Error("'" + folder + "' has no " + std::string(splitName(options.split)) + " items to sample patches from");
+    worker_ = std::thread([this] { produce(); });
+}
+
+PatchSampler::~PatchSampler() {
+    {
+        std::lock_guard<std::mutex> lock(mutex_);
+        stopping_ = true;
+    }
+    changed_.notify_all();
+    if (worker_.joinable()) worker_.join();
+}
+
+void PatchSampler::produce() {
+    while (true) {
+        uint64_t index;
+        {
+            std::unique_lock<std::mutex> lock(mutex_);
+            changed_.wait(lock, [&] { return stopping_ || int(ready_.size()) < options_.prefetch; });
+            if (stopping_) return;
+            index = produced_++;
+        }
+        Batch batch = assemble(index);
+        {
+            std::lock_guard<std::mutex> lock(mutex_);
+            ready_.push_back(std::move(batch));
+        }
+        changed_.notify_all();
+    }
+}
+
+Batch PatchSampler::next() {
+    std::unique_lock<std::mutex> lock(mutex_);
+    changed_.wait(lock, [&] { return !ready_.empty(); });
+    Batch batch = std::move(ready_.front());
+    ready_.pop_front();
+    lock.unlock();
+    changed_.notify_all();
+    return batch;
+}
+
+Batch PatchSampler::assemble(uint64_t index) const {
+    const int P = options_.patchSize, N = options_.batchSize, C = channels();
+    Random random(mix(options_.seed ^ mix(index + 0x1234)));
+    Batch batch;
+    batch.input = nn::Tensor({N, C, P, P});
+    batch.target = nn::Tensor({N, C, P, P});
+    int64_t edgePixels = 0;
+    for (int n = 0; n < N; ++n) {
+        const Item& item = items_[size_t(random.below(int(items_.size())))];
+        batch.items.push_back(item.index);
+        int x0, y0;
+        if (random.uniform() < options_.uniformFraction || item.aliasingPixels.empty()) {
+            x0 = random.below(item.width - P + 1), y0 = random.below(item.height - P + 1);
+        } else {
+            // A patch holding a random aliasing pixel, at a random place inside it (not always centred).
+            const int p = item.aliasingPixels[size_t(random.below(int(item.aliasingPixels.size())))];
+            const int px = p % item.width, py = p / item.width;
+            x0 = std::clamp(px - random.below(P), 0, item.width - P);
+            y0 = std::clamp(py - random.below(P), 0, item.height - P);
+        }
+        const int orientation = options_.augment ? random.below(8) : 0;  // bit 0: flip x, 1: flip y, 2: transpose
+        const double gain = 1 + random.uniform(-options_.brightnessJitter, options_.brightnessJitter);
+        double channelGain[3];
+        for (double& g : channelGain) g = gain * (1 + random.uniform(-options_.hueJitter, options_.hueJitter));
+        for (int y = 0; y < P; ++y)
+            for (int x = 0; x < P; ++x) {
+                int sx = x, sy = y;
+                if (orientation & 4) std::swap(sx, sy);
+                if (orientation & 1) sx = P - 1 - sx;
+                if (orientation & 2) sy = P - 1 - sy;
+                const size_t p = size_t(y0 + sy) * size_t(item.width) + size_t(x0 + sx);
+                edgePixels += item.aliasing[p];
+                float in[3], out[3];
+                for (int c = 0; c < 3; ++c) {
+                    in[c] = float(std::min(1.0, item.input[p * 3 + size_t(c)] / 65535.0 * channelGain[c]));
+                    out[c] = float(std::min(1.0, item.truth[p * 3 + size_t(c)] / 65535.0 * channelGain[c]));
+                }
+                if (C == 1) {
+                    batch.input.at(n, 0, y, x) = 0.21f * in[0] + 0.72f * in[1] + 0.07f * in[2];
+                    batch.target.at(n, 0, y, x) = 0.21f * out[0] + 0.72f * out[1] + 0.07f * out[2];
+                } else {
+                    for (int c = 0; c < 3; ++c) batch.input.at(n, c, y, x) = in[c], batch.target.at(n, c, y, x) = out[c];
+                }
+            }
+    }
+    batch.edgeFraction = double(edgePixels) / double(int64_t(N) * P * P);
+    return batch;
+}
+
+}  // namespace dejag::data

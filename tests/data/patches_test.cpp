@@ -1,0 +1,121 @@
+// The patch sampler on a tiny generated dataset: determinism, the aliasing bias, augmentation-free crops
+// equal to the items, grey mode, splits and errors.
+#include "data/patches.h"
+
+#include <gtest/gtest.h>
+#include <sys/wait.h>
+
+#include <cmath>
+#include <filesystem>
+
+#include "base/error.h"
+#include "data/image.h"
+#include "tests/test_util.h"
+
+namespace dejag::data {
+namespace {
+
+namespace fs = std::filesystem;
+
+class Patches : public ::testing::Test {
+  protected:
+    static void SetUpTestSuite() {
+        folder_ = (fs::temp_directory_path() / ("dejag-patches-" + std::to_string(::getpid()))).string();
+        fs::remove_all(folder_);
+        const std::string command = "'" + std::string(DEJAG_BINARY) +
+                                    "' data generate --families shapes,pipes,thin,foliage,random --test-families foliage "
+                                    "--count 12 --size 128x96 --truth 16 --quiet --out '" + folder_ + "'";
+        ASSERT_EQ(std::system(command.c_str()), 0);
+    }
+    static void TearDownTestSuite() { fs::remove_all(folder_); }
+    static std::string folder_;
+};
+std::string Patches::folder_;
+
+bool same(const nn::Tensor& a, const nn::Tensor& b) {
+    return a.shape() == b.shape() && std::equal(a.data(), a.data() + a.numel(), b.data());
+}
+
+TEST_F(Patches, SameSeedSameBatchesWhateverTheThreadTiming) {
+    PatchOptions options;
+    options.patchSize = 32, options.batchSize = 4, options.seed = 9;
+    PatchSampler a(folder_, options), b(folder_, options);
+    for (int i = 0; i < 4; ++i) {
+        const Batch x = a.next(), y = b.next(), z = a.assemble(uint64_t(i) + 4);
+        EXPECT_TRUE(same(x.input, y.input));
+        EXPECT_TRUE(same(x.target, y.target));
+        EXPECT_EQ(x.items, y.items);
+        (void)z;
+    }
+    EXPECT_TRUE(same(a.assemble(2).input, b.assemble(2).input));
+    options.seed = 10;
+    PatchSampler c(folder_, options);
+    EXPECT_FALSE(same(c.assemble(0).input, a.assemble(0).input));
+}
+
+TEST_F(Patches, AliasingBiasIsMeasurable) {
+    PatchOptions options;
+    options.patchSize = 16, options.batchSize = 16, options.seed = 3;
+    options.uniformFraction = 0.0;
+    PatchSampler biased(folder_, options);
+    options.uniformFraction = 1.0;
+    PatchSampler uniform(folder_, options);
+    double biasedEdges = 0, uniformEdges = 0;
+    for (uint64_t i = 0; i < 40; ++i) {
+        biasedEdges += biased.assemble(i).edgeFraction;
+        uniformEdges += uniform.assemble(i).edgeFraction;
+    }
+    EXPECT_GT(biasedEdges, 1.5 * uniformEdges) << "biased " << biasedEdges / 40 << ", uniform " << uniformEdges / 40;
+}
+
+TEST_F(Patches, WithoutAugmentationAPatchIsTheItemCropAndGreyIsLuma) {
+    PatchOptions options;
+    options.patchSize = 24, options.batchSize = 2, options.seed = 5;
+    options.augment = false, options.brightnessJitter = 0, options.hueJitter = 0, options.uniformFraction = 1;
+    PatchSampler colour(folder_, options);
+    const Batch batch = colour.assemble(0);
+    // The crop is somewhere in the item: find it by matching the first pixel row against the item.
+    const std::vector<nlohmann::json> records = readManifest(folder_);
+    const nlohmann::json& record = records[size_t(batch.items[0])];
+    const Image truth = readImage((fs::path(folder_) / record["files"]["truth"]["path"].get<std::string>()).string());
+    bool found = false;
+    for (int y0 = 0; y0 + 24 <= truth.height && !found; ++y0)
+        for (int x0 = 0; x0 + 24 <= truth.width && !found; ++x0) {
+            double worst = 0;
+            for (int y = 0; y < 24; ++y)
+                for (int x = 0; x < 24; ++x)
+                    for (int c = 0; c < 3; ++c) {
+                        const float want = std::clamp(linearToSrgb(std::max(truth.at(x0 + x, y0 + y, c), 0.0f)), 0.0f, 1.0f);
+                        worst = std::max(worst, double(std::abs(batch.target.at(0, c, y, x) - want)));
+                    }
+            found = worst < 1.0 / 65535 + 1e-6;
+        }
+    EXPECT_TRUE(found);
+    options.grayscale = true;
+    PatchSampler grey(folder_, options);
+    const Batch g = grey.assemble(0);
+    ASSERT_EQ(g.input.dim(1), 1);
+    for (int y = 0; y < 24; y += 5)
+        for (int x = 0; x < 24; x += 3)
+            EXPECT_NEAR(g.input.at(1, 0, y, x),
+                        0.21f * batch.input.at(1, 0, y, x) + 0.72f * batch.input.at(1, 1, y, x) +
+                            0.07f * batch.input.at(1, 2, y, x),
+                        1e-6);
+}
+
+TEST_F(Patches, SplitsAndErrors) {
+    PatchOptions options;
+    options.patchSize = 32, options.batchSize = 8;
+    options.split = Split::Test;
+    PatchSampler test(folder_, options);
+    const std::vector<nlohmann::json> records = readManifest(folder_);
+    for (int index : test.assemble(0).items) EXPECT_EQ(records[size_t(index)]["split"], "test");
+    options.split = Split::Train;
+    options.patchSize = 100;  // taller than the 128x96 items
+    EXPECT_THROW(PatchSampler(folder_, options), Error);
+    options.patchSize = 32;
+    EXPECT_THROW(PatchSampler(folder_ + "-missing", options), Error);
+}
+
+}  // namespace
+}  // namespace dejag::data
