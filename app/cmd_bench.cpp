@@ -13,6 +13,7 @@
 #include "app/commands.h"
 #include "base/error.h"
 #include "bench/bench.h"
+#include "bench/filter_bench.h"
 #include "bench/render_bench.h"
 
 namespace dejag::cli {
@@ -150,6 +151,44 @@ void registerBenchCommand(CLI::App& app) {
             std::printf("\n");
         }
         std::printf("OSMesa llvmpipe renders with its own threads (LP_NUM_THREADS, default: all cores).\n");
+    });
+
+    struct FilterBenchArguments {
+        int repeat = 15;
+        std::string threads = "1,2", size = "1920x1080";
+        bool json = false;
+    };
+    auto filterArgs = std::make_shared<FilterBenchArguments>();
+    CLI::App* filterBench = bench->add_subcommand(
+        "filter",
+        "post-process filters on a rendered frame (issue target: FXAA <= 2 ms at 1920x1080 on 2 cores)");
+    filterBench->add_option("--repeat", filterArgs->repeat, "Timed runs per case (median reported)")
+        ->check(CLI::Range(1, 10000))
+        ->capture_default_str();
+    filterBench->add_option("--threads", filterArgs->threads, "Comma-separated thread counts")
+        ->capture_default_str();
+    filterBench->add_option("--size", filterArgs->size, "Frame size WIDTHxHEIGHT")->capture_default_str();
+    filterBench->add_flag("--json", filterArgs->json, "One JSON object per case");
+    filterBench->callback([filterArgs] {
+        bench::FilterBenchOptions options;
+        const Size size = parseSize(filterArgs->size, "--size");
+        options.width = size.width, options.height = size.height;
+        options.repeat = filterArgs->repeat;
+        options.threads = parseThreadList(filterArgs->threads);
+        const std::vector<nlohmann::json> rows = bench::benchFilters(options);
+        if (filterArgs->json) {
+            for (const nlohmann::json& row : rows) std::printf("%s\n", row.dump().c_str());
+            return;
+        }
+        std::printf("%-18s %3s %10s %8s %10s  %s\n", "case", "thr", "median ms", "target", "processed",
+                    "PSNR vs 64-sample truth");
+        for (const nlohmann::json& row : rows)
+            std::printf("%-18s %3d %10.2f %8.1f %9.1f%%  %.2f -> %.2f dB\n",
+                        row["name"].get<std::string>().c_str(), row["threads"].get<int>(),
+                        row["ms"].get<double>(), row["target_ms"].get<double>(),
+                        100 * row["processed_fraction"].get<double>(), row["psnr_before"].get<double>(),
+                        row["psnr_after"].get<double>());
+        std::printf("frame: hard-edges, %s, sRGB-encoded float RGB\n", filterArgs->size.c_str());
     });
 
     auto args = std::make_shared<BenchArguments>();

@@ -9,5 +9,6 @@ void registerMetricsCommand(CLI::App& app);
 void registerBenchCommand(CLI::App& app);
 void registerRenderCommand(CLI::App& app);
 void registerDataCommand(CLI::App& app);
+void registerFilterCommand(CLI::App& app);
 
 }  // namespace dejag::cli

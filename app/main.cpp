@@ -35,6 +35,7 @@ int main(int argc, char** argv) {
     app.set_version_flag("--version", "dejag 0.1.0");
     dejag::cli::registerRenderCommand(app);
     dejag::cli::registerDataCommand(app);
+    dejag::cli::registerFilterCommand(app);
     dejag::cli::registerMetricsCommand(app);
     dejag::cli::registerBenchCommand(app);
 

@@ -24,7 +24,9 @@ class Random {
   public:
     explicit Random(uint64_t seed) : state_(seed) {}
     uint64_t next() { return state_ = mix(state_); }
-    double uniform(double low = 0, double high = 1) { return low + (high - low) * double(next() >> 11) * 0x1.0p-53; }
+    double uniform(double low = 0, double high = 1) {
+        return low + (high - low) * double(next() >> 11) * 0x1.0p-53;
+    }
     int below(int n) { return n <= 1 ? 0 : int(next() % uint64_t(n)); }
 
   private:
@@ -39,26 +41,34 @@ uint16_t encode(float linear) {
 }  // namespace
 
 PatchSampler::PatchSampler(const std::string& folder, const PatchOptions& options) : options_(options) {
-    if (options.patchSize < 8 || options.batchSize < 1) throw Error("patch size must be >= 8 and batch size >= 1");
+    if (options.patchSize < 8 || options.batchSize < 1)
+        throw Error("patch size must be >= 8 and batch size >= 1");
     const int P = options.patchSize;
     for (const nlohmann::json& record : readManifest(folder)) {
         if (record["split"] != splitName(options.split)) continue;
         Item item;
         item.index = record["index"].get<int>();
-        const Image input = readImage((fs::path(folder) / record["files"]["input"]["path"].get<std::string>()).string());
-        const Image truth = readImage((fs::path(folder) / record["files"]["truth"]["path"].get<std::string>()).string());
+        const Image input =
+            readImage((fs::path(folder) / record["files"]["input"]["path"].get<std::string>()).string());
+        const Image truth =
+            readImage((fs::path(folder) / record["files"]["truth"]["path"].get<std::string>()).string());
         if (input.width < P || input.height < P)
-            throw Error("patches of " + std::to_string(P) + " px do not fit item " + record["id"].get<std::string>() +
-                        " (" + std::to_string(input.width) + "x" + std::to_string(input.height) + ")");
+            throw Error("patches of " + std::to_string(P) + " px do not fit item " +
+                        record["id"].get<std::string>() + " (" + std::to_string(input.width) + "x" +
+                        std::to_string(input.height) + ")");
         item.width = input.width, item.height = input.height;
-        const int r = input.findChannel("R"), id = input.findChannel("id.ID"), depth = input.findChannel("depth.Z");
-        if (r < 0 || truth.findChannel("R") < 0) throw Error("item " + record["id"].get<std::string>() + " has no colour");
+        const int r = input.findChannel("R"), id = input.findChannel("id.ID"),
+                  depth = input.findChannel("depth.Z");
+        if (r < 0 || truth.findChannel("R") < 0)
+            throw Error("item " + record["id"].get<std::string>() + " has no colour");
         const size_t n = input.pixelCount();
         item.input.resize(n * 3), item.truth.resize(n * 3), item.aliasing.assign(n, 0);
         for (size_t p = 0; p < n; ++p)
             for (int c = 0; c < 3; ++c) {
-                item.input[p * 3 + size_t(c)] = encode(input.pixels[p * size_t(input.channels()) + size_t(r + c)]);
-                item.truth[p * 3 + size_t(c)] = encode(truth.pixels[p * size_t(truth.channels()) + size_t(truth.findChannel("R") + c)]);
+                item.input[p * 3 + size_t(c)] =
+                    encode(input.pixels[p * size_t(input.channels()) + size_t(r + c)]);
+                item.truth[p * 3 + size_t(c)] =
+                    encode(truth.pixels[p * size_t(truth.channels()) + size_t(truth.findChannel("R") + c)]);
             }
         // Aliasing sources: an ID or depth discontinuity with a neighbour, or an aliased-vs-truth
         // difference above 4 % of the range (texture and shading aliasing have no discontinuity).
@@ -67,7 +77,8 @@ PatchSampler::PatchSampler(const std::string& folder, const PatchOptions& option
                 const size_t p = size_t(y) * size_t(item.width) + size_t(x);
                 bool source = false;
                 if (id >= 0 && depth >= 0)
-                    for (const auto& [dx, dy] : {std::pair{1, 0}, std::pair{0, 1}, std::pair{-1, 0}, std::pair{0, -1}}) {
+                    for (const auto& [dx, dy] :
+                         {std::pair{1, 0}, std::pair{0, 1}, std::pair{-1, 0}, std::pair{0, -1}}) {
                         const int nx = x + dx, ny = y + dy;
                         if (nx < 0 || ny < 0 || nx >= item.width || ny >= item.height) continue;
                         const float d0 = input.at(x, y, depth), d1 = input.at(nx, ny, depth);
@@ -75,14 +86,16 @@ PatchSampler::PatchSampler(const std::string& folder, const PatchOptions& option
                                  std::abs(d0 - d1) > 0.05f * std::min(d0, d1);
                     }
                 for (int c = 0; c < 3 && !source; ++c)
-                    source = std::abs(int(item.input[p * 3 + size_t(c)]) - int(item.truth[p * 3 + size_t(c)])) > 2621;
+                    source = std::abs(int(item.input[p * 3 + size_t(c)]) -
+                                      int(item.truth[p * 3 + size_t(c)])) > 2621;
                 item.aliasing[p] = source;
                 if (source) item.aliasingPixels.push_back(int(p));
             }
         items_.push_back(std::move(item));
     }
     if (items_.empty())
-        throw Error("'" + folder + "' has no " + std::string(splitName(options.split)) + " items to sample patches from");
+        throw Error("'" + folder + "' has no " + std::string(splitName(options.split)) +
+                    " items to sample patches from");
     worker_ = std::thread([this] { produce(); });
 }
 
@@ -143,10 +156,12 @@ Batch PatchSampler::assemble(uint64_t index) const {
             x0 = std::clamp(px - random.below(P), 0, item.width - P);
             y0 = std::clamp(py - random.below(P), 0, item.height - P);
         }
-        const int orientation = options_.augment ? random.below(8) : 0;  // bit 0: flip x, 1: flip y, 2: transpose
+        const int orientation =
+            options_.augment ? random.below(8) : 0;  // bit 0: flip x, 1: flip y, 2: transpose
         const double gain = 1 + random.uniform(-options_.brightnessJitter, options_.brightnessJitter);
         double channelGain[3];
-        for (double& g : channelGain) g = gain * (1 + random.uniform(-options_.hueJitter, options_.hueJitter));
+        for (double& g : channelGain)
+            g = gain * (1 + random.uniform(-options_.hueJitter, options_.hueJitter));
         for (int y = 0; y < P; ++y)
             for (int x = 0; x < P; ++x) {
                 int sx = x, sy = y;
@@ -164,7 +179,8 @@ Batch PatchSampler::assemble(uint64_t index) const {
                     batch.input.at(n, 0, y, x) = 0.21f * in[0] + 0.72f * in[1] + 0.07f * in[2];
                     batch.target.at(n, 0, y, x) = 0.21f * out[0] + 0.72f * out[1] + 0.07f * out[2];
                 } else {
-                    for (int c = 0; c < 3; ++c) batch.input.at(n, c, y, x) = in[c], batch.target.at(n, c, y, x) = out[c];
+                    for (int c = 0; c < 3; ++c)
+                        batch.input.at(n, c, y, x) = in[c], batch.target.at(n, c, y, x) = out[c];
                 }
             }
     }

@@ -291,6 +291,47 @@ TEST(Cli, BenchRenderQuickPrintsFramesAndTruth) {
     EXPECT_EQ(truths, 1);
 }
 
+TEST(Cli, FilterFxaaKeepsBitDepthAndAlphaAndRefusesWhatItCannotDo) {
+    testing::TempDir dir;
+    // An aliased diagonal edge with an alpha channel, 8-bit PNG.
+    Image edge(48, 40, {"R", "G", "B", "A"}, PixelType::UInt8);
+    for (int y = 0; y < 40; ++y)
+        for (int x = 0; x < 48; ++x) {
+            const float v = y > 0.4 * x + 9 ? 1.0f : 0.0f;
+            for (int c = 0; c < 3; ++c) edge.at(x, y, c) = v;
+            edge.at(x, y, 3) = float((x + y) % 5) / 4.0f;
+        }
+    writeImage(dir.file("edge.png"), edge);
+    const RunResult r = run("filter --method fxaa --preset 23 '" + dir.file("edge.png") + "' '" +
+                                dir.file("out.png") + "' --json",
+                            dir);
+    ASSERT_EQ(r.exitCode, 0) << r.err;
+    const nlohmann::json j = nlohmann::json::parse(r.out);
+    EXPECT_GT(j["processed_fraction"].get<double>(), 0.0);
+    const Image out = readImage(dir.file("out.png"));
+    edge = readImage(dir.file("edge.png"));  // as quantised to 8 bits
+    EXPECT_EQ(out.storage, PixelType::UInt8);
+    EXPECT_EQ(out.channels(), 4);
+    bool changed = false;
+    for (int y = 0; y < 40; ++y)
+        for (int x = 0; x < 48; ++x) {
+            ASSERT_EQ(out.at(x, y, 3), edge.at(x, y, 3));
+            changed = changed || out.at(x, y, 0) != edge.at(x, y, 0);
+        }
+    EXPECT_TRUE(changed);
+    expectOneLineError(
+        run("filter --method taa '" + dir.file("edge.png") + "' '" + dir.file("t.png") + "'", dir),
+        "not available yet");
+    expectOneLineError(
+        run("filter --method fxaa --preset 7 '" + dir.file("edge.png") + "' '" + dir.file("t.png") + "'",
+            dir),
+        "preset");
+    expectOneLineError(
+        run("filter --method fxaa '" + dir.file("missing.png") + "' '" + dir.file("t.png") + "'", dir),
+        "missing.png");
+    EXPECT_FALSE(std::filesystem::exists(dir.file("t.png")));
+}
+
 TEST(Cli, RenderListsTheScenes) {
     testing::TempDir dir;
     const RunResult r = run("render --list", dir);

@@ -22,9 +22,11 @@ class Patches : public ::testing::Test {
     static void SetUpTestSuite() {
         folder_ = (fs::temp_directory_path() / ("dejag-patches-" + std::to_string(::getpid()))).string();
         fs::remove_all(folder_);
-        const std::string command = "'" + std::string(DEJAG_BINARY) +
-                                    "' data generate --families shapes,pipes,thin,foliage,random --test-families foliage "
-                                    "--count 12 --size 128x96 --truth 16 --quiet --out '" + folder_ + "'";
+        const std::string command =
+            "'" + std::string(DEJAG_BINARY) +
+            "' data generate --families shapes,pipes,thin,foliage,random --test-families foliage "
+            "--count 12 --size 128x96 --truth 16 --quiet --out '" +
+            folder_ + "'";
         ASSERT_EQ(std::system(command.c_str()), 0);
     }
     static void TearDownTestSuite() { fs::remove_all(folder_); }
@@ -65,7 +67,8 @@ TEST_F(Patches, AliasingBiasIsMeasurable) {
         biasedEdges += biased.assemble(i).edgeFraction;
         uniformEdges += uniform.assemble(i).edgeFraction;
     }
-    EXPECT_GT(biasedEdges, 1.5 * uniformEdges) << "biased " << biasedEdges / 40 << ", uniform " << uniformEdges / 40;
+    EXPECT_GT(biasedEdges, 1.5 * uniformEdges)
+        << "biased " << biasedEdges / 40 << ", uniform " << uniformEdges / 40;
 }
 
 TEST_F(Patches, WithoutAugmentationAPatchIsTheItemCropAndGreyIsLuma) {
@@ -77,7 +80,8 @@ TEST_F(Patches, WithoutAugmentationAPatchIsTheItemCropAndGreyIsLuma) {
     // The crop is somewhere in the item: find it by matching the first pixel row against the item.
     const std::vector<nlohmann::json> records = readManifest(folder_);
     const nlohmann::json& record = records[size_t(batch.items[0])];
-    const Image truth = readImage((fs::path(folder_) / record["files"]["truth"]["path"].get<std::string>()).string());
+    const Image truth =
+        readImage((fs::path(folder_) / record["files"]["truth"]["path"].get<std::string>()).string());
     bool found = false;
     for (int y0 = 0; y0 + 24 <= truth.height && !found; ++y0)
         for (int x0 = 0; x0 + 24 <= truth.width && !found; ++x0) {
@@ -85,7 +89,8 @@ TEST_F(Patches, WithoutAugmentationAPatchIsTheItemCropAndGreyIsLuma) {
             for (int y = 0; y < 24; ++y)
                 for (int x = 0; x < 24; ++x)
                     for (int c = 0; c < 3; ++c) {
-                        const float want = std::clamp(linearToSrgb(std::max(truth.at(x0 + x, y0 + y, c), 0.0f)), 0.0f, 1.0f);
+                        const float want =
+                            std::clamp(linearToSrgb(std::max(truth.at(x0 + x, y0 + y, c), 0.0f)), 0.0f, 1.0f);
                         worst = std::max(worst, double(std::abs(batch.target.at(0, c, y, x) - want)));
                     }
             found = worst < 1.0 / 65535 + 1e-6;
