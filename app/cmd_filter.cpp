@@ -22,7 +22,8 @@ struct FilterArguments {
 void runFilter(const FilterArguments& args) {
     applyRuntimeOptions(args.runtime);
     if (args.method != "fxaa")
-        throw Error("--method '" + args.method + "' is not available yet (fxaa; taa, taa-sobel and cnn are planned)");
+        throw Error("--method '" + args.method +
+                    "' is not available yet (fxaa; taa, taa-sobel and cnn are planned)");
     infer::FxaaOptions options;
     options.preset = args.preset;
     options.greenAsLuma = args.greenLuma;
@@ -71,12 +72,14 @@ void runFilter(const FilterArguments& args) {
 
 void registerFilterCommand(CLI::App& app) {
     auto args = std::make_shared<FilterArguments>();
-    CLI::App* command = app.add_subcommand("filter", "anti-alias an image: FXAA 3.11 (TAA and the CNN are planned)");
+    CLI::App* command =
+        app.add_subcommand("filter", "anti-alias an image: FXAA 3.11 (TAA and the CNN are planned)");
     command->add_option("--method", args->method, "fxaa")->required();
     command->add_option("--preset", args->preset, "FXAA quality preset: 12, 23 or 39")->capture_default_str();
     command->add_flag("--green-luma", args->greenLuma, "FXAA: use green as luma");
     command->add_option("input", args->input, "input image (PNG, JPEG, TIFF, EXR)")->required();
-    command->add_option("output", args->output, "output image (bit depth and extra channels kept)")->required();
+    command->add_option("output", args->output, "output image (bit depth and extra channels kept)")
+        ->required();
     command->add_flag("--json", args->json, "print timing as JSON");
     addRuntimeOptions(command, args->runtime);
     command->footer(

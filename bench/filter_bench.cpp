@@ -19,7 +19,8 @@ double psnr(const std::vector<float>& a, const std::vector<float>& b) {
 }
 std::vector<float> encoded(const render::Frame& f) {
     std::vector<float> v(f.pixels.size());
-    for (size_t i = 0; i < v.size(); ++i) v[i] = std::clamp(linearToSrgb(std::max(f.pixels[i], 0.0f)), 0.0f, 1.0f);
+    for (size_t i = 0; i < v.size(); ++i)
+        v[i] = std::clamp(linearToSrgb(std::max(f.pixels[i], 0.0f)), 0.0f, 1.0f);
     return v;
 }
 }  // namespace

@@ -29,6 +29,7 @@ std::vector<float> presetSteps(int preset) {
 // coordinates with pixel (i, j)'s centre at (i + 0.5, j + 0.5), as texture coordinates times the size.
 struct Frame {
     const float* colour;
+    const float* luma;  // the plane of the whole frame
     int width, height, channels;
     bool green;
 
@@ -36,13 +37,24 @@ struct Frame {
         x = std::clamp(x, 0, width - 1), y = std::clamp(y, 0, height - 1);
         return colour + (size_t(y) * size_t(width) + size_t(x)) * size_t(channels);
     }
-    float lumaOf(const float* p) const { return green ? p[1] : 0.299f * p[0] + 0.587f * p[1] + 0.114f * p[2]; }
-    float lumaAt(int x, int y) const { return lumaOf(pixel(x, y)); }
+    float lumaOf(const float* p) const {
+        return green ? p[1] : 0.299f * p[0] + 0.587f * p[1] + 0.114f * p[2];
+    }
+    float lumaAt(int x, int y) const {
+        x = std::clamp(x, 0, width - 1), y = std::clamp(y, 0, height - 1);
+        return luma[size_t(y) * size_t(width) + size_t(x)];
+    }
     float lumaBilinear(float x, float y) const {
         const float fx = x - 0.5f, fy = y - 0.5f;
         const int x0 = int(std::floor(fx)), y0 = int(std::floor(fy));
         const float tx = fx - float(x0), ty = fy - float(y0);
-        const float a = lumaAt(x0, y0), b = lumaAt(x0 + 1, y0), c = lumaAt(x0, y0 + 1), d = lumaAt(x0 + 1, y0 + 1);
+        float a, b, c, d;
+        if (x0 >= 0 && y0 >= 0 && x0 + 1 < width && y0 + 1 < height) {  // inside: no clamping
+            const float* p = luma + size_t(y0) * size_t(width) + size_t(x0);
+            a = p[0], b = p[1], c = p[width], d = p[width + 1];
+        } else {
+            a = lumaAt(x0, y0), b = lumaAt(x0 + 1, y0), c = lumaAt(x0, y0 + 1), d = lumaAt(x0 + 1, y0 + 1);
+        }
         const float top = a + tx * (b - a), bottom = c + tx * (d - c);
         return top + ty * (bottom - top);
     }
@@ -59,32 +71,40 @@ struct Frame {
             rgb[k] = top + ty * (bottom - top);
         }
     }
-    // One row of luma with the clamped borders at [-1] and [width]: dst has width + 2 floats.
+    // One row of luma into dst[0 .. width).
     void lumaRow(int y, float* __restrict dst) const {
-        const float* p = pixel(0, y);
+        const float* __restrict p = pixel(0, y);
         if (green) {
-            for (int x = 0; x < width; ++x) dst[x + 1] = p[size_t(x) * size_t(channels) + 1];
+            for (int x = 0; x < width; ++x) dst[x] = p[size_t(x) * size_t(channels) + 1];
         } else if (channels == 3) {
             for (int x = 0; x < width; ++x)
-                dst[x + 1] = 0.299f * p[3 * x] + 0.587f * p[3 * x + 1] + 0.114f * p[3 * x + 2];
+                dst[x] = 0.299f * p[3 * x] + 0.587f * p[3 * x + 1] + 0.114f * p[3 * x + 2];
         } else {
-            for (int x = 0; x < width; ++x) dst[x + 1] = lumaOf(p + size_t(x) * size_t(channels));
+            for (int x = 0; x < width; ++x) dst[x] = lumaOf(p + size_t(x) * size_t(channels));
         }
-        dst[0] = dst[1], dst[width + 1] = dst[width];
     }
 };
 
 constexpr int kBands = 64;
 
-// edge[x] = 1 where the luma range of pixel x and its 4 neighbours reaches the threshold.
+// edge[x] = 1 where the luma range of pixel x and its 4 neighbours reaches the threshold (the image's
+// border pixels use their clamped neighbours).
+inline uint8_t isEdge(float m, float n, float s, float w, float e, float edgeThreshold,
+                      float edgeThresholdMin) {
+    const float hi = std::max(std::max(std::max(n, s), std::max(w, e)), m);
+    const float lo = std::min(std::min(std::min(n, s), std::min(w, e)), m);
+    return (hi - lo) >= std::max(edgeThresholdMin, hi * edgeThreshold) ? 1 : 0;
+}
+
 void markEdges(uint8_t* __restrict edge, const float* __restrict up, const float* __restrict mid,
                const float* __restrict down, int width, float edgeThreshold, float edgeThresholdMin) {
-    for (int x = 0; x < width; ++x) {
-        const float m = mid[x], n = up[x], s = down[x], w = mid[x - 1], e = mid[x + 1];
-        const float hi = std::max(std::max(std::max(n, s), std::max(w, e)), m);
-        const float lo = std::min(std::min(std::min(n, s), std::min(w, e)), m);
-        edge[x] = (hi - lo) >= std::max(edgeThresholdMin, hi * edgeThreshold) ? 1 : 0;
-    }
+    for (int x = 1; x < width - 1; ++x)
+        edge[x] = isEdge(mid[x], up[x], down[x], mid[x - 1], mid[x + 1], edgeThreshold, edgeThresholdMin);
+    edge[0] =
+        isEdge(mid[0], up[0], down[0], mid[0], mid[std::min(1, width - 1)], edgeThreshold, edgeThresholdMin);
+    const int last = width - 1;
+    edge[last] = isEdge(mid[last], up[last], down[last], mid[std::max(last - 1, 0)], mid[last], edgeThreshold,
+                        edgeThresholdMin);
 }
 
 }  // namespace
@@ -105,14 +125,19 @@ void Fxaa::apply(const float* in, float* out, int width, int height, int channel
 
 void Fxaa::applyInPlace(float* frame, int width, int height, int channels) {
     if (width < 1 || height < 1 || channels < 3) throw Error("FXAA needs an image with R, G, B channels");
-    const Frame f{frame, width, height, channels, options_.greenAsLuma};
+    const size_t pixels = size_t(width) * size_t(height);
+    if (luma_.size() < pixels + 2) luma_.resize(pixels + 2);
+    float* luma = luma_.data() + 1;  // luma[-1] and luma[pixels] exist for the row loops' borders
+    const Frame f{frame, luma, width, height, channels, options_.greenAsLuma};
+    parallelFor(0, height, 16, [&](int64_t first, int64_t last) {
+        for (int64_t y = first; y < last; ++y) f.lumaRow(int(y), luma + y * width);
+    });
     const float edgeThreshold = options_.edgeThreshold, edgeThresholdMin = options_.edgeThresholdMin;
     const float subpixAmount = options_.subpix;
     const float* steps = steps_.data();
     const int stepCount = int(steps_.size());
     const int bandCount = std::min(kBands, height);
     if (int(bands_.size()) < bandCount) bands_.resize(size_t(bandCount));
-    const size_t stride = size_t(width) + 2;
 
     // Each band collects its changes; the frame is only read until every band is done.
     parallelFor(0, bandCount, 1, [&](int64_t firstBand, int64_t lastBand) {
@@ -120,29 +145,36 @@ void Fxaa::applyInPlace(float* frame, int width, int height, int channels) {
             Band& band = bands_[size_t(b)];
             band.changes.clear();
             band.processed = 0;
-            if (band.luma.size() < 3 * stride) band.luma.resize(3 * stride);
             if (band.edge.size() < size_t(width)) band.edge.resize(size_t(width));
-            const int y0 = int(int64_t(height) * b / bandCount), y1 = int(int64_t(height) * (b + 1) / bandCount);
-            float* rows[3] = {band.luma.data(), band.luma.data() + stride, band.luma.data() + 2 * stride};
-            f.lumaRow(std::max(y0 - 1, 0), rows[0]);
-            f.lumaRow(y0, rows[1]);
+            const int y0 = int(int64_t(height) * b / bandCount),
+                      y1 = int(int64_t(height) * (b + 1) / bandCount);
             for (int y = y0; y < y1; ++y) {
-                f.lumaRow(std::min(y + 1, height - 1), rows[2]);
-                const float* up = rows[0] + 1;
-                const float* mid = rows[1] + 1;
-                const float* down = rows[2] + 1;
-                // The contrast test for the whole row at once, vectorised: locals and restrict pointers, so
-                // the byte stores cannot alias what the loop reads.
-                markEdges(band.edge.data(), up, mid, down, width, edgeThreshold, edgeThresholdMin);
-                const uint8_t* edge = band.edge.data();
-                for (int x = 0; x < width; ++x) {
-                    if (!edge[x]) continue;
+                const float* up = luma + size_t(std::max(y - 1, 0)) * size_t(width);
+                const float* mid = luma + size_t(y) * size_t(width);
+                const float* down = luma + size_t(std::min(y + 1, height - 1)) * size_t(width);
+                // The contrast test for the whole row at once, vectorised (restrict pointers: the byte stores
+                // cannot alias what the loop reads); the two border pixels with clamped neighbours.
+                uint8_t* edge = band.edge.data();
+                markEdges(edge, up, mid, down, width, edgeThreshold, edgeThresholdMin);
+                const uint8_t* edgeEnd = edge + width;
+                for (const uint8_t* e = edge; e < edgeEnd; ++e) {
+                    // Skip eight flat pixels at a time.
+                    while (e + 8 <= edgeEnd) {
+                        uint64_t word;
+                        std::memcpy(&word, e, 8);
+                        if (word) break;
+                        e += 8;
+                    }
+                    if (e >= edgeEnd) break;
+                    if (!*e) continue;
+                    const int x = int(e - edge);
+                    const int xl = std::max(x - 1, 0), xr = std::min(x + 1, width - 1);
                     ++band.processed;
                     const float lumaM = mid[x];
-                    float lumaS = down[x], lumaE = mid[x + 1], lumaN = up[x], lumaW = mid[x - 1];
+                    float lumaS = down[x], lumaE = mid[xr], lumaN = up[x], lumaW = mid[xl];
                     const float range = std::max({lumaS, lumaE, lumaN, lumaW, lumaM}) -
                                         std::min({lumaS, lumaE, lumaN, lumaW, lumaM});
-                    const float lumaNW = up[x - 1], lumaSE = down[x + 1], lumaNE = up[x + 1], lumaSW = down[x - 1];
+                    const float lumaNW = up[xl], lumaSE = down[xr], lumaNE = up[xr], lumaSW = down[xl];
                     const float lumaNS = lumaN + lumaS, lumaWE = lumaW + lumaE;
                     const float subpixRcpRange = 1.0f / range;
                     const float subpixNSWE = lumaNS + lumaWE;
@@ -153,10 +185,11 @@ void Fxaa::applyInPlace(float* frame, int width, int height, int channels) {
                     const float edgeHorz4 = std::abs(edgeHorz1) * 2.0f + std::abs(edgeHorz2);
                     const float edgeVert4 = std::abs(edgeVert1) * 2.0f + std::abs(edgeVert2);
                     const float edgeHorz3 = -2.0f * lumaW + lumaNWSW, edgeVert3 = -2.0f * lumaS + lumaSWSE;
-                    const float edgeHorz = std::abs(edgeHorz3) + edgeHorz4, edgeVert = std::abs(edgeVert3) + edgeVert4;
+                    const float edgeHorz = std::abs(edgeHorz3) + edgeHorz4,
+                                edgeVert = std::abs(edgeVert3) + edgeVert4;
                     const float subpixNWSWNESE = lumaNWSW + lumaNESE;
                     const bool horzSpan = edgeHorz >= edgeVert;  // the edge runs horizontally: search along x
-                    float lengthSign = 1.0f;                      // one pixel across the edge
+                    float lengthSign = 1.0f;                     // one pixel across the edge
                     const float subpixA = subpixNSWE * 2.0f + subpixNWSWNESE;
                     if (!horzSpan) lumaN = lumaW, lumaS = lumaE;
                     const float subpixB = subpixA * (1.0f / 12.0f) - lumaM;
@@ -187,7 +220,8 @@ void Fxaa::applyInPlace(float* frame, int width, int height, int channels) {
                     const bool lumaMLTZero = lumaMM < 0.0f;
                     lumaEndN -= lumaNN * 0.5f;
                     lumaEndP -= lumaNN * 0.5f;
-                    bool doneN = std::abs(lumaEndN) >= gradientScaled, doneP = std::abs(lumaEndP) >= gradientScaled;
+                    bool doneN = std::abs(lumaEndN) >= gradientScaled,
+                         doneP = std::abs(lumaEndP) >= gradientScaled;
                     if (stepCount > 1) {
                         if (!doneN) nx -= offX * steps[1], ny -= offY * steps[1];
                         if (!doneP) px += offX * steps[1], py += offY * steps[1];
@@ -221,7 +255,6 @@ void Fxaa::applyInPlace(float* frame, int width, int height, int channels) {
                     f.colourBilinear(sx, sy, change.rgb);
                     band.changes.push_back(change);
                 }
-                std::rotate(rows, rows + 1, rows + 3);
             }
         }
     });
@@ -230,7 +263,8 @@ void Fxaa::applyInPlace(float* frame, int width, int height, int channels) {
     processedFraction_ = double(processed) / (double(width) * double(height));
     parallelFor(0, bandCount, 1, [&](int64_t firstBand, int64_t lastBand) {
         for (int64_t b = firstBand; b < lastBand; ++b)
-            for (const Change& c : bands_[size_t(b)].changes) std::memcpy(frame + c.offset, c.rgb, sizeof c.rgb);
+            for (const Change& c : bands_[size_t(b)].changes)
+                std::memcpy(frame + c.offset, c.rgb, sizeof c.rgb);
     });
 }
 

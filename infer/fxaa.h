@@ -13,9 +13,9 @@
 namespace dejag::infer {
 
 struct FxaaOptions {
-    int preset = 39;                  // 12, 23 or 39 (the highest quality)
-    float subpix = 0.75f;             // amount of sub-pixel aliasing removal
-    float edgeThreshold = 0.166f;     // minimum local contrast, relative to the local maximum
+    int preset = 39;                   // 12, 23 or 39 (the highest quality)
+    float subpix = 0.75f;              // amount of sub-pixel aliasing removal
+    float edgeThreshold = 0.166f;      // minimum local contrast, relative to the local maximum
     float edgeThresholdMin = 0.0833f;  // ... and absolute (skips dark areas)
     bool greenAsLuma = false;          // luma = green instead of 0.299 R + 0.587 G + 0.114 B
 };
@@ -46,12 +46,12 @@ class Fxaa {
     };
     struct Band {
         std::vector<Change> changes;
-        std::vector<float> luma;  // three rows of luma (above, this, below)
         std::vector<uint8_t> edge;
         int64_t processed = 0;
     };
     std::vector<float> steps_;  // the preset's search steps, P0..P(n-1)
     std::vector<Band> bands_;
+    std::vector<float> luma_;  // luma plane of the frame (+1 float of margin each side)
     double processedFraction_ = 0;
 };
 

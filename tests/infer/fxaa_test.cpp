@@ -28,7 +28,8 @@ double mse(const std::vector<float>& a, const std::vector<float>& b, int channel
 
 // A dark/bright half-plane below the line y = slope * x + offset: point-sampled at pixel centres
 // (aliased) and area-sampled with 32 x 32 sub-samples (truth).
-void diagonalEdge(int size, double slope, double offset, std::vector<float>& aliased, std::vector<float>& truth) {
+void diagonalEdge(int size, double slope, double offset, std::vector<float>& aliased,
+                  std::vector<float>& truth) {
     aliased.assign(size_t(size * size * 3), 0.0f);
     truth.assign(size_t(size * size * 3), 0.0f);
     auto colour = [](bool below, int c) { return below ? (c == 0 ? 0.9f : c == 1 ? 0.8f : 0.3f) : 0.1f; };
