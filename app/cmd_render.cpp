@@ -120,6 +120,7 @@ void runRender(const RenderArguments& args) {
     sidecar["msaa"] = args.msaa;
     sidecar["channels"] = buffers.channelNames();
     sidecar["renderer"] = context->description();
+    sidecar["depth_far"] = scene.far;  // depth.Z of the background; TAA normalises depth by it
     sidecar["triangles"] = scene.triangleCount();
     sidecar["objects"] = scene.objects.size();
     if (args.truth > 0)

@@ -7,6 +7,7 @@
 #include "base/timer.h"
 #include "data/image.h"
 #include "infer/fxaa.h"
+#include "infer/taa.h"
 #include "render/renderer.h"
 
 namespace dejag::bench {
@@ -60,6 +61,48 @@ std::vector<nlohmann::json> benchFilters(const FilterBenchOptions& options) {
                             {"processed_fraction", fxaa.processedFraction()},
                             {"psnr_before", psnr(frame, truth)},
                             {"psnr_after", psnr(out, truth)}});
+        }
+    }
+    // TAA on the same frame with every buffer (history accumulating over the timed runs).
+    render::FrameRequest request;
+    request.buffers = render::BufferSet::all();
+    const render::Frame all = renderer.render(request);
+    const size_t pixels = size_t(options.width) * size_t(options.height);
+    auto take = [&](int first, int count, bool encode, float scale) {
+        std::vector<float> v(pixels * size_t(count));
+        for (size_t p = 0; p < pixels; ++p)
+            for (int c = 0; c < count; ++c) {
+                float x = all.pixels[p * size_t(all.channels()) + size_t(first + c)] * scale;
+                v[p * size_t(count) + size_t(c)] =
+                    encode ? std::clamp(linearToSrgb(std::max(x, 0.0f)), 0.0f, 1.0f) : x;
+            }
+        return v;
+    };
+    const float depthScale = float(1.0 / scene.far);
+    const std::vector<float> colour = take(0, 3, true, 1), albedo = take(3, 3, true, 1),
+                             depth = take(6, 1, false, depthScale), motion = take(7, 2, false, 1),
+                             ids = take(9, 1, false, 1), previousDepth = take(10, 1, false, depthScale);
+    infer::TaaFrame frameBuffers;
+    frameBuffers.width = options.width, frameBuffers.height = options.height;
+    frameBuffers.colour = colour.data(), frameBuffers.albedo = albedo.data(),
+    frameBuffers.depth = depth.data();
+    frameBuffers.motion = motion.data(), frameBuffers.ids = ids.data(),
+    frameBuffers.previousDepth = previousDepth.data();
+    for (const bool improved : {false, true}) {
+        infer::TaaOptions taaOptions;
+        taaOptions.improved = improved;
+        infer::Taa taa(taaOptions);
+        for (const int threads : options.threads) {
+            setThreadCount(threads);
+            const double ms =
+                medianMilliseconds(options.repeat, [&] { taa.apply(frameBuffers, out.data()); });
+            rows.push_back({{"name", improved ? "t-taa" : "u-taa"},
+                            {"threads", threads},
+                            {"width", options.width},
+                            {"height", options.height},
+                            {"ms", ms},
+                            {"target_ms", improved ? 5.0 : 3.0},
+                            {"processed_fraction", 1.0}});
         }
     }
     setThreadCount(0);

@@ -320,8 +320,11 @@ TEST(Cli, FilterFxaaKeepsBitDepthAndAlphaAndRefusesWhatItCannotDo) {
         }
     EXPECT_TRUE(changed);
     expectOneLineError(
-        run("filter --method taa '" + dir.file("edge.png") + "' '" + dir.file("t.png") + "'", dir),
+        run("filter --method cnn '" + dir.file("edge.png") + "' '" + dir.file("t.png") + "'", dir),
         "not available yet");
+    expectOneLineError(
+        run("filter --method taa '" + dir.file("edge.png") + "' '" + dir.file("t.png") + "'", dir),
+        "folder written by dejag render");
     expectOneLineError(
         run("filter --method fxaa --preset 7 '" + dir.file("edge.png") + "' '" + dir.file("t.png") + "'",
             dir),
@@ -330,6 +333,34 @@ TEST(Cli, FilterFxaaKeepsBitDepthAndAlphaAndRefusesWhatItCannotDo) {
         run("filter --method fxaa '" + dir.file("missing.png") + "' '" + dir.file("t.png") + "'", dir),
         "missing.png");
     EXPECT_FALSE(std::filesystem::exists(dir.file("t.png")));
+}
+
+TEST(Cli, FilterTaaRunsOverARenderedSequence) {
+    testing::TempDir dir;
+    const std::string frames = dir.file("frames"), out = dir.file("out");
+    ASSERT_EQ(run("render --scene corridor --size 64x48 --frames 5 --jitter halton16 "
+                  "--buffers color,albedo,depth,motion,id,prevdepth --quiet --out '" +
+                      frames + "'",
+                  dir)
+                  .exitCode,
+              0);
+    for (const char* method : {"taa", "taa-sobel"}) {
+        const RunResult r =
+            run(std::string("filter --method ") + method + " '" + frames + "' '" + out + method + "' --json",
+                dir);
+        ASSERT_EQ(r.exitCode, 0) << r.err;
+        EXPECT_EQ(nlohmann::json::parse(r.out)["frames"].size(), 5u);
+        const Image last = readImage(out + method + "/frame_0004.png");
+        EXPECT_EQ(last.width, 64);
+        EXPECT_EQ(last.storage, PixelType::UInt8);
+    }
+    // T-TAA needs every buffer.
+    const std::string colourOnly = dir.file("colour");
+    ASSERT_EQ(run("render --scene corridor --size 64x48 --frames 2 --quiet --out '" + colourOnly + "'", dir)
+                  .exitCode,
+              0);
+    expectOneLineError(run("filter --method taa-sobel '" + colourOnly + "' '" + dir.file("o") + "'", dir),
+                       "depth.Z");
 }
 
 TEST(Cli, RenderListsTheScenes) {

@@ -1,0 +1,51 @@
+// dejag/infer: temporal anti-aliasing as spec/taa.md describes it — U-TAA, the Uncharted 4 / INSIDE
+// style baseline, and T-TAA, the Sobel-improved variant (Sobel of albedo, lit luma and depth stabilised
+// by its own 1-channel TAA, object-ID and depth pseudo-variance terms that shrink the colour box to the
+// current colour where a pixel is not aliased, and a normalised sharpen).
+//
+// Colour is display-referred (sRGB-encoded, [0, 1]) like the thesis' render targets; the history is
+// float. Depth is linear depth divided by the far plane ([0, 1]); the thesis' depth threshold 0.002 is
+// in those units (its code used n = 1, f = 10000 with the same normalisation).
+#pragma once
+
+#include <cstdint>
+#include <vector>
+
+namespace dejag::infer {
+
+struct TaaOptions {
+    bool improved = false;          // false: U-TAA, true: T-TAA
+    float feedbackMin = 0.925f;     // history weight where current and history lumas differ
+    float feedbackMax = 0.979f;     // ... and where they agree (spec/taa.md, from the thesis' code)
+    float depthThreshold = 0.002f;  // pseudo-variances vanish below this 3x3 depth spread
+    bool sharpen = true;
+};
+
+// One frame's inputs, all (height, width, k) interleaved floats; improved needs every buffer.
+struct TaaFrame {
+    int width = 0, height = 0;
+    const float* colour = nullptr;         // 3 channels, sRGB-encoded
+    const float* albedo = nullptr;         // 3 channels, sRGB-encoded (T-TAA)
+    const float* depth = nullptr;          // 1 channel, linear depth / far
+    const float* motion = nullptr;         // 2 channels, pixels moved since the previous frame, +y down
+    const float* ids = nullptr;            // 1 channel, object IDs (T-TAA)
+    const float* previousDepth = nullptr;  // 1 channel, the previous frame's depth / far (T-TAA)
+};
+
+class Taa {
+  public:
+    explicit Taa(const TaaOptions& options = {});
+    // Filters one frame into out (3 channels, sRGB-encoded) and keeps its history. The first frame, a
+    // size change or reset() starts a new history. Multithreaded, independent of the thread count.
+    void apply(const TaaFrame& frame, float* out);
+    void reset() { width_ = height_ = 0; }
+
+  private:
+    TaaOptions options_;
+    int width_ = 0, height_ = 0;
+    std::vector<float> history_;                            // 3 channels, unsharpened
+    std::vector<float> sobel_, sobelHistory_, nextSobel_;  // 1 channel (T-TAA)
+    std::vector<float> blended_;                            // this frame before the sharpen
+};
+
+}  // namespace dejag::infer

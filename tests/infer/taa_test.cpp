@@ -1,0 +1,178 @@
+// U-TAA and T-TAA: constant frames pass unchanged, a static scene converges towards its truth, a moving
+// square leaves no ghost trail, and threads do not change the result.
+#include "infer/taa.h"
+
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+
+#include "base/error.h"
+#include "base/thread_pool.h"
+#include "data/image.h"
+#include "render/halton.h"
+#include "render/renderer.h"
+
+namespace dejag::infer {
+namespace {
+
+struct Buffers {
+    int width = 0, height = 0;
+    std::vector<float> colour, albedo, depth, motion, ids, previousDepth;
+    TaaFrame frame() const {
+        TaaFrame f;
+        f.width = width, f.height = height;
+        f.colour = colour.data(), f.albedo = albedo.data(), f.depth = depth.data(), f.motion = motion.data();
+        f.ids = ids.data(), f.previousDepth = previousDepth.data();
+        return f;
+    }
+};
+
+double psnr(const std::vector<float>& a, const std::vector<float>& b) {
+    double squared = 0;
+    for (size_t i = 0; i < a.size(); ++i) squared += double(a[i] - b[i]) * double(a[i] - b[i]);
+    return 10 * std::log10(double(a.size()) / std::max(squared, 1e-30));
+}
+
+TEST(Taa, ConstantFramesPassUnchanged) {
+    for (const bool improved : {false, true}) {
+        Buffers b;
+        b.width = 21, b.height = 13;
+        const size_t n = 21 * 13;
+        b.colour.assign(n * 3, 0.37f), b.albedo.assign(n * 3, 0.5f), b.depth.assign(n, 0.2f);
+        b.motion.assign(n * 2, 0.0f), b.ids.assign(n, 1.0f), b.previousDepth.assign(n, 0.2f);
+        TaaOptions options;
+        options.improved = improved;
+        Taa taa(options);
+        std::vector<float> out(n * 3);
+        for (int frame = 0; frame < 5; ++frame) {
+            taa.apply(b.frame(), out.data());
+            for (float v : out) ASSERT_NEAR(v, 0.37f, 1e-6f) << "frame " << frame << (improved ? " T-TAA" : " U-TAA");
+        }
+    }
+}
+
+// A white square moving 2 pixels per frame to the right over black: no trail behind it.
+Buffers squareFrame(int t) {
+    Buffers b;
+    b.width = 64, b.height = 32;
+    const size_t n = 64 * 32;
+    b.colour.assign(n * 3, 0.0f), b.albedo.assign(n * 3, 0.0f), b.depth.assign(n, 0.9f), b.motion.assign(n * 2, 0.0f);
+    b.ids.assign(n, 0.0f), b.previousDepth.assign(n, 0.9f);
+    const int x0 = 4 + 2 * t;
+    for (int y = 10; y < 22; ++y)
+        for (int x = x0; x < x0 + 12 && x < 64; ++x) {
+            const size_t i = size_t(y) * 64 + size_t(x);
+            for (int c = 0; c < 3; ++c) b.colour[i * 3 + size_t(c)] = b.albedo[i * 3 + size_t(c)] = 1.0f;
+            b.depth[i] = 0.3f, b.ids[i] = 1.0f, b.motion[i * 2] = 2.0f;
+        }
+    for (int y = 10; y < 22; ++y)
+        for (int x = x0 - 2; x < x0 + 10; ++x)
+            if (x >= 0) b.previousDepth[size_t(y) * 64 + size_t(x)] = 0.3f;
+    return b;
+}
+
+TEST(Taa, AMovingSquareLeavesNoGhostTrail) {
+    for (const bool improved : {false, true}) {
+        TaaOptions options;
+        options.improved = improved;
+        Taa taa(options);
+        std::vector<float> out(64 * 32 * 3);
+        for (int t = 0; t < 14; ++t) taa.apply(squareFrame(t).frame(), out.data());
+        // The square now covers x in [30, 42); everything left of x = 28 was covered earlier.
+        float worst = 0;
+        for (int y = 10; y < 22; ++y)
+            for (int x = 4; x < 28; ++x) worst = std::max(worst, out[(size_t(y) * 64 + size_t(x)) * 3]);
+        EXPECT_LT(worst, 0.05f) << (improved ? "T-TAA" : "U-TAA");
+        // and the square itself is still there.
+        EXPECT_GT(out[(size_t(16) * 64 + 36) * 3], 0.9f);
+    }
+}
+
+// The renderer's jittered frames of a static scene: 16 frames of history beat the first frame; without
+// the final sharpen, the accumulated history also beats the aliased frame itself.
+TEST(Taa, StaticSceneConvergesTowardsTheTruth) {
+    const auto context = render::createOsMesaContext();
+    render::SceneOptions sceneOptions;
+    sceneOptions.tiltedCamera = true;
+    const render::Scene scene = render::buildScene("pipe", sceneOptions);
+    const int W = 128, H = 96;
+    render::Renderer renderer(*context, scene, W, H);
+    auto encode = [](std::vector<float> v) {
+        for (float& x : v) x = std::clamp(linearToSrgb(std::max(x, 0.0f)), 0.0f, 1.0f);
+        return v;
+    };
+    auto channels = [](const render::Frame& f, int first, int count) {
+        std::vector<float> v(size_t(f.width) * size_t(f.height) * size_t(count));
+        for (size_t p = 0; p < size_t(f.width) * size_t(f.height); ++p)
+            for (int c = 0; c < count; ++c) v[p * size_t(count) + size_t(c)] = f.pixels[p * size_t(f.channels()) + size_t(first + c)];
+        return v;
+    };
+    const std::vector<float> truth = encode(renderer.renderTruth(0, render::TruthOptions{}).pixels);
+    render::FrameRequest still;
+    still.buffers = render::BufferSet::parse("color");
+    const double single = psnr(encode(renderer.render(still).pixels), truth);
+    for (const int variant : {0, 1, 2, 3}) {
+        const bool improved = variant % 2 == 1, sharpen = variant < 2;
+        TaaOptions options;
+        options.improved = improved, options.sharpen = sharpen;
+        Taa taa(options);
+        std::vector<float> out(size_t(W * H * 3));
+        double first = 0;
+        for (int t = 0; t < 16; ++t) {
+            render::FrameRequest request;
+            request.time = 0, request.previousTime = 0;
+            request.jitter = render::jitterPixels(unsigned(t), 1.7);
+            request.previousJitter = render::jitterPixels(unsigned((t + 15) % 16), 1.7);
+            request.buffers = render::BufferSet::all();
+            const render::Frame f = renderer.render(request);
+            Buffers b;
+            b.width = W, b.height = H;
+            b.colour = encode(channels(f, 0, 3)), b.albedo = encode(channels(f, 3, 3));
+            b.depth = channels(f, 6, 1), b.motion = channels(f, 7, 2), b.ids = channels(f, 9, 1);
+            b.previousDepth = channels(f, 10, 1);
+            for (float& d : b.depth) d /= float(scene.far);
+            for (float& d : b.previousDepth) d /= float(scene.far);
+            taa.apply(b.frame(), out.data());
+            if (t == 0) first = psnr(out, truth);
+        }
+        const double last = psnr(out, truth);
+        SCOPED_TRACE(std::string(improved ? "T-TAA" : "U-TAA") + (sharpen ? "" : " without sharpen"));
+        EXPECT_GT(last, first + 1.0) << last << " dB after 16 frames, " << first << " after 1";
+        if (!sharpen) {
+            EXPECT_GT(last, single) << last << " dB vs the aliased frame's " << single;
+        }
+    }
+}
+
+TEST(Taa, SameResultForEveryThreadCount) {
+    std::vector<std::vector<float>> results;
+    for (const int threads : {1, 2, 3}) {
+        setThreadCount(threads);
+        TaaOptions options;
+        options.improved = true;
+        Taa taa(options);
+        std::vector<float> out(64 * 32 * 3);
+        for (int t = 0; t < 6; ++t) taa.apply(squareFrame(t).frame(), out.data());
+        results.push_back(out);
+    }
+    setThreadCount(0);
+    EXPECT_EQ(results[0], results[1]);
+    EXPECT_EQ(results[0], results[2]);
+}
+
+TEST(Taa, RefusesMissingBuffers) {
+    TaaOptions options;
+    options.improved = true;
+    Taa taa(options);
+    Buffers b = squareFrame(0);
+    TaaFrame f = b.frame();
+    f.ids = nullptr;
+    std::vector<float> out(64 * 32 * 3);
+    EXPECT_THROW(taa.apply(f, out.data()), Error);
+    options.feedbackMin = 0.99f;
+    EXPECT_THROW(Taa{options}, Error);
+}
+
+}  // namespace
+}  // namespace dejag::infer
