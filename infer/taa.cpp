@@ -68,7 +68,8 @@ Rgb clipToBox(const Rgb& lo, const Rgb& hi, const Rgb& q) {
     const float eps = 1e-6f;
     const Rgb extent = (hi - lo) * 0.5f + Rgb{eps, eps, eps};
     const Rgb v = q - centre;
-    const float unit = std::max({std::abs(v.r / extent.r), std::abs(v.g / extent.g), std::abs(v.b / extent.b)});
+    const float unit =
+        std::max({std::abs(v.r / extent.r), std::abs(v.g / extent.g), std::abs(v.b / extent.b)});
     return unit > 1.0f ? centre + v * (1.0f / unit) : q;
 }
 
@@ -119,7 +120,8 @@ void Taa::apply(const TaaFrame& f, float* out) {
         parallelFor(0, H, 4, [&](int64_t first, int64_t last) {
             for (int y = int(first); y < int(last); ++y)
                 for (int x = 0; x < W; ++x) {
-                    const float u = sobelMagnitude(albedo, x, y, true), l = sobelMagnitude(colour, x, y, true);
+                    const float u = sobelMagnitude(albedo, x, y, true),
+                                l = sobelMagnitude(colour, x, y, true);
                     const float d = sobelMagnitude(depth, x, y, false);
                     const float g = std::clamp(0.3f * u + 0.7f * l + d, 0.0f, 1.0f);
                     sobel_[size_t(y) * size_t(W) + size_t(x)] = std::sqrt(g * g * (3.0f - 2.0f * g));
@@ -158,14 +160,17 @@ void Taa::apply(const TaaFrame& f, float* out) {
                 const size_t i = size_t(y) * size_t(W) + size_t(x);
                 const Rgb current = colour.rgb(x, y);
                 // 1. Neighbourhoods: 3x3 and cross (centre + 4).
-                Rgb min9 = current, max9 = current, sum9{}, minCross = current, maxCross = current, sumCross{};
+                Rgb min9 = current, max9 = current, sum9{}, minCross = current, maxCross = current,
+                    sumCross{};
                 float closest = 1e30f;
                 int cx = x, cy = y;
                 for (int dy = -1; dy <= 1; ++dy)
                     for (int dx = -1; dx <= 1; ++dx) {
                         const Rgb c = colour.rgb(x + dx, y + dy);
                         min9 = minimum(min9, c), max9 = maximum(max9, c), sum9 = sum9 + c;
-                        if (dx == 0 || dy == 0) minCross = minimum(minCross, c), maxCross = maximum(maxCross, c), sumCross = sumCross + c;
+                        if (dx == 0 || dy == 0)
+                            minCross = minimum(minCross, c), maxCross = maximum(maxCross, c),
+                            sumCross = sumCross + c;
                         // 2. The velocity of the closest depth in the 3x3.
                         const float d = depth.value(x + dx, y + dy);
                         if (d < closest) closest = d, cx = x + dx, cy = y + dy;
@@ -173,7 +178,8 @@ void Taa::apply(const TaaFrame& f, float* out) {
                 const Rgb avg9 = sum9 * (1.0f / 9.0f), avgCross = sumCross * 0.2f;
                 const float* velocity = motion.at(cx, cy);
                 // 3. Reproject.
-                const Rgb previous = fresh ? current : history.rgbBilinear(x + 0.5f - velocity[0], y + 0.5f - velocity[1]);
+                const Rgb previous =
+                    fresh ? current : history.rgbBilinear(x + 0.5f - velocity[0], y + 0.5f - velocity[1]);
                 Rgb lo, hi;
                 if (!improved) {
                     lo = (min9 + minCross) * 0.5f, hi = (max9 + maxCross) * 0.5f;
@@ -205,8 +211,10 @@ void Taa::apply(const TaaFrame& f, float* out) {
                     }
                     const float sobelAvgMixVal = std::clamp(modelAverage + sobelCentre, 0.0f, 1.0f);
                     const float sobelAvg = sobelCross + (sobel3x3 - sobelCross) * sobelAvgMixVal;
-                    const float aliased = std::clamp(sobelAvg + depthPV + depthTPV + modelAverage, 0.0f, 1.0f);
-                    const Rgb colorMin = mix(minCross, min9, aliased), colorMax = mix(maxCross, max9, aliased);
+                    const float aliased =
+                        std::clamp(sobelAvg + depthPV + depthTPV + modelAverage, 0.0f, 1.0f);
+                    const Rgb colorMin = mix(minCross, min9, aliased),
+                              colorMax = mix(maxCross, max9, aliased);
                     lo = mix(current, colorMin, aliased), hi = mix(current, colorMax, aliased);
                     (void)avg9, (void)avgCross;
                 }
@@ -227,11 +235,12 @@ void Taa::apply(const TaaFrame& f, float* out) {
                 const Rgb c = blended.rgb(x, y);
                 Rgb s = c;
                 if (options_.sharpen)
-                    s = c * centreWeight +
-                        (blended.rgb(x - 1, y) + blended.rgb(x + 1, y) + blended.rgb(x, y - 1) + blended.rgb(x, y + 1)) *
-                            sideWeight;
+                    s = c * centreWeight + (blended.rgb(x - 1, y) + blended.rgb(x + 1, y) +
+                                            blended.rgb(x, y - 1) + blended.rgb(x, y + 1)) *
+                                               sideWeight;
                 float* o = out + (size_t(y) * size_t(W) + size_t(x)) * 3;
-                o[0] = std::clamp(s.r, 0.0f, 1.0f), o[1] = std::clamp(s.g, 0.0f, 1.0f), o[2] = std::clamp(s.b, 0.0f, 1.0f);
+                o[0] = std::clamp(s.r, 0.0f, 1.0f), o[1] = std::clamp(s.g, 0.0f, 1.0f),
+                o[2] = std::clamp(s.b, 0.0f, 1.0f);
             }
     });
     std::swap(history_, blended_);

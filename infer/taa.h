@@ -43,9 +43,9 @@ class Taa {
   private:
     TaaOptions options_;
     int width_ = 0, height_ = 0;
-    std::vector<float> history_;                            // 3 channels, unsharpened
+    std::vector<float> history_;                           // 3 channels, unsharpened
     std::vector<float> sobel_, sobelHistory_, nextSobel_;  // 1 channel (T-TAA)
-    std::vector<float> blended_;                            // this frame before the sharpen
+    std::vector<float> blended_;                           // this frame before the sharpen
 };
 
 }  // namespace dejag::infer

@@ -363,6 +363,22 @@ TEST(Cli, FilterTaaRunsOverARenderedSequence) {
                        "depth.Z");
 }
 
+TEST(Cli, BenchFilterPrintsEveryMethod) {
+    testing::TempDir dir;
+    const RunResult r = run("bench filter --size 96x64 --repeat 1 --threads 1 --json", dir);
+    ASSERT_EQ(r.exitCode, 0) << r.err;
+    std::stringstream lines(r.out);
+    std::string line;
+    std::vector<std::string> names;
+    while (std::getline(lines, line)) {
+        const nlohmann::json j = nlohmann::json::parse(line);
+        EXPECT_GT(j["ms"].get<double>(), 0.0);
+        names.push_back(j["name"].get<std::string>());
+    }
+    EXPECT_EQ(names, (std::vector<std::string>{"fxaa preset 12", "fxaa preset 23", "fxaa preset 39", "u-taa",
+                                               "t-taa"}));
+}
+
 TEST(Cli, RenderListsTheScenes) {
     testing::TempDir dir;
     const RunResult r = run("render --list", dir);

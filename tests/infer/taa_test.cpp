@@ -47,7 +47,8 @@ TEST(Taa, ConstantFramesPassUnchanged) {
         std::vector<float> out(n * 3);
         for (int frame = 0; frame < 5; ++frame) {
             taa.apply(b.frame(), out.data());
-            for (float v : out) ASSERT_NEAR(v, 0.37f, 1e-6f) << "frame " << frame << (improved ? " T-TAA" : " U-TAA");
+            for (float v : out)
+                ASSERT_NEAR(v, 0.37f, 1e-6f) << "frame " << frame << (improved ? " T-TAA" : " U-TAA");
         }
     }
 }
@@ -57,7 +58,8 @@ Buffers squareFrame(int t) {
     Buffers b;
     b.width = 64, b.height = 32;
     const size_t n = 64 * 32;
-    b.colour.assign(n * 3, 0.0f), b.albedo.assign(n * 3, 0.0f), b.depth.assign(n, 0.9f), b.motion.assign(n * 2, 0.0f);
+    b.colour.assign(n * 3, 0.0f), b.albedo.assign(n * 3, 0.0f), b.depth.assign(n, 0.9f),
+        b.motion.assign(n * 2, 0.0f);
     b.ids.assign(n, 0.0f), b.previousDepth.assign(n, 0.9f);
     const int x0 = 4 + 2 * t;
     for (int y = 10; y < 22; ++y)
@@ -105,7 +107,8 @@ TEST(Taa, StaticSceneConvergesTowardsTheTruth) {
     auto channels = [](const render::Frame& f, int first, int count) {
         std::vector<float> v(size_t(f.width) * size_t(f.height) * size_t(count));
         for (size_t p = 0; p < size_t(f.width) * size_t(f.height); ++p)
-            for (int c = 0; c < count; ++c) v[p * size_t(count) + size_t(c)] = f.pixels[p * size_t(f.channels()) + size_t(first + c)];
+            for (int c = 0; c < count; ++c)
+                v[p * size_t(count) + size_t(c)] = f.pixels[p * size_t(f.channels()) + size_t(first + c)];
         return v;
     };
     const std::vector<float> truth = encode(renderer.renderTruth(0, render::TruthOptions{}).pixels);
