@@ -15,6 +15,7 @@
 #include "bench/bench.h"
 #include "bench/filter_bench.h"
 #include "bench/render_bench.h"
+#include "bench/taa_bench.h"
 
 namespace dejag::cli {
 namespace {
@@ -192,6 +193,61 @@ void registerBenchCommand(CLI::App& app) {
             std::printf("\n");
         }
         std::printf("frame: hard-edges, %s, sRGB-encoded float RGB\n", filterArgs->size.c_str());
+    });
+
+    struct TaaBenchArguments {
+        std::string size = "800x450", ghostSize = "400x225", out;
+        int truth = 128, ghostFrames = 100, ghostTruth = 32;
+        bool noGhosting = false, json = false;
+    };
+    auto taaArgs = std::make_shared<TaaBenchArguments>();
+    CLI::App* taaBench = bench->add_subcommand(
+        "taa", "the thesis' comparison: static test (No AA, FXAA, U-TAA, T-TAA vs truth) and ghosting test");
+    taaBench->add_option("--size", taaArgs->size, "static test frame size")->capture_default_str();
+    taaBench->add_option("--truth", taaArgs->truth, "truth samples (static test)")->capture_default_str();
+    taaBench->add_option("--ghost-size", taaArgs->ghostSize, "ghosting test frame size")
+        ->capture_default_str();
+    taaBench->add_option("--ghost-frames", taaArgs->ghostFrames, "ghosting test frames")
+        ->capture_default_str();
+    taaBench->add_option("--ghost-truth", taaArgs->ghostTruth, "truth samples per ghosting frame")
+        ->capture_default_str();
+    taaBench->add_flag("--no-ghosting", taaArgs->noGhosting, "static test only");
+    taaBench->add_option("--out", taaArgs->out, "folder for the static test's SSIM-map PNGs");
+    taaBench->add_flag("--json", taaArgs->json, "One JSON object per row");
+    taaBench->callback([taaArgs] {
+        bench::TaaBenchOptions options;
+        const Size size = parseSize(taaArgs->size, "--size"),
+                   ghost = parseSize(taaArgs->ghostSize, "--ghost-size");
+        options.width = size.width, options.height = size.height, options.truthSamples = taaArgs->truth;
+        options.ghostWidth = ghost.width, options.ghostHeight = ghost.height;
+        options.ghostFrames = taaArgs->ghostFrames, options.ghostTruthSamples = taaArgs->ghostTruth;
+        options.ghosting = !taaArgs->noGhosting, options.ssimMapFolder = taaArgs->out,
+        options.quiet = taaArgs->json;
+        if (options.truthSamples < 1 || options.ghostFrames < 1 || options.ghostTruthSamples < 1)
+            throw Error("--truth, --ghost-frames and --ghost-truth must be at least 1");
+        const std::vector<nlohmann::json> rows = bench::benchTaa(options);
+        if (taaArgs->json) {
+            for (const nlohmann::json& row : rows) std::printf("%s\n", row.dump().c_str());
+            return;
+        }
+        std::printf("Static test, %s, 8-bit sRGB against the %d-sample truth: PSNR dB (SSIM)\n",
+                    taaArgs->size.c_str(), taaArgs->truth);
+        std::printf("%-14s %16s %16s %16s %16s\n", "scene", "No AA", "FXAA", "U-TAA", "T-TAA");
+        for (size_t i = 0; i + 3 < rows.size(); i += 4) {
+            if (rows[i]["test"] != "static") break;
+            std::printf("%-14s", rows[i]["scene"].get<std::string>().c_str());
+            for (size_t k = 0; k < 4; ++k)
+                std::printf(" %8.2f (%.4f)", rows[i + k]["psnr"].get<double>(),
+                            rows[i + k]["ssim"].get<double>());
+            std::printf("\n");
+        }
+        for (const nlohmann::json& row : rows) {
+            if (row["test"] != "ghosting") continue;
+            std::printf("ghosting %-22s %-6s PSNR best %.2f worst %.2f mean %.2f dB, SSIM mean %.4f\n",
+                        row["scene"].get<std::string>().c_str(), row["method"].get<std::string>().c_str(),
+                        row["psnr"]["best"].get<double>(), row["psnr"]["worst"].get<double>(),
+                        row["psnr"]["mean"].get<double>(), row["ssim"]["mean"].get<double>());
+        }
     });
 
     auto args = std::make_shared<BenchArguments>();

@@ -379,6 +379,32 @@ TEST(Cli, BenchFilterPrintsEveryMethod) {
                                                "t-taa"}));
 }
 
+TEST(Cli, BenchTaaReproducesTheThesisProtocolsSmall) {
+    testing::TempDir dir;
+    const RunResult r =
+        run("bench taa --size 64x36 --truth 4 --ghost-frames 2 --ghost-size 32x18 --ghost-truth 2 --json "
+            "--out '" +
+                dir.file("maps") + "'",
+            dir);
+    ASSERT_EQ(r.exitCode, 0) << r.err;
+    std::stringstream lines(r.out);
+    std::string line;
+    int statics = 0, ghosts = 0;
+    while (std::getline(lines, line)) {
+        const nlohmann::json j = nlohmann::json::parse(line);
+        if (j["test"] == "static") {
+            ++statics;
+            EXPECT_TRUE(std::filesystem::exists(dir.file("maps") + "/" + j["ssim_map"].get<std::string>()));
+            EXPECT_GT(j["ssim"].get<double>(), 0.0);
+        } else {
+            ++ghosts;
+            EXPECT_LE(j["psnr"]["worst"].get<double>(), j["psnr"]["mean"].get<double>());
+        }
+    }
+    EXPECT_EQ(statics, 9 * 4);
+    EXPECT_EQ(ghosts, 3 * 2);
+}
+
 TEST(Cli, RenderListsTheScenes) {
     testing::TempDir dir;
     const RunResult r = run("render --list", dir);

@@ -1,0 +1,161 @@
+#include "bench/taa_bench.h"
+
+#include <algorithm>
+#include <cmath>
+#include <filesystem>
+
+#include "base/progress.h"
+#include "data/image.h"
+#include "data/metrics.h"
+#include "infer/fxaa.h"
+#include "infer/taa.h"
+#include "render/halton.h"
+#include "render/renderer.h"
+
+namespace dejag::bench {
+
+namespace {
+
+// The channels [first, first + count) of a frame, optionally sRGB-encoded, optionally scaled.
+std::vector<float> take(const render::Frame& f, int first, int count, bool encode, float scale = 1.0f) {
+    const size_t pixels = size_t(f.width) * size_t(f.height);
+    std::vector<float> v(pixels * size_t(count));
+    for (size_t p = 0; p < pixels; ++p)
+        for (int c = 0; c < count; ++c) {
+            const float x = f.pixels[p * size_t(f.channels()) + size_t(first + c)] * scale;
+            v[p * size_t(count) + size_t(c)] = encode ? std::clamp(linearToSrgb(std::max(x, 0.0f)), 0.0f, 1.0f) : x;
+        }
+    return v;
+}
+
+// An 8-bit sRGB image (the thesis measured on 8-bit render targets).
+Image eightBit(const std::vector<float>& rgb, int width, int height) {
+    Image image(width, height, {"R", "G", "B"}, PixelType::UInt8);
+    for (size_t i = 0; i < rgb.size(); ++i) image.pixels[i] = std::round(std::clamp(rgb[i], 0.0f, 1.0f) * 255.0f) / 255.0f;
+    return image;
+}
+
+nlohmann::json metricsJson(const ImageMetrics& m) {
+    return {{"mse", m.mse}, {"rmsd", m.rmse}, {"psnr", m.psnr}, {"snr", m.snr}, {"ssim", m.ssim}};
+}
+
+struct Taas {
+    infer::Taa u{infer::TaaOptions{}};
+    infer::Taa t{[] {
+        infer::TaaOptions o;
+        o.improved = true;
+        return o;
+    }()};
+};
+
+// Runs both TAAs on one rendered frame with every buffer.
+void runTaas(Taas& taas, const render::Frame& f, float far, std::vector<float>& outU, std::vector<float>& outT) {
+    const std::vector<float> colour = take(f, 0, 3, true), albedo = take(f, 3, 3, true);
+    const std::vector<float> depth = take(f, 6, 1, false, 1.0f / far), motion = take(f, 7, 2, false);
+    const std::vector<float> ids = take(f, 9, 1, false), previousDepth = take(f, 10, 1, false, 1.0f / far);
+    infer::TaaFrame frame;
+    frame.width = f.width, frame.height = f.height;
+    frame.colour = colour.data(), frame.albedo = albedo.data(), frame.depth = depth.data();
+    frame.motion = motion.data(), frame.ids = ids.data(), frame.previousDepth = previousDepth.data();
+    outU.resize(colour.size()), outT.resize(colour.size());
+    taas.u.apply(frame, outU.data());
+    taas.t.apply(frame, outT.data());
+}
+
+render::FrameRequest jittered(double time, int index) {
+    render::FrameRequest r;
+    r.time = time, r.previousTime = std::max(0.0, time - 1);
+    r.jitter = render::jitterPixels(unsigned(index % 16), 1.7);
+    r.previousJitter = render::jitterPixels(unsigned((index + 15) % 16), 1.7);
+    r.buffers = render::BufferSet::all();
+    return r;
+}
+
+}  // namespace
+
+std::vector<nlohmann::json> benchTaa(const TaaBenchOptions& options) {
+    std::vector<nlohmann::json> rows;
+    const auto context = render::createOsMesaContext();
+    struct StaticScene {
+        const char* label;
+        const char* scene;
+        bool tilted;
+    };
+    const StaticScene scenes[] = {{"pipe", "pipe", false},          {"pipe tilted", "pipe", true},
+                                  {"blinds", "blinds", false},      {"arched window", "arched-window", false},
+                                  {"atrium", "atrium", false},      {"flowers", "flowers", false},
+                                  {"hard edges", "hard-edges", false}, {"hairball", "hairball", false},
+                                  {"hairball lit", "hairball-lit", false}};
+    Progress progress("bench taa", int64_t(std::size(scenes)) + (options.ghosting ? 3 : 0), options.quiet);
+    const int W = options.width, H = options.height;
+    for (const StaticScene& s : scenes) {
+        render::SceneOptions sceneOptions;
+        sceneOptions.tiltedCamera = s.tilted;
+        const render::Scene scene = render::buildScene(s.scene, sceneOptions);
+        render::Renderer renderer(*context, scene, W, H);
+        render::TruthOptions truthOptions;
+        truthOptions.samples = options.truthSamples, truthOptions.adaptive = true;
+        const Image truth = eightBit(take(renderer.renderTruth(0, truthOptions), 0, 3, true), W, H);
+        render::FrameRequest still;
+        still.buffers = render::BufferSet::parse("color");
+        const std::vector<float> noAa = take(renderer.render(still), 0, 3, true);
+        std::vector<float> fxaaOut(noAa.size());
+        infer::Fxaa().apply(noAa.data(), fxaaOut.data(), W, H, 3);
+        Taas taas;
+        std::vector<float> outU, outT;
+        for (int i = 0; i < options.historyFrames; ++i)
+            runTaas(taas, renderer.render(jittered(0, i)), float(scene.far), outU, outT);
+        const std::pair<const char*, const std::vector<float>*> methods[] = {
+            {"no aa", &noAa}, {"fxaa", &fxaaOut}, {"u-taa", &outU}, {"t-taa", &outT}};
+        for (const auto& [method, pixels] : methods) {
+            MetricOptions metricOptions;
+            metricOptions.wantSsimMap = !options.ssimMapFolder.empty();
+            const ImageMetrics m = compareImages(truth, eightBit(*pixels, W, H), metricOptions);
+            nlohmann::json row = {{"test", "static"}, {"scene", s.label}, {"method", method}, {"width", W}, {"height", H}};
+            row.update(metricsJson(m));
+            if (metricOptions.wantSsimMap) {
+                std::filesystem::create_directories(options.ssimMapFolder);
+                std::string name = std::string(s.label) + "_" + method + "_ssim.png";
+                std::replace(name.begin(), name.end(), ' ', '-');
+                writeSsimMapPng((std::filesystem::path(options.ssimMapFolder) / name).string(), m.ssimMap, W, H);
+                row["ssim_map"] = name;
+            }
+            rows.push_back(row);
+        }
+        progress.advance(1, s.label);
+    }
+    if (options.ghosting) {
+        const int GW = options.ghostWidth, GH = options.ghostHeight;
+        for (const char* name : {"corridor", "hairball-rotating", "hairball-lit-rotating"}) {
+            const render::Scene scene = render::buildScene(name);
+            render::Renderer renderer(*context, scene, GW, GH);
+            Taas taas;
+            std::vector<float> outU, outT;
+            std::vector<double> psnrU, psnrT, ssimU, ssimT;
+            render::TruthOptions truthOptions;
+            truthOptions.samples = options.ghostTruthSamples, truthOptions.adaptive = true;
+            for (int t = 0; t < options.ghostFrames; ++t) {
+                runTaas(taas, renderer.render(jittered(t, t)), float(scene.far), outU, outT);
+                const Image truth = eightBit(take(renderer.renderTruth(t, truthOptions), 0, 3, true), GW, GH);
+                const ImageMetrics mu = compareImages(truth, eightBit(outU, GW, GH));
+                const ImageMetrics mt = compareImages(truth, eightBit(outT, GW, GH));
+                psnrU.push_back(mu.psnr), psnrT.push_back(mt.psnr), ssimU.push_back(mu.ssim), ssimT.push_back(mt.ssim);
+            }
+            auto summary = [](const std::vector<double>& v) {
+                double sum = 0;
+                for (double x : v) sum += x;
+                return nlohmann::json{{"best", *std::max_element(v.begin(), v.end())},
+                                      {"worst", *std::min_element(v.begin(), v.end())},
+                                      {"mean", sum / double(v.size())}};
+            };
+            rows.push_back({{"test", "ghosting"}, {"scene", name}, {"method", "u-taa"}, {"frames", options.ghostFrames},
+                            {"width", GW}, {"height", GH}, {"psnr", summary(psnrU)}, {"ssim", summary(ssimU)}});
+            rows.push_back({{"test", "ghosting"}, {"scene", name}, {"method", "t-taa"}, {"frames", options.ghostFrames},
+                            {"width", GW}, {"height", GH}, {"psnr", summary(psnrT)}, {"ssim", summary(ssimT)}});
+            progress.advance(1, name);
+        }
+    }
+    return rows;
+}
+
+}  // namespace dejag::bench
