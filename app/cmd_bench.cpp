@@ -232,18 +232,19 @@ void registerBenchCommand(CLI::App& app) {
         }
         std::printf("Static test, %s, 8-bit sRGB against the %d-sample truth: PSNR dB (SSIM)\n",
                     taaArgs->size.c_str(), taaArgs->truth);
-        std::printf("%-14s %16s %16s %16s %16s\n", "scene", "No AA", "FXAA", "U-TAA", "T-TAA");
-        for (size_t i = 0; i + 3 < rows.size(); i += 4) {
+        std::printf("%-14s %16s %16s %16s %16s %16s %16s\n", "scene", "No AA", "FXAA", "U-TAA", "T-TAA",
+                    "U unsharpened", "T unsharpened");
+        for (size_t i = 0; i + 5 < rows.size(); i += 6) {
             if (rows[i]["test"] != "static") break;
             std::printf("%-14s", rows[i]["scene"].get<std::string>().c_str());
-            for (size_t k = 0; k < 4; ++k)
+            for (size_t k = 0; k < 6; ++k)
                 std::printf(" %8.2f (%.4f)", rows[i + k]["psnr"].get<double>(),
                             rows[i + k]["ssim"].get<double>());
             std::printf("\n");
         }
         for (const nlohmann::json& row : rows) {
             if (row["test"] != "ghosting") continue;
-            std::printf("ghosting %-22s %-6s PSNR best %.2f worst %.2f mean %.2f dB, SSIM mean %.4f\n",
+            std::printf("ghosting %-22s %-18s PSNR best %.2f worst %.2f mean %.2f dB, SSIM mean %.4f\n",
                         row["scene"].get<std::string>().c_str(), row["method"].get<std::string>().c_str(),
                         row["psnr"]["best"].get<double>(), row["psnr"]["worst"].get<double>(),
                         row["psnr"]["mean"].get<double>(), row["ssim"]["mean"].get<double>());

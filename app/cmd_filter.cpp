@@ -19,7 +19,7 @@ namespace {
 struct FilterArguments {
     std::string method, input, output;
     int preset = 39;
-    bool greenLuma = false, json = false;
+    bool greenLuma = false, json = false, noSharpen = false;
     RuntimeOptions runtime;
 };
 
@@ -68,6 +68,7 @@ void runTaa(const FilterArguments& args) {
         throw Error("cannot write to the output folder '" + args.output + "'");
     infer::TaaOptions options;
     options.improved = args.method == "taa-sobel";
+    options.sharpen = !args.noSharpen;
     infer::Taa taa(options);
     Progress progress("filter " + args.method, int64_t(frames.size()), args.json);
     std::vector<float> out;
@@ -164,6 +165,7 @@ void registerFilterCommand(CLI::App& app) {
     command->add_option("--method", args->method, "fxaa | taa | taa-sobel")->required();
     command->add_option("--preset", args->preset, "FXAA quality preset: 12, 23 or 39")->capture_default_str();
     command->add_flag("--green-luma", args->greenLuma, "FXAA: use green as luma");
+    command->add_flag("--no-sharpen", args->noSharpen, "TAA: skip the final sharpen (see docs/infer.md)");
     command->add_option("input", args->input, "input image (PNG, JPEG, TIFF, EXR)")->required();
     command->add_option("output", args->output, "output image (bit depth and extra channels kept)")
         ->required();

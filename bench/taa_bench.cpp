@@ -23,7 +23,8 @@ std::vector<float> take(const render::Frame& f, int first, int count, bool encod
     for (size_t p = 0; p < pixels; ++p)
         for (int c = 0; c < count; ++c) {
             const float x = f.pixels[p * size_t(f.channels()) + size_t(first + c)] * scale;
-            v[p * size_t(count) + size_t(c)] = encode ? std::clamp(linearToSrgb(std::max(x, 0.0f)), 0.0f, 1.0f) : x;
+            v[p * size_t(count) + size_t(c)] =
+                encode ? std::clamp(linearToSrgb(std::max(x, 0.0f)), 0.0f, 1.0f) : x;
         }
     return v;
 }
@@ -31,7 +32,8 @@ std::vector<float> take(const render::Frame& f, int first, int count, bool encod
 // An 8-bit sRGB image (the thesis measured on 8-bit render targets).
 Image eightBit(const std::vector<float>& rgb, int width, int height) {
     Image image(width, height, {"R", "G", "B"}, PixelType::UInt8);
-    for (size_t i = 0; i < rgb.size(); ++i) image.pixels[i] = std::round(std::clamp(rgb[i], 0.0f, 1.0f) * 255.0f) / 255.0f;
+    for (size_t i = 0; i < rgb.size(); ++i)
+        image.pixels[i] = std::round(std::clamp(rgb[i], 0.0f, 1.0f) * 255.0f) / 255.0f;
     return image;
 }
 
@@ -39,17 +41,22 @@ nlohmann::json metricsJson(const ImageMetrics& m) {
     return {{"mse", m.mse}, {"rmsd", m.rmse}, {"psnr", m.psnr}, {"snr", m.snr}, {"ssim", m.ssim}};
 }
 
+// U-TAA and T-TAA as specified, and both without their final sharpen (which costs several dB on
+// frames dense in edges).
 struct Taas {
-    infer::Taa u{infer::TaaOptions{}};
-    infer::Taa t{[] {
+    static infer::TaaOptions make(bool improved, bool sharpen) {
         infer::TaaOptions o;
-        o.improved = true;
+        o.improved = improved, o.sharpen = sharpen;
         return o;
-    }()};
+    }
+    infer::Taa filters[4] = {infer::Taa(make(false, true)), infer::Taa(make(true, true)),
+                             infer::Taa(make(false, false)), infer::Taa(make(true, false))};
+    std::vector<float> outputs[4];
 };
+const char* const kTaaNames[4] = {"u-taa", "t-taa", "u-taa unsharpened", "t-taa unsharpened"};
 
-// Runs both TAAs on one rendered frame with every buffer.
-void runTaas(Taas& taas, const render::Frame& f, float far, std::vector<float>& outU, std::vector<float>& outT) {
+// Runs every TAA on one rendered frame with every buffer.
+void runTaas(Taas& taas, const render::Frame& f, float far) {
     const std::vector<float> colour = take(f, 0, 3, true), albedo = take(f, 3, 3, true);
     const std::vector<float> depth = take(f, 6, 1, false, 1.0f / far), motion = take(f, 7, 2, false);
     const std::vector<float> ids = take(f, 9, 1, false), previousDepth = take(f, 10, 1, false, 1.0f / far);
@@ -57,9 +64,10 @@ void runTaas(Taas& taas, const render::Frame& f, float far, std::vector<float>& 
     frame.width = f.width, frame.height = f.height;
     frame.colour = colour.data(), frame.albedo = albedo.data(), frame.depth = depth.data();
     frame.motion = motion.data(), frame.ids = ids.data(), frame.previousDepth = previousDepth.data();
-    outU.resize(colour.size()), outT.resize(colour.size());
-    taas.u.apply(frame, outU.data());
-    taas.t.apply(frame, outT.data());
+    for (int k = 0; k < 4; ++k) {
+        taas.outputs[k].resize(colour.size());
+        taas.filters[k].apply(frame, taas.outputs[k].data());
+    }
 }
 
 render::FrameRequest jittered(double time, int index) {
@@ -81,10 +89,14 @@ std::vector<nlohmann::json> benchTaa(const TaaBenchOptions& options) {
         const char* scene;
         bool tilted;
     };
-    const StaticScene scenes[] = {{"pipe", "pipe", false},          {"pipe tilted", "pipe", true},
-                                  {"blinds", "blinds", false},      {"arched window", "arched-window", false},
-                                  {"atrium", "atrium", false},      {"flowers", "flowers", false},
-                                  {"hard edges", "hard-edges", false}, {"hairball", "hairball", false},
+    const StaticScene scenes[] = {{"pipe", "pipe", false},
+                                  {"pipe tilted", "pipe", true},
+                                  {"blinds", "blinds", false},
+                                  {"arched window", "arched-window", false},
+                                  {"atrium", "atrium", false},
+                                  {"flowers", "flowers", false},
+                                  {"hard edges", "hard-edges", false},
+                                  {"hairball", "hairball", false},
                                   {"hairball lit", "hairball-lit", false}};
     Progress progress("bench taa", int64_t(std::size(scenes)) + (options.ghosting ? 3 : 0), options.quiet);
     const int W = options.width, H = options.height;
@@ -102,22 +114,28 @@ std::vector<nlohmann::json> benchTaa(const TaaBenchOptions& options) {
         std::vector<float> fxaaOut(noAa.size());
         infer::Fxaa().apply(noAa.data(), fxaaOut.data(), W, H, 3);
         Taas taas;
-        std::vector<float> outU, outT;
         for (int i = 0; i < options.historyFrames; ++i)
-            runTaas(taas, renderer.render(jittered(0, i)), float(scene.far), outU, outT);
+            runTaas(taas, renderer.render(jittered(0, i)), float(scene.far));
         const std::pair<const char*, const std::vector<float>*> methods[] = {
-            {"no aa", &noAa}, {"fxaa", &fxaaOut}, {"u-taa", &outU}, {"t-taa", &outT}};
+            {"no aa", &noAa},
+            {"fxaa", &fxaaOut},
+            {kTaaNames[0], &taas.outputs[0]},
+            {kTaaNames[1], &taas.outputs[1]},
+            {kTaaNames[2], &taas.outputs[2]},
+            {kTaaNames[3], &taas.outputs[3]}};
         for (const auto& [method, pixels] : methods) {
             MetricOptions metricOptions;
             metricOptions.wantSsimMap = !options.ssimMapFolder.empty();
             const ImageMetrics m = compareImages(truth, eightBit(*pixels, W, H), metricOptions);
-            nlohmann::json row = {{"test", "static"}, {"scene", s.label}, {"method", method}, {"width", W}, {"height", H}};
+            nlohmann::json row = {
+                {"test", "static"}, {"scene", s.label}, {"method", method}, {"width", W}, {"height", H}};
             row.update(metricsJson(m));
             if (metricOptions.wantSsimMap) {
                 std::filesystem::create_directories(options.ssimMapFolder);
                 std::string name = std::string(s.label) + "_" + method + "_ssim.png";
                 std::replace(name.begin(), name.end(), ' ', '-');
-                writeSsimMapPng((std::filesystem::path(options.ssimMapFolder) / name).string(), m.ssimMap, W, H);
+                writeSsimMapPng((std::filesystem::path(options.ssimMapFolder) / name).string(), m.ssimMap, W,
+                                H);
                 row["ssim_map"] = name;
             }
             rows.push_back(row);
@@ -130,16 +148,16 @@ std::vector<nlohmann::json> benchTaa(const TaaBenchOptions& options) {
             const render::Scene scene = render::buildScene(name);
             render::Renderer renderer(*context, scene, GW, GH);
             Taas taas;
-            std::vector<float> outU, outT;
-            std::vector<double> psnrU, psnrT, ssimU, ssimT;
+            std::vector<double> psnr[4], ssim[4];
             render::TruthOptions truthOptions;
             truthOptions.samples = options.ghostTruthSamples, truthOptions.adaptive = true;
             for (int t = 0; t < options.ghostFrames; ++t) {
-                runTaas(taas, renderer.render(jittered(t, t)), float(scene.far), outU, outT);
+                runTaas(taas, renderer.render(jittered(t, t)), float(scene.far));
                 const Image truth = eightBit(take(renderer.renderTruth(t, truthOptions), 0, 3, true), GW, GH);
-                const ImageMetrics mu = compareImages(truth, eightBit(outU, GW, GH));
-                const ImageMetrics mt = compareImages(truth, eightBit(outT, GW, GH));
-                psnrU.push_back(mu.psnr), psnrT.push_back(mt.psnr), ssimU.push_back(mu.ssim), ssimT.push_back(mt.ssim);
+                for (int k = 0; k < 4; ++k) {
+                    const ImageMetrics m = compareImages(truth, eightBit(taas.outputs[k], GW, GH));
+                    psnr[k].push_back(m.psnr), ssim[k].push_back(m.ssim);
+                }
             }
             auto summary = [](const std::vector<double>& v) {
                 double sum = 0;
@@ -148,10 +166,15 @@ std::vector<nlohmann::json> benchTaa(const TaaBenchOptions& options) {
                                       {"worst", *std::min_element(v.begin(), v.end())},
                                       {"mean", sum / double(v.size())}};
             };
-            rows.push_back({{"test", "ghosting"}, {"scene", name}, {"method", "u-taa"}, {"frames", options.ghostFrames},
-                            {"width", GW}, {"height", GH}, {"psnr", summary(psnrU)}, {"ssim", summary(ssimU)}});
-            rows.push_back({{"test", "ghosting"}, {"scene", name}, {"method", "t-taa"}, {"frames", options.ghostFrames},
-                            {"width", GW}, {"height", GH}, {"psnr", summary(psnrT)}, {"ssim", summary(ssimT)}});
+            for (int k = 0; k < 4; ++k)
+                rows.push_back({{"test", "ghosting"},
+                                {"scene", name},
+                                {"method", kTaaNames[k]},
+                                {"frames", options.ghostFrames},
+                                {"width", GW},
+                                {"height", GH},
+                                {"psnr", summary(psnr[k])},
+                                {"ssim", summary(ssim[k])}});
             progress.advance(1, name);
         }
     }

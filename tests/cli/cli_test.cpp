@@ -401,8 +401,8 @@ TEST(Cli, BenchTaaReproducesTheThesisProtocolsSmall) {
             EXPECT_LE(j["psnr"]["worst"].get<double>(), j["psnr"]["mean"].get<double>());
         }
     }
-    EXPECT_EQ(statics, 9 * 4);
-    EXPECT_EQ(ghosts, 3 * 2);
+    EXPECT_EQ(statics, 9 * 6);
+    EXPECT_EQ(ghosts, 3 * 4);
 }
 
 TEST(Cli, RenderListsTheScenes) {
