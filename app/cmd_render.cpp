@@ -12,6 +12,7 @@
 #include "base/files.h"
 #include "base/progress.h"
 #include "base/timer.h"
+#include "data/frame_image.h"
 #include "data/image.h"
 #include "render/gl.h"
 #include "render/halton.h"
@@ -31,15 +32,6 @@ struct RenderArguments {
     bool adaptive = false, list = false, json = false, quiet = false;
     RuntimeOptions runtime;
 };
-
-Image toImage(render::Frame frame) {
-    Image image;
-    image.width = frame.width, image.height = frame.height;
-    image.channelNames = std::move(frame.channelNames);
-    image.storage = PixelType::Float;
-    image.pixels = std::move(frame.pixels);
-    return image;
-}
 
 // An sRGB 8-bit preview of the R, G, B channels.
 void writePreview(const std::string& path, const Image& image) {
@@ -146,7 +138,7 @@ void runRender(const RenderArguments& args) {
             request.previousJitter = render::jitterPixels(unsigned((index + 15) % 16), args.spread);
         }
         const Stopwatch clock;
-        Image image = toImage(renderer.render(request));
+        Image image = imageFromFrame(renderer.render(request));
         renderMs += clock.elapsedMs();
         writeImage(framePath(args.out, "frame", index, "exr"), image);
         if (buffers.colour) writePreview(framePath(args.out, "frame", index, "png"), image);
@@ -162,7 +154,7 @@ void runRender(const RenderArguments& args) {
                                    {"fov_y_degrees", pose.fovY * 180.0 / render::kPi}}}};
         if (args.truth > 0) {
             render::TruthStats stats;
-            Image truth = toImage(renderer.renderTruth(time, truthOptions, &stats));
+            Image truth = imageFromFrame(renderer.renderTruth(time, truthOptions, &stats));
             truthMs += stats.milliseconds;
             tileSamples += stats.tileSamples, fullTileSamples += stats.fullTileSamples;
             writeImage(framePath(args.out, "truth", index, "exr"), truth);

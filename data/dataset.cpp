@@ -17,7 +17,9 @@
 #include "base/error.h"
 #include "base/files.h"
 #include "base/progress.h"
+#include "base/random.h"
 #include "base/timer.h"
+#include "data/frame_image.h"
 #include "data/image.h"
 #include "render/gl.h"
 #include "render/renderer.h"
@@ -31,16 +33,13 @@ using nlohmann::json;
 namespace {
 
 uint64_t mix(uint64_t z) {
-    z += 0x9E3779B97F4A7C15ull;
-    z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ull;
-    z = (z ^ (z >> 27)) * 0x94D049BB133111EBull;
-    return z ^ (z >> 31);
+    return splitMix64(z);
 }
 
 // Uniform double in [low, high) from a 64-bit state, advancing it.
 double uniform(uint64_t& state, double low, double high) {
     state = mix(state);
-    return low + (high - low) * double(state >> 11) * 0x1.0p-53;
+    return unitInterval(state, low, high);
 }
 
 std::string join(const std::vector<std::string>& items) {
@@ -216,15 +215,6 @@ void vary(render::Scene& scene, uint64_t seed) {
     }
 }
 
-Image toImage(render::Frame frame) {
-    Image image;
-    image.width = frame.width, image.height = frame.height;
-    image.channelNames = std::move(frame.channelNames);
-    image.storage = PixelType::Float;
-    image.pixels = std::move(frame.pixels);
-    return image;
-}
-
 json fileRecord(const std::string& folder, const std::string& relative) {
     const std::string path = (fs::path(folder) / relative).string();
     return {{"path", relative}, {"bytes", fs::file_size(path)}, {"checksum", fileChecksum(path)}};
@@ -249,12 +239,12 @@ json ItemRenderer::render(const DatasetSpec& spec, const ItemPlan& plan, const s
     render::FrameRequest request;
     request.time = plan.time, request.previousTime = plan.time - 1;
     request.buffers = render::BufferSet::parse("color,albedo,depth,motion,id");
-    const Image input = toImage(renderer.render(request));
+    const Image input = imageFromFrame(renderer.render(request));
     render::TruthOptions truthOptions;
     truthOptions.samples = spec.truthSamples;
     truthOptions.adaptive = spec.adaptive;
     render::TruthStats stats;
-    const Image truth = toImage(renderer.renderTruth(plan.time, truthOptions, &stats));
+    const Image truth = imageFromFrame(renderer.renderTruth(plan.time, truthOptions, &stats));
 
     // Edge pixels (an ID or a depth jump of > 5 % to the right or below) and the aliased frame's PSNR.
     int64_t edges = 0;

@@ -5,6 +5,7 @@
 #include <filesystem>
 
 #include "base/error.h"
+#include "base/random.h"
 #include "data/image.h"
 
 namespace dejag::data {
@@ -14,19 +15,14 @@ namespace fs = std::filesystem;
 namespace {
 
 uint64_t mix(uint64_t z) {
-    z += 0x9E3779B97F4A7C15ull;
-    z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ull;
-    z = (z ^ (z >> 27)) * 0x94D049BB133111EBull;
-    return z ^ (z >> 31);
+    return splitMix64(z);
 }
 
 class Random {
   public:
     explicit Random(uint64_t seed) : state_(seed) {}
     uint64_t next() { return state_ = mix(state_); }
-    double uniform(double low = 0, double high = 1) {
-        return low + (high - low) * double(next() >> 11) * 0x1.0p-53;
-    }
+    double uniform(double low = 0, double high = 1) { return unitInterval(next(), low, high); }
     int below(int n) { return n <= 1 ? 0 : int(next() % uint64_t(n)); }
 
   private:

@@ -5,6 +5,7 @@
 #include <opencv2/imgproc.hpp>
 
 #include "base/error.h"
+#include "base/random.h"
 
 namespace dejag::render {
 
@@ -15,14 +16,11 @@ class Random {
   public:
     explicit Random(uint64_t seed) : state_(seed * 0x9E3779B97F4A7C15ull + 0x632BE59BD9B4E019ull) {}
     uint64_t next() {
-        uint64_t z = (state_ += 0x9E3779B97F4A7C15ull);
-        z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ull;
-        z = (z ^ (z >> 27)) * 0x94D049BB133111EBull;
-        return z ^ (z >> 31);
+        const uint64_t r = splitMix64(state_);  // counter-based: the state steps by the increment
+        state_ += 0x9E3779B97F4A7C15ull;
+        return r;
     }
-    double uniform(double low = 0.0, double high = 1.0) {
-        return low + (high - low) * double(next() >> 11) * 0x1.0p-53;
-    }
+    double uniform(double low = 0.0, double high = 1.0) { return unitInterval(next(), low, high); }
     int below(int n) { return int(next() % uint64_t(n)); }
     Vec3 unitVector() {
         const double z = uniform(-1, 1), a = uniform(0, 2 * kPi), r = std::sqrt(1 - z * z);
