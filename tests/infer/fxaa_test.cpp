@@ -11,6 +11,7 @@
 #include "base/thread_pool.h"
 #include "data/image.h"
 #include "render/renderer.h"
+#include "tests/alloc_counter.h"
 
 namespace dejag::infer {
 namespace {
@@ -120,6 +121,20 @@ TEST(Fxaa, SameResultForEveryThreadCountInPlaceOrNotAndOtherChannelsKept) {
     EXPECT_EQ(results[0], results[2]);
     for (size_t p = 0; p < size_t(80 * 80); ++p) ASSERT_EQ(results[0][p * 4 + 3], rgba[p * 4 + 3]);
     EXPECT_NE(results[0], rgba);
+}
+
+TEST(Fxaa, NoAllocationPerFrameAfterWarmUp) {
+    std::vector<float> aliased, truth;
+    diagonalEdge(96, 0.37, 10.3, aliased, truth);
+    Fxaa fxaa;
+    std::vector<float> frame = aliased;
+    fxaa.applyInPlace(frame.data(), 96, 96, 3);  // warm-up: scratch buffers grow once
+    const int64_t before = testing::allocationCount();
+    for (int i = 0; i < 3; ++i) {
+        frame = aliased;  // same size: no allocation
+        fxaa.applyInPlace(frame.data(), 96, 96, 3);
+    }
+    EXPECT_EQ(testing::allocationCount() - before, 0);
 }
 
 TEST(Fxaa, RefusesBadSettings) {

@@ -12,6 +12,7 @@
 #include "data/image.h"
 #include "render/halton.h"
 #include "render/renderer.h"
+#include "tests/alloc_counter.h"
 
 namespace dejag::infer {
 namespace {
@@ -162,6 +163,22 @@ TEST(Taa, SameResultForEveryThreadCount) {
     setThreadCount(0);
     EXPECT_EQ(results[0], results[1]);
     EXPECT_EQ(results[0], results[2]);
+}
+
+TEST(Taa, NoAllocationPerFrameAfterWarmUp) {
+    for (const bool improved : {false, true}) {
+        TaaOptions options;
+        options.improved = improved;
+        Taa taa(options);
+        std::vector<Buffers> frames;
+        for (int t = 0; t < 5; ++t) frames.push_back(squareFrame(t));
+        std::vector<float> out(64 * 32 * 3);
+        taa.apply(frames[0].frame(), out.data());
+        taa.apply(frames[1].frame(), out.data());  // warm-up: history and scratch exist now
+        const int64_t before = testing::allocationCount();
+        for (int t = 2; t < 5; ++t) taa.apply(frames[size_t(t)].frame(), out.data());
+        EXPECT_EQ(testing::allocationCount() - before, 0) << (improved ? "T-TAA" : "U-TAA");
+    }
 }
 
 TEST(Taa, RefusesMissingBuffers) {
