@@ -155,8 +155,20 @@ void Taa::apply(const TaaFrame& f, float* out) {
     const Plane ids{f.ids, W, H, 1}, previousDepth{f.previousDepth, W, H, 1};
 
     parallelFor(0, H, 4, [&](int64_t first, int64_t last) {
-        for (int y = int(first); y < int(last); ++y)
+        for (int y = int(first); y < int(last); ++y) {
+            // The clamped rows of the 3x3 neighbourhood, found once per row.
+            const int ys[3] = {std::max(y - 1, 0), y, std::min(y + 1, H - 1)};
+            const float* colourRows[3];
+            const float* depthRows[3];
+            const float* sobelRows[3] = {};
+            const float* idRows[3] = {};
+            for (int k = 0; k < 3; ++k) {
+                const size_t row = size_t(ys[k]) * size_t(W);
+                colourRows[k] = f.colour + row * 3, depthRows[k] = f.depth + row;
+                if (improved) sobelRows[k] = sobelHistory_.data() + row, idRows[k] = f.ids + row;
+            }
             for (int x = 0; x < W; ++x) {
+                const int xs[3] = {std::max(x - 1, 0), x, std::min(x + 1, W - 1)};
                 const size_t i = size_t(y) * size_t(W) + size_t(x);
                 const Rgb current = colour.rgb(x, y);
                 // 1. Neighbourhoods: 3x3 and cross (centre + 4).
@@ -164,16 +176,17 @@ void Taa::apply(const TaaFrame& f, float* out) {
                     sumCross{};
                 float closest = 1e30f;
                 int cx = x, cy = y;
-                for (int dy = -1; dy <= 1; ++dy)
-                    for (int dx = -1; dx <= 1; ++dx) {
-                        const Rgb c = colour.rgb(x + dx, y + dy);
+                for (int dy = 0; dy < 3; ++dy)
+                    for (int dx = 0; dx < 3; ++dx) {
+                        const float* p = colourRows[dy] + 3 * xs[dx];
+                        const Rgb c{p[0], p[1], p[2]};
                         min9 = minimum(min9, c), max9 = maximum(max9, c), sum9 = sum9 + c;
-                        if (dx == 0 || dy == 0)
+                        if (dx == 1 || dy == 1)
                             minCross = minimum(minCross, c), maxCross = maximum(maxCross, c),
                             sumCross = sumCross + c;
                         // 2. The velocity of the closest depth in the 3x3.
-                        const float d = depth.value(x + dx, y + dy);
-                        if (d < closest) closest = d, cx = x + dx, cy = y + dy;
+                        const float d = depthRows[dy][xs[dx]];
+                        if (d < closest) closest = d, cx = xs[dx], cy = ys[dy];
                     }
                 const Rgb avg9 = sum9 * (1.0f / 9.0f), avgCross = sumCross * 0.2f;
                 const float* velocity = motion.at(cx, cy);
@@ -188,13 +201,13 @@ void Taa::apply(const TaaFrame& f, float* out) {
                     const float sobelCentre = stableSobel.value(x, y);
                     float sobel3x3 = 0, sobelCross = 0, different = 0, dmin = 1e30f, dmax = -1e30f, dsum = 0;
                     const float id = ids.value(x, y);
-                    for (int dy = -1; dy <= 1; ++dy)
-                        for (int dx = -1; dx <= 1; ++dx) {
-                            const float s = stableSobel.value(x + dx, y + dy);
+                    for (int dy = 0; dy < 3; ++dy)
+                        for (int dx = 0; dx < 3; ++dx) {
+                            const float s = sobelRows[dy][xs[dx]];
                             sobel3x3 += s;
-                            if (dx == 0 || dy == 0) sobelCross += s;
-                            different += ids.value(x + dx, y + dy) != id ? 1.0f : 0.0f;
-                            const float d = depth.value(x + dx, y + dy);
+                            if (dx == 1 || dy == 1) sobelCross += s;
+                            different += idRows[dy][xs[dx]] != id ? 1.0f : 0.0f;
+                            const float d = depthRows[dy][xs[dx]];
                             dmin = std::min(dmin, d), dmax = std::max(dmax, d), dsum += d;
                         }
                     sobel3x3 /= 9.0f, sobelCross /= 5.0f;
@@ -225,6 +238,7 @@ void Taa::apply(const TaaFrame& f, float* out) {
                 float* b = blended_.data() + i * 3;
                 b[0] = blended.r, b[1] = blended.g, b[2] = blended.b;
             }
+        }
     });
     // The history keeps the unsharpened result; 6. the output is sharpened.
     const Plane blended{blended_.data(), W, H, 3};
