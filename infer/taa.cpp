@@ -116,12 +116,20 @@ void Taa::apply(const TaaFrame& f, float* out) {
     if (improved) {
         sobel_.resize(pixels);
         nextSobel_.resize(pixels);
-        const Plane albedo{f.albedo, W, H, 3};
+        // Luma planes of albedo and colour, once per frame (the Sobels read each value nine times).
+        albedoLuma_.resize(pixels), colourLuma_.resize(pixels);
+        parallelFor(0, H, 16, [&](int64_t first, int64_t last) {
+            for (size_t i = size_t(first) * size_t(W); i < size_t(last) * size_t(W); ++i) {
+                albedoLuma_[i] = luma({f.albedo[3 * i], f.albedo[3 * i + 1], f.albedo[3 * i + 2]});
+                colourLuma_[i] = luma({f.colour[3 * i], f.colour[3 * i + 1], f.colour[3 * i + 2]});
+            }
+        });
+        const Plane albedoLuma{albedoLuma_.data(), W, H, 1}, colourLuma{colourLuma_.data(), W, H, 1};
         parallelFor(0, H, 4, [&](int64_t first, int64_t last) {
             for (int y = int(first); y < int(last); ++y)
                 for (int x = 0; x < W; ++x) {
-                    const float u = sobelMagnitude(albedo, x, y, true),
-                                l = sobelMagnitude(colour, x, y, true);
+                    const float u = sobelMagnitude(albedoLuma, x, y, false),
+                                l = sobelMagnitude(colourLuma, x, y, false);
                     const float d = sobelMagnitude(depth, x, y, false);
                     const float g = std::clamp(0.3f * u + 0.7f * l + d, 0.0f, 1.0f);
                     sobel_[size_t(y) * size_t(W) + size_t(x)] = std::sqrt(g * g * (3.0f - 2.0f * g));

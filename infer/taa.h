@@ -46,6 +46,7 @@ class Taa {
     std::vector<float> history_;                           // 3 channels, unsharpened
     std::vector<float> sobel_, sobelHistory_, nextSobel_;  // 1 channel (T-TAA)
     std::vector<float> blended_;                           // this frame before the sharpen
+    std::vector<float> albedoLuma_, colourLuma_;           // T-TAA's Sobel inputs
 };
 
 }  // namespace dejag::infer
