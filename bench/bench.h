@@ -26,6 +26,9 @@ struct Options {
     std::vector<int> threads = {1, 2};
 };
 
+// PSNR (data range 1) of two float buffers of the same size, for the benchmarks' quick quality columns.
+double floatPsnr(const std::vector<float>& a, const std::vector<float>& b);
+
 // SSIM, full metrics (MSE+PSNR+SNR+SSIM) and MSE alone on two RGB float images of the given size.
 std::vector<Row> benchMetrics(const Options& options);
 

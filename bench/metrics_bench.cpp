@@ -70,4 +70,10 @@ std::vector<Row> benchMetrics(const Options& options) {
     return rows;
 }
 
+double floatPsnr(const std::vector<float>& a, const std::vector<float>& b) {
+    double squared = 0;
+    for (size_t i = 0; i < a.size(); ++i) squared += double(a[i] - b[i]) * double(a[i] - b[i]);
+    return 10 * std::log10(double(a.size()) / std::max(squared, 1e-30));
+}
+
 }  // namespace dejag::bench

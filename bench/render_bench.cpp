@@ -1,5 +1,7 @@
 #include "bench/render_bench.h"
 
+#include "bench/bench.h"
+
 #include <cmath>
 #include <cstdio>
 
@@ -7,17 +9,6 @@
 #include "render/renderer.h"
 
 namespace dejag::bench {
-
-namespace {
-double psnr(const render::Frame& a, const render::Frame& b) {
-    double squared = 0;
-    for (size_t i = 0; i < a.pixels.size(); ++i) {
-        const double d = double(a.pixels[i]) - double(b.pixels[i]);
-        squared += d * d;
-    }
-    return 10 * std::log10(double(a.pixels.size()) / std::max(squared, 1e-30));
-}
-}  // namespace
 
 std::vector<nlohmann::json> benchRender(const RenderBenchOptions& options) {
     std::vector<nlohmann::json> rows;
@@ -58,7 +49,8 @@ std::vector<nlohmann::json> benchRender(const RenderBenchOptions& options) {
         const render::Frame fullTruth = renderer.renderTruth(0, truthOptions, &full);
         truthOptions.adaptive = true;
         const render::Frame adaptiveTruth = renderer.renderTruth(0, truthOptions, &adaptive);
-        const double fullPsnr = psnr(aliased, fullTruth), adaptivePsnr = psnr(aliased, adaptiveTruth);
+        const double fullPsnr = floatPsnr(aliased.pixels, fullTruth.pixels),
+                     adaptivePsnr = floatPsnr(aliased.pixels, adaptiveTruth.pixels);
         rows.push_back({{"name", "truth " + std::to_string(options.truthSamples) + " samples"},
                         {"scene", name},
                         {"width", width},
@@ -69,7 +61,7 @@ std::vector<nlohmann::json> benchRender(const RenderBenchOptions& options) {
                         {"aliased_psnr_full_truth", fullPsnr},
                         {"aliased_psnr_adaptive_truth", adaptivePsnr},
                         {"psnr_difference_db", adaptivePsnr - fullPsnr},
-                        {"adaptive_vs_full_truth_psnr", psnr(fullTruth, adaptiveTruth)}});
+                        {"adaptive_vs_full_truth_psnr", floatPsnr(fullTruth.pixels, adaptiveTruth.pixels)}});
     }
     return rows;
 }

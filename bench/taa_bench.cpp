@@ -5,6 +5,7 @@
 #include <filesystem>
 
 #include "base/progress.h"
+#include "data/frame_image.h"
 #include "data/image.h"
 #include "data/metrics.h"
 #include "infer/fxaa.h"
@@ -15,19 +16,6 @@
 namespace dejag::bench {
 
 namespace {
-
-// The channels [first, first + count) of a frame, optionally sRGB-encoded, optionally scaled.
-std::vector<float> take(const render::Frame& f, int first, int count, bool encode, float scale = 1.0f) {
-    const size_t pixels = size_t(f.width) * size_t(f.height);
-    std::vector<float> v(pixels * size_t(count));
-    for (size_t p = 0; p < pixels; ++p)
-        for (int c = 0; c < count; ++c) {
-            const float x = f.pixels[p * size_t(f.channels()) + size_t(first + c)] * scale;
-            v[p * size_t(count) + size_t(c)] =
-                encode ? std::clamp(linearToSrgb(std::max(x, 0.0f)), 0.0f, 1.0f) : x;
-        }
-    return v;
-}
 
 // An 8-bit sRGB image (the thesis measured on 8-bit render targets).
 Image eightBit(const std::vector<float>& rgb, int width, int height) {
@@ -57,9 +45,11 @@ const char* const kTaaNames[4] = {"u-taa", "t-taa", "u-taa unsharpened", "t-taa 
 
 // Runs every TAA on one rendered frame with every buffer.
 void runTaas(Taas& taas, const render::Frame& f, float far) {
-    const std::vector<float> colour = take(f, 0, 3, true), albedo = take(f, 3, 3, true);
-    const std::vector<float> depth = take(f, 6, 1, false, 1.0f / far), motion = take(f, 7, 2, false);
-    const std::vector<float> ids = take(f, 9, 1, false), previousDepth = take(f, 10, 1, false, 1.0f / far);
+    const std::vector<float> colour = frameChannels(f, 0, 3, true), albedo = frameChannels(f, 3, 3, true);
+    const std::vector<float> depth = frameChannels(f, 6, 1, false, 1.0f / far),
+                             motion = frameChannels(f, 7, 2, false);
+    const std::vector<float> ids = frameChannels(f, 9, 1, false),
+                             previousDepth = frameChannels(f, 10, 1, false, 1.0f / far);
     infer::TaaFrame frame;
     frame.width = f.width, frame.height = f.height;
     frame.colour = colour.data(), frame.albedo = albedo.data(), frame.depth = depth.data();
@@ -107,10 +97,10 @@ std::vector<nlohmann::json> benchTaa(const TaaBenchOptions& options) {
         render::Renderer renderer(*context, scene, W, H);
         render::TruthOptions truthOptions;
         truthOptions.samples = options.truthSamples, truthOptions.adaptive = true;
-        const Image truth = eightBit(take(renderer.renderTruth(0, truthOptions), 0, 3, true), W, H);
+        const Image truth = eightBit(frameChannels(renderer.renderTruth(0, truthOptions), 0, 3, true), W, H);
         render::FrameRequest still;
         still.buffers = render::BufferSet::parse("color");
-        const std::vector<float> noAa = take(renderer.render(still), 0, 3, true);
+        const std::vector<float> noAa = frameChannels(renderer.render(still), 0, 3, true);
         std::vector<float> fxaaOut(noAa.size());
         infer::Fxaa().apply(noAa.data(), fxaaOut.data(), W, H, 3);
         Taas taas;
@@ -153,7 +143,8 @@ std::vector<nlohmann::json> benchTaa(const TaaBenchOptions& options) {
             truthOptions.samples = options.ghostTruthSamples, truthOptions.adaptive = true;
             for (int t = 0; t < options.ghostFrames; ++t) {
                 runTaas(taas, renderer.render(jittered(t, t)), float(scene.far));
-                const Image truth = eightBit(take(renderer.renderTruth(t, truthOptions), 0, 3, true), GW, GH);
+                const Image truth =
+                    eightBit(frameChannels(renderer.renderTruth(t, truthOptions), 0, 3, true), GW, GH);
                 for (int k = 0; k < 4; ++k) {
                     const ImageMetrics m = compareImages(truth, eightBit(taas.outputs[k], GW, GH));
                     psnr[k].push_back(m.psnr), ssim[k].push_back(m.ssim);

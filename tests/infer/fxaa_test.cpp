@@ -9,6 +9,7 @@
 
 #include "base/error.h"
 #include "base/thread_pool.h"
+#include "data/frame_image.h"
 #include "data/image.h"
 #include "render/renderer.h"
 #include "tests/alloc_counter.h"
@@ -84,12 +85,9 @@ TEST(Fxaa, LowersTheErrorOfARenderedEdge) {
     sceneOptions.tiltedCamera = true;
     const render::Scene scene = render::buildScene("pipe", sceneOptions);
     render::Renderer renderer(*context, scene, 160, 120);
-    auto encode = [](render::Frame f) {
-        for (float& v : f.pixels) v = std::clamp(linearToSrgb(std::max(v, 0.0f)), 0.0f, 1.0f);
-        return f.pixels;
-    };
-    const std::vector<float> aliased = encode(renderer.render({}));
-    const std::vector<float> truth = encode(renderer.renderTruth(0, render::TruthOptions{}));
+    const std::vector<float> aliased = frameChannels(renderer.render({}), 0, 3, true);
+    const std::vector<float> truth =
+        frameChannels(renderer.renderTruth(0, render::TruthOptions{}), 0, 3, true);
     std::vector<float> out(aliased.size());
     Fxaa fxaa;
     fxaa.apply(aliased.data(), out.data(), 160, 120, 3);

@@ -9,6 +9,7 @@
 
 #include "base/error.h"
 #include "base/thread_pool.h"
+#include "data/frame_image.h"
 #include "data/image.h"
 #include "render/halton.h"
 #include "render/renderer.h"
@@ -101,21 +102,11 @@ TEST(Taa, StaticSceneConvergesTowardsTheTruth) {
     const render::Scene scene = render::buildScene("pipe", sceneOptions);
     const int W = 128, H = 96;
     render::Renderer renderer(*context, scene, W, H);
-    auto encode = [](std::vector<float> v) {
-        for (float& x : v) x = std::clamp(linearToSrgb(std::max(x, 0.0f)), 0.0f, 1.0f);
-        return v;
-    };
-    auto channels = [](const render::Frame& f, int first, int count) {
-        std::vector<float> v(size_t(f.width) * size_t(f.height) * size_t(count));
-        for (size_t p = 0; p < size_t(f.width) * size_t(f.height); ++p)
-            for (int c = 0; c < count; ++c)
-                v[p * size_t(count) + size_t(c)] = f.pixels[p * size_t(f.channels()) + size_t(first + c)];
-        return v;
-    };
-    const std::vector<float> truth = encode(renderer.renderTruth(0, render::TruthOptions{}).pixels);
+    const std::vector<float> truth =
+        frameChannels(renderer.renderTruth(0, render::TruthOptions{}), 0, 3, true);
     render::FrameRequest still;
     still.buffers = render::BufferSet::parse("color");
-    const double single = psnr(encode(renderer.render(still).pixels), truth);
+    const double single = psnr(frameChannels(renderer.render(still), 0, 3, true), truth);
     for (const int variant : {0, 1, 2, 3}) {
         const bool improved = variant % 2 == 1, sharpen = variant < 2;
         TaaOptions options;
@@ -132,11 +123,10 @@ TEST(Taa, StaticSceneConvergesTowardsTheTruth) {
             const render::Frame f = renderer.render(request);
             Buffers b;
             b.width = W, b.height = H;
-            b.colour = encode(channels(f, 0, 3)), b.albedo = encode(channels(f, 3, 3));
-            b.depth = channels(f, 6, 1), b.motion = channels(f, 7, 2), b.ids = channels(f, 9, 1);
-            b.previousDepth = channels(f, 10, 1);
-            for (float& d : b.depth) d /= float(scene.far);
-            for (float& d : b.previousDepth) d /= float(scene.far);
+            const float toUnit = float(1.0 / scene.far);  // depth / far
+            b.colour = frameChannels(f, 0, 3, true), b.albedo = frameChannels(f, 3, 3, true);
+            b.depth = frameChannels(f, 6, 1, false, toUnit), b.motion = frameChannels(f, 7, 2, false);
+            b.ids = frameChannels(f, 9, 1, false), b.previousDepth = frameChannels(f, 10, 1, false, toUnit);
             taa.apply(b.frame(), out.data());
             if (t == 0) first = psnr(out, truth);
         }

@@ -5,6 +5,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <functional>
 #include <set>
 
 #include "base/error.h"
@@ -110,8 +111,48 @@ TEST(Render, IdsCountTheObjects) {
     EXPECT_EQ(ids, (std::set<float>{0.0f, 1.0f, 2.0f}));
 }
 
-// A static scene seen by a moving camera: following each interior pixel's motion vector back must land
-// where the previous camera saw the same surface point, computed here from the depth buffer.
+// Follows each interior pixel's motion vector back and compares it with where the same surface point was
+// in the previous frame: the point comes from this frame's depth buffer (unprojected with the pose at
+// `time`), `previousWorld` moves it to where it was one frame earlier, and `previousViewProjection`
+// projects it. Interior: an object's pixel whose 3x3 has one object ID and no depth jump. Returns the
+// worst difference in pixels and how many pixels were checked.
+std::pair<double, int> motionError(const Frame& f, const Scene& scene, double time,
+                                   const std::function<Vec3(const Vec3&)>& previousWorld,
+                                   const Mat4& previousViewProjection) {
+    const int W = f.width, H = f.height;
+    const CameraPose now = scene.cameraAt(time);
+    const Vec3 forward = normalize(now.target - now.eye), side = normalize(cross(forward, now.up)),
+               up = cross(side, forward);
+    const double tanHalf = std::tan(now.fovY / 2), aspect = double(W) / H;
+    double worst = 0;
+    int checked = 0;
+    for (int y = 1; y < H - 1; ++y)
+        for (int x = 1; x < W - 1; ++x) {
+            const float id = channel(f, x, y, "id.ID"), depth = channel(f, x, y, "depth.Z");
+            bool interior = id != 0;  // not the background
+            for (int dy = -1; dy <= 1 && interior; ++dy)
+                for (int dx = -1; dx <= 1; ++dx)
+                    interior = interior && channel(f, x + dx, y + dy, "id.ID") == id &&
+                               std::abs(channel(f, x + dx, y + dy, "depth.Z") - depth) < 0.05 * depth;
+            if (!interior) continue;
+            const double ndcX = 2 * (x + 0.5) / W - 1, ndcY = 1 - 2 * (y + 0.5) / H;
+            const Vec3 world = now.eye + side * (ndcX * depth * tanHalf * aspect) +
+                               up * (ndcY * depth * tanHalf) + forward * double(depth);
+            const auto clip = previousViewProjection.apply(previousWorld(world));
+            const double px = (clip[0] / clip[3] + 1) / 2 * W, py = (1 - clip[1] / clip[3]) / 2 * H;
+            worst = std::max({worst, std::abs((x + 0.5) - px - channel(f, x, y, "motion.X")),
+                              std::abs((y + 0.5) - py - channel(f, x, y, "motion.Y"))});
+            ++checked;
+        }
+    return {worst, checked};
+}
+
+Mat4 viewProjection(const CameraPose& pose, double aspect, const Scene& scene) {
+    return Mat4::perspective(pose.fovY, aspect, scene.near, scene.far) *
+           Mat4::lookAt(pose.eye, pose.target, pose.up);
+}
+
+// A static scene seen by a moving camera: the point did not move, the camera did.
 TEST(Render, MotionVectorsReprojectThePreviousFrame) {
     Scene scene;
     scene.addObject("floor", scene.addMesh(makeBox({30, 0.2, 30})), Material{}, [](double) {
@@ -132,33 +173,9 @@ TEST(Render, MotionVectorsReprojectThePreviousFrame) {
     FrameRequest request;
     request.time = 1, request.previousTime = 0, request.buffers = BufferSet::parse("depth,motion,id");
     const Frame f = renderer.render(request);
-    const CameraPose now = scene.cameraAt(1), before = scene.cameraAt(0);
-    const Vec3 forward = normalize(now.target - now.eye), side = normalize(cross(forward, now.up)),
-               up = cross(side, forward);
-    const double tanHalf = std::tan(now.fovY / 2), aspect = double(W) / H;
-    const Mat4 previous = Mat4::perspective(before.fovY, aspect, scene.near, scene.far) *
-                          Mat4::lookAt(before.eye, before.target, before.up);
-    double worst = 0;
-    int checked = 0;
-    for (int y = 1; y < H - 1; ++y)
-        for (int x = 1; x < W - 1; ++x) {
-            const float id = channel(f, x, y, "id.ID"), depth = channel(f, x, y, "depth.Z");
-            bool interior = id != 0;
-            for (int dy = -1; dy <= 1 && interior; ++dy)
-                for (int dx = -1; dx <= 1; ++dx)
-                    interior = interior && channel(f, x + dx, y + dy, "id.ID") == id &&
-                               std::abs(channel(f, x + dx, y + dy, "depth.Z") - depth) < 0.05 * depth;
-            if (!interior) continue;
-            const double ndcX = 2 * (x + 0.5) / W - 1, ndcY = 1 - 2 * (y + 0.5) / H;
-            const Vec3 world = now.eye + side * (ndcX * depth * tanHalf * aspect) +
-                               up * (ndcY * depth * tanHalf) + forward * double(depth);
-            const auto clip = previous.apply(world);
-            const double px = (clip[0] / clip[3] + 1) / 2 * W, py = (1 - clip[1] / clip[3]) / 2 * H;
-            const double ex = (x + 0.5) - px, ey = (y + 0.5) - py;
-            worst = std::max({worst, std::abs(ex - channel(f, x, y, "motion.X")),
-                              std::abs(ey - channel(f, x, y, "motion.Y"))});
-            ++checked;
-        }
+    const auto [worst, checked] = motionError(
+        f, scene, 1, [](const Vec3& p) { return p; },
+        viewProjection(scene.cameraAt(0), double(W) / H, scene));
     EXPECT_GT(checked, W * H / 2);
     EXPECT_LT(worst, 0.01) << "pixels";
 }
@@ -177,35 +194,13 @@ TEST(Render, MotionVectorsFollowAMovingObject) {
     FrameRequest request;
     request.time = 3, request.previousTime = 2, request.buffers = BufferSet::parse("depth,motion,id");
     const Frame f = renderer.render(request);
-    const CameraPose pose = scene.cameraAt(3);
-    const Vec3 forward = normalize(pose.target - pose.eye), side = normalize(cross(forward, pose.up)),
-               up = cross(side, forward);
-    const double tanHalf = std::tan(pose.fovY / 2), aspect = double(W) / H;
-    const Mat4 viewProjection = Mat4::perspective(pose.fovY, aspect, scene.near, scene.far) *
-                                Mat4::lookAt(pose.eye, pose.target, pose.up);
-    double worst = 0;
-    int checked = 0;
-    for (int y = 1; y < H - 1; ++y)
-        for (int x = 1; x < W - 1; ++x) {
-            const float depth = channel(f, x, y, "depth.Z");
-            bool interior = channel(f, x, y, "id.ID") == 1.0f;
-            for (int dy = -1; dy <= 1 && interior; ++dy)
-                for (int dx = -1; dx <= 1; ++dx)
-                    interior = interior && channel(f, x + dx, y + dy, "id.ID") == 1.0f &&
-                               std::abs(channel(f, x + dx, y + dy, "depth.Z") - depth) < 0.05 * depth;
-            if (!interior) continue;
-            const double ndcX = 2 * (x + 0.5) / W - 1, ndcY = 1 - 2 * (y + 0.5) / H;
-            const Vec3 world = pose.eye + side * (ndcX * depth * tanHalf * aspect) +
-                               up * (ndcY * depth * tanHalf) + forward * double(depth);
-            // Back to object space at t = 3, then out again with the transform of t = 2.
-            const Vec3 local = Mat4::rotation({0, 1, 0}, -angle(3)).transformPoint(world - translation(3));
-            const Vec3 before = translation(2) + Mat4::rotation({0, 1, 0}, angle(2)).transformPoint(local);
-            const auto clip = viewProjection.apply(before);
-            const double px = (clip[0] / clip[3] + 1) / 2 * W, py = (1 - clip[1] / clip[3]) / 2 * H;
-            worst = std::max({worst, std::abs((x + 0.5) - px - channel(f, x, y, "motion.X")),
-                              std::abs((y + 0.5) - py - channel(f, x, y, "motion.Y"))});
-            ++checked;
-        }
+    // Back to object space at t = 3, then out again with the transform of t = 2.
+    auto previousWorld = [&](const Vec3& world) {
+        const Vec3 local = Mat4::rotation({0, 1, 0}, -angle(3)).transformPoint(world - translation(3));
+        return translation(2) + Mat4::rotation({0, 1, 0}, angle(2)).transformPoint(local);
+    };
+    const auto [worst, checked] =
+        motionError(f, scene, 3, previousWorld, viewProjection(scene.cameraAt(3), double(W) / H, scene));
     EXPECT_GT(checked, 500);
     EXPECT_LT(worst, 0.01) << "pixels";
 }
