@@ -3,6 +3,7 @@
 #   make bench   build and run the benchmarks
 #   make build   configure and build (Release)
 #   make dataset render the default training dataset into out/dataset (resumable: run it again)
+#   make models  train the shipped models on it and export them with their model cards (resumable)
 # PRESET=debug|asan|tsan selects another build; CI=true turns warnings into errors.
 
 PRESET ?= release
@@ -13,7 +14,7 @@ ifneq ($(CI),)
 CMAKE_FLAGS += -DDEJAG_WERROR=ON
 endif
 
-.PHONY: all deps configure build test test-asan test-tsan bench dataset golden format clean
+.PHONY: all deps configure build test test-asan test-tsan bench dataset models golden format clean
 
 all: build
 
@@ -36,6 +37,15 @@ dataset: build
 	$(BUILD_DIR)/dejag data generate --families all --count 2200 --size 256x256 --truth 128 --adaptive \
 		--workers 2 --out $(DATASET)
 	$(BUILD_DIR)/dejag data stats $(DATASET)
+
+# The shipped models (models/*.md record each command, its wall time and its scores). Each run is
+# resumable: an interrupted `make models` continues where it stopped and ends with the same weights.
+RUNS ?= out/runs
+SEED_RECIPE = --arch seed2020 --loss ssim --steps 9000 --batch 8 --patch 128 --lr 2e-3 --eval-every 500 \
+	--checkpoint-every 500 --val-images 48 --threads 1
+models: dataset
+	$(BUILD_DIR)/dejag train --data $(DATASET) --out $(RUNS)/seed2020-gray $(SEED_RECIPE) --resume
+	$(BUILD_DIR)/dejag train export $(RUNS)/seed2020-gray models/seed2020-gray.safetensors
 
 test-asan:
 	$(MAKE) test PRESET=asan

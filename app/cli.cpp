@@ -31,4 +31,9 @@ Size parseSize(const std::string& text, const std::string& what) {
     return size;
 }
 
+std::string& invocation() {
+    static std::string line;
+    return line;
+}
+
 }  // namespace dejag::cli

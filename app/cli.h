@@ -21,4 +21,7 @@ struct Size {
 // "1920x1080" -> {1920, 1080}; throws dejag::Error naming `what` on anything else or a side outside 1..16384.
 Size parseSize(const std::string& text, const std::string& what);
 
+// The command line as typed (set by main), recorded in what a command writes (run.json, model cards).
+std::string& invocation();
+
 }  // namespace dejag::cli

@@ -9,6 +9,7 @@ void registerMetricsCommand(CLI::App& app);
 void registerBenchCommand(CLI::App& app);
 void registerRenderCommand(CLI::App& app);
 void registerDataCommand(CLI::App& app);
+void registerTrainCommand(CLI::App& app);
 void registerFilterCommand(CLI::App& app);
 
 }  // namespace dejag::cli

@@ -27,6 +27,11 @@ std::string commandPath(const CLI::App& app) {
 
 int main(int argc, char** argv) {
     dejag::flushDenormalsOnThisThread();
+    for (int i = 0; i < argc; ++i) {
+        std::string word = i == 0 ? std::string("dejag") : std::string(argv[i]);
+        if (word.find_first_of(" \t'\"") != std::string::npos) word = "'" + word + "'";
+        dejag::cli::invocation() += (i ? " " : "") + word;
+    }
     CLI::App app{
         "dejag: learns to remove aliasing from rendered frames.\n"
         "Each subcommand has --help. Errors: one line on stderr, exit code 2."};
@@ -35,6 +40,7 @@ int main(int argc, char** argv) {
     app.set_version_flag("--version", "dejag 0.1.0");
     dejag::cli::registerRenderCommand(app);
     dejag::cli::registerDataCommand(app);
+    dejag::cli::registerTrainCommand(app);
     dejag::cli::registerFilterCommand(app);
     dejag::cli::registerMetricsCommand(app);
     dejag::cli::registerBenchCommand(app);

@@ -6,6 +6,7 @@
 
 #include "base/error.h"
 #include "base/random.h"
+#include "base/thread_pool.h"
 #include "data/image.h"
 
 namespace dejag::data {
@@ -40,9 +41,7 @@ PatchSampler::PatchSampler(const std::string& folder, const PatchOptions& option
     if (options.patchSize < 8 || options.batchSize < 1)
         throw Error("patch size must be >= 8 and batch size >= 1");
     const int P = options.patchSize;
-    for (const nlohmann::json& record : readManifest(folder)) {
-        if (record["split"] != splitName(options.split)) continue;
-        Item item;
+    auto loadItem = [&](const nlohmann::json& record, Item& item) {
         item.index = record["index"].get<int>();
         const Image input =
             readImage((fs::path(folder) / record["files"]["input"]["path"].get<std::string>()).string());
@@ -87,11 +86,20 @@ PatchSampler::PatchSampler(const std::string& folder, const PatchOptions& option
                 item.aliasing[p] = source;
                 if (source) item.aliasingPixels.push_back(int(p));
             }
-        items_.push_back(std::move(item));
-    }
+    };
+    // Items load in parallel (reading EXRs dominates), each into its own slot: the order stays the
+    // manifest's whatever the thread count.
+    std::vector<nlohmann::json> records;
+    for (nlohmann::json& record : readManifest(folder))
+        if (record["split"] == splitName(options.split)) records.push_back(std::move(record));
+    items_.resize(records.size());
+    parallelFor(0, int64_t(records.size()), 1, [&](int64_t first, int64_t last) {
+        for (int64_t i = first; i < last; ++i) loadItem(records[size_t(i)], items_[size_t(i)]);
+    });
     if (items_.empty())
         throw Error("'" + folder + "' has no " + std::string(splitName(options.split)) +
                     " items to sample patches from");
+    produced_ = options.firstBatch;
     worker_ = std::thread([this] { produce(); });
 }
 

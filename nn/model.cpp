@@ -246,6 +246,9 @@ Model Model::fromArchitecture(const nlohmann::json& a) {
                     w.offset = n.weightOffset = offset;
                     w.fanIn = int64_t(n.inChannels) * n.kernel * n.kernel;
                     w.fanOut = int64_t(n.outChannels) * n.kernel * n.kernel;
+                    w.initScale = j.value("init_scale", 1.0);
+                    if (!(w.initScale >= 0) || !std::isfinite(w.initScale))
+                        throw Error("node '" + n.name + "': init_scale must be finite and >= 0");
                     impl->parameters.push_back(w);
                     offset += weights;
                     if (n.bias) {
@@ -371,6 +374,7 @@ nlohmann::json Model::builtinArchitecture(const std::string& name, const ModelOp
             previous = "body" + std::to_string(i);
         }
         nodes.push_back(conv("to_subpixels", previous, 4 * c, 3, "none"));
+        nodes.back()["init_scale"] = 0.1;  // the correction starts small: the network starts near identity
         nodes.push_back(
             {{"name", "shuffle"}, {"op", "pixel_shuffle"}, {"inputs", {"to_subpixels"}}, {"factor", 2}});
         nodes.push_back({{"name", "residual"}, {"op", "add"}, {"inputs", {"input", "shuffle"}}});
@@ -459,6 +463,8 @@ void Model::initialize(uint64_t seed) {
             glorotUniform(data, count, p.fanIn, p.fanOut, rng);
         else
             heNormal(data, count, p.fanIn, rng);
+        if (!p.isBias && p.initScale != 1.0)
+            for (int64_t i = 0; i < count; ++i) data[i] = float(data[i] * p.initScale);
     }
 }
 

@@ -8,7 +8,7 @@
 //    "output": "up2"}
 // Ops and their fields:
 //   conv2d            out_channels, kernel, stride (1), padding ("same" | "valid" | n), dilation (1),
-//                     bias (true), activation ("none")
+//                     bias (true), activation ("none"), init_scale (1)
 //   conv_transpose2d  out_channels, kernel, stride (2), padding (0), output_padding (0), bias, activation
 //   maxpool2d         kernel (2), stride (= kernel)
 //   activation        activation, slope, low, high
@@ -39,6 +39,8 @@ struct ParameterInfo {
     int64_t offset = 0;  // into the flat parameter buffer
     int64_t fanIn = 0, fanOut = 0;
     bool isBias = false;
+    double initScale = 1.0;  // the node's "init_scale": initial weights times this (0.1 on a residual
+                             // branch's last conv starts the network near the identity)
 };
 
 enum class GraphOp {

@@ -413,5 +413,68 @@ TEST(Cli, RenderListsTheScenes) {
         EXPECT_NE(r.out.find(scene), std::string::npos) << scene;
 }
 
+TEST(Cli, TrainLogsJsonResumesAndExportsAModelCard) {
+    testing::TempDir dir;
+    const std::string data = dir.file("data"), runFolder = dir.file("run");
+    ASSERT_EQ(
+        run("data generate --families shapes,pipes,foliage --test-families foliage --count 9 --size 64x64 "
+            "--truth 8 --quiet --out '" +
+                data + "'",
+            dir)
+            .exitCode,
+        0);
+    const std::string train =
+        "train --data '" + data + "' --out '" + runFolder +
+        "' --arch fast --steps 8 --batch 2 --patch 32 --eval-every 4 --checkpoint-every 4 "
+        "--val-images 2 --quiet --json";
+    RunResult r = run(train, dir);
+    ASSERT_EQ(r.exitCode, 0) << r.err;
+    std::stringstream lines(r.out);
+    std::string line;
+    int evaluations = 0;
+    nlohmann::json last;
+    while (std::getline(lines, line)) {
+        last = nlohmann::json::parse(line);
+        if (last["event"] == "evaluation") {
+            ++evaluations;
+            EXPECT_TRUE(last.contains("psnr_whole") && last.contains("baseline_psnr_FXAA")) << line;
+        }
+    }
+    EXPECT_EQ(evaluations, 2);
+    EXPECT_EQ(last["event"], "finished");
+    EXPECT_EQ(last["steps"], 8);
+    // The same folder again: refused without --resume; with it, nothing left to do.
+    expectOneLineError(run(train, dir), "--resume");
+    EXPECT_EQ(run(train + " --resume", dir).exitCode, 0);
+
+    const std::string model = dir.file("tiny.safetensors");
+    r = run("train export '" + runFolder + "' '" + model + "' --quiet", dir);
+    ASSERT_EQ(r.exitCode, 0) << r.err;
+    EXPECT_TRUE(std::filesystem::exists(model));
+    std::ifstream card(dir.file("tiny.md"));
+    std::stringstream text;
+    text << card.rdbuf();
+    EXPECT_NE(text.str().find("| FXAA |"), std::string::npos);
+    EXPECT_NE(text.str().find("dejag train --data"), std::string::npos) << "the card records the command";
+}
+
+TEST(Cli, TrainBadInputIsOneLine) {
+    testing::TempDir dir;
+    expectOneLineError(run("train --out '" + dir.file("r") + "' --steps 5", dir), "--data");
+    expectOneLineError(
+        run("train --data '" + dir.file("nothing") + "' --out '" + dir.file("r") + "' --steps 5", dir),
+        "nothing");
+    expectOneLineError(run("train --data x --out '" + dir.file("r") + "' --arch nosuch --steps 5", dir),
+                       "nosuch");
+    expectOneLineError(run("train --data x --out '" + dir.file("r") + "' --steps 5 --patch 30", dir),
+                       "--patch");
+    expectOneLineError(run("train --data x --out '" + dir.file("r") + "' --steps 5 --loss ssim+typo", dir),
+                       "typo");
+    expectOneLineError(run("train --data x --out '" + dir.file("r") + "'", dir), "--steps");
+    expectOneLineError(
+        run("train export '" + dir.file("norun") + "' '" + dir.file("m.safetensors") + "'", dir), "norun");
+    EXPECT_FALSE(std::filesystem::exists(dir.file("m.safetensors")));
+}
+
 }  // namespace
 }  // namespace dejag

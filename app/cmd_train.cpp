@@ -1,0 +1,146 @@
+// dejag train: trains a network on a dataset (checkpoints, resume, validation, logs, plots) and exports
+// it as a shipped model with its model card.
+#include <cstdio>
+#include <sstream>
+
+#include "app/cli.h"
+#include "app/commands.h"
+#include "base/error.h"
+#include "infer/fxaa.h"
+#include "train/trainer.h"
+
+namespace dejag::cli {
+namespace {
+
+// The comparison methods of validation and of the model card: the unfiltered frame and FXAA 3.11 at
+// its highest preset (train/ cannot depend on infer/, so they are wired in here).
+std::vector<train::Baseline> standardBaselines() {
+    auto fxaa = std::make_shared<infer::Fxaa>();
+    return {{"no AA", [](const Image& im) { return im; }},
+            {"FXAA", [fxaa](const Image& im) {
+                 Image out = im;
+                 fxaa->applyInPlace(out.pixels.data(), out.width, out.height, out.channels());
+                 return out;
+             }}};
+}
+
+std::vector<int64_t> parseSteps(const std::string& text) {
+    std::vector<int64_t> steps;
+    std::stringstream stream(text);
+    std::string item;
+    while (std::getline(stream, item, ',')) {
+        if (item.empty()) continue;
+        try {
+            size_t used = 0;
+            steps.push_back(std::stoll(item, &used));
+            if (used != item.size()) throw std::invalid_argument(item);
+        } catch (const std::exception&) {
+            throw Error("--poison-steps: '" + item + "' is not a step number");
+        }
+    }
+    return steps;
+}
+
+}  // namespace
+
+void registerTrainCommand(CLI::App& app) {
+    CLI::App* trainCommand =
+        app.add_subcommand("train", "train an anti-aliasing network; `train export` ships it");
+    auto config = std::make_shared<train::TrainConfig>();
+    auto runtime = std::make_shared<RuntimeOptions>();
+    auto poison = std::make_shared<std::string>();
+    trainCommand->add_option("--data", config->data, "dataset folder (dejag data generate)");
+    trainCommand->add_option("--arch", config->arch, "seed2020 | fast | FILE.json (an architecture)")
+        ->capture_default_str();
+    trainCommand->add_option("--out", config->out, "run folder (checkpoints, logs, plots)");
+    trainCommand
+        ->add_option("--loss", config->loss,
+                     "ssim | l1 | mse | ssim+l1 | weighted sums like 0.84*ssim+0.16*l1")
+        ->capture_default_str();
+    trainCommand->add_option("--steps", config->steps, "optimizer steps");
+    trainCommand->add_option("--epochs", config->epochs,
+                             "or epochs (an epoch covers the train split's pixels once)");
+    trainCommand->add_option("--batch", config->batch, "patches per batch")->capture_default_str();
+    trainCommand->add_option("--patch", config->patch, "patch side in pixels (a multiple of 8)")
+        ->capture_default_str();
+    trainCommand->add_option("--lr", config->learningRate, "Adam learning rate (cosine decay, warm-up)")
+        ->capture_default_str();
+    trainCommand->add_option("--warmup", config->warmupSteps, "warm-up steps")->capture_default_str();
+    trainCommand->add_option("--clip", config->clipNorm, "gradient norm clip (0: off)")
+        ->capture_default_str();
+    trainCommand->add_option("--seed", config->seed, "seed of the initial weights and the batches")
+        ->capture_default_str();
+    trainCommand->add_option("--eval-every", config->evalEvery, "steps between validations")
+        ->capture_default_str();
+    trainCommand->add_option("--checkpoint-every", config->checkpointEvery, "steps between checkpoints")
+        ->capture_default_str();
+    trainCommand
+        ->add_option("--val-images", config->validationImages, "validation images per evaluation (0: all)")
+        ->capture_default_str();
+    trainCommand
+        ->add_option("--patience", config->patience,
+                     "stop after this many evaluations without improvement (0: never)")
+        ->capture_default_str();
+    trainCommand->add_flag("--resume", config->resume, "continue the run in --out from its checkpoint");
+    trainCommand->add_flag("--json", config->json, "log lines as JSON objects");
+    trainCommand->add_flag("--quiet", config->quiet, "no progress bar");
+    trainCommand->add_option("--poison-steps", *poison, "testing: put a NaN into these steps' batches")
+        ->group("");
+    addRuntimeOptions(trainCommand, *runtime);
+    trainCommand->footer(
+        "Writes RUN/run.json, checkpoint.safetensors (atomically, every --checkpoint-every steps), "
+        "best.safetensors\n"
+        "(best validation PSNR), final.safetensors, log.csv, loss.png and validation.png. Validation scores "
+        "the\n"
+        "network, no AA and FXAA on whole images, edge pixels and texture pixels. Interrupted? Add --resume: "
+        "the\n"
+        "result is the same, bit for bit, with the same --threads.\n"
+        "Then: dejag train export RUN models/NAME.safetensors");
+
+    auto exportRun = std::make_shared<std::string>();
+    auto exportModel = std::make_shared<std::string>();
+    auto testImages = std::make_shared<int>(0);
+    auto exportQuiet = std::make_shared<bool>(false);
+    auto exportRuntime = std::make_shared<RuntimeOptions>();
+    CLI::App* exportCommand = trainCommand->add_subcommand(
+        "export", "write a run's best model and its model card (scored on the validation and test splits)");
+    exportCommand->add_option("run", *exportRun, "run folder")->required();
+    exportCommand
+        ->add_option("model", *exportModel, "model file to write, e.g. models/dejag-fast.safetensors")
+        ->required();
+    exportCommand->add_option("--test-images", *testImages, "test images to score (0: all)")
+        ->capture_default_str();
+    exportCommand->add_flag("--quiet", *exportQuiet, "print nothing but errors");
+    addRuntimeOptions(exportCommand, *exportRuntime);
+    exportCommand->callback([=] {
+        applyRuntimeOptions(*exportRuntime);
+        const std::string card =
+            train::exportModel(*exportRun, *exportModel, standardBaselines(), *testImages, *exportQuiet);
+        if (!*exportQuiet) std::printf("%s", card.c_str());
+    });
+
+    trainCommand->callback([=] {
+        if (exportCommand->parsed()) return;
+        applyRuntimeOptions(*runtime);
+        config->poisonSteps = parseSteps(*poison);
+        config->commandLine = invocation();
+        const train::TrainResult r = train::trainModel(*config, standardBaselines());
+        if (config->json)
+            std::printf("%s\n", nlohmann::json{{"event", "finished"},
+                                               {"steps", r.steps},
+                                               {"skipped", r.skippedSteps},
+                                               {"seconds", r.seconds},
+                                               {"best_step", r.bestStep},
+                                               {"best_psnr", r.bestPsnr},
+                                               {"stopped_early", r.stoppedEarly}}
+                                    .dump()
+                                    .c_str());
+        else
+            std::printf(
+                "trained %lld steps in %.0f s (%lld skipped); best validation PSNR %.2f dB at step %lld%s\n",
+                (long long)r.steps, r.seconds, (long long)r.skippedSteps, r.bestPsnr, (long long)r.bestStep,
+                r.stoppedEarly ? " (stopped early)" : "");
+    });
+}
+
+}  // namespace dejag::cli

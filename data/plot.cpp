@@ -1,0 +1,170 @@
+#include "data/plot.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <limits>
+#include <opencv2/imgproc.hpp>
+
+#include "base/error.h"
+#include "data/image.h"
+
+namespace dejag {
+
+namespace {
+
+// A "nice" tick step (1, 2 or 5 times a power of ten) giving about `count` ticks over `span`.
+double tickStep(double span, int count) {
+    const double raw = span / std::max(count, 1);
+    const double magnitude = std::pow(10.0, std::floor(std::log10(raw)));
+    for (double m : {1.0, 2.0, 5.0, 10.0})
+        if (raw <= m * magnitude) return m * magnitude;
+    return 10 * magnitude;
+}
+
+std::string formatTick(double value, double step) {
+    char text[32];
+    if (std::abs(value) >= 1e5 || (std::abs(value) > 0 && std::abs(value) < 1e-3))
+        std::snprintf(text, sizeof text, "%.0e", value);
+    else
+        std::snprintf(text, sizeof text, "%.*f", std::max(0, int(-std::floor(std::log10(step) + 1e-9))),
+                      value);
+    return text;
+}
+
+cv::Scalar bgr(Rgb c) {
+    return cv::Scalar(c.b * 255, c.g * 255, c.r * 255);
+}
+
+struct Range {
+    double low = std::numeric_limits<double>::infinity(), high = -std::numeric_limits<double>::infinity();
+    void add(double v) {
+        if (std::isfinite(v)) low = std::min(low, v), high = std::max(high, v);
+    }
+    void pad() {
+        if (!(low <= high)) low = 0, high = 1;
+        if (high - low < 1e-12) low -= 0.5, high += 0.5;
+        const double margin = 0.05 * (high - low);
+        low -= margin, high += margin;
+    }
+};
+
+}  // namespace
+
+Rgb plotColour(int index) {
+    // Tableau 10: distinct for the common kinds of colour blindness.
+    static const Rgb palette[] = {{0.12f, 0.47f, 0.71f}, {1.00f, 0.50f, 0.05f}, {0.17f, 0.63f, 0.17f},
+                                  {0.84f, 0.15f, 0.16f}, {0.58f, 0.40f, 0.74f}, {0.55f, 0.34f, 0.29f},
+                                  {0.89f, 0.47f, 0.76f}, {0.50f, 0.50f, 0.50f}, {0.74f, 0.74f, 0.13f},
+                                  {0.09f, 0.75f, 0.81f}};
+    return palette[size_t(index) % std::size(palette)];
+}
+
+void writePlotPng(const std::string& path, const Plot& plot) {
+    const int W = std::max(plot.width, 200), H = std::max(plot.height, 150);
+    cv::Mat canvas(H, W, CV_8UC3, cv::Scalar(255, 255, 255));
+    const int left = 80, right = 20, top = 40, bottom = 60;
+    const cv::Rect area(left, top, W - left - right, H - top - bottom);
+    auto mapX = [&](double x) { return plot.logX ? std::log10(std::max(x, 1e-300)) : x; };
+    Range xr, yr;
+    for (const PlotSeries& s : plot.series)
+        for (size_t i = 0; i < std::min(s.x.size(), s.y.size()); ++i)
+            if (std::isfinite(s.x[i]) && std::isfinite(s.y[i]) && (!plot.logX || s.x[i] > 0))
+                xr.add(mapX(s.x[i])), yr.add(s.y[i]);
+    xr.pad(), yr.pad();
+    auto px = [&](double x) {
+        return cv::Point2d(area.x + (mapX(x) - xr.low) / (xr.high - xr.low) * area.width, 0).x;
+    };
+    auto py = [&](double y) {
+        return area.y + area.height - (y - yr.low) / (yr.high - yr.low) * area.height;
+    };
+    const int font = cv::FONT_HERSHEY_SIMPLEX;
+    const cv::Scalar ink(40, 40, 40), grid(225, 225, 225);
+    // Grid, ticks and tick labels.
+    const double ys = tickStep(yr.high - yr.low, 6);
+    for (double y = std::ceil(yr.low / ys) * ys; y <= yr.high; y += ys) {
+        const int v = int(std::lround(py(y)));
+        cv::line(canvas, {area.x, v}, {area.x + area.width, v}, grid, 1);
+        const std::string t = formatTick(y, ys);
+        int base = 0;
+        const cv::Size size = cv::getTextSize(t, font, 0.4, 1, &base);
+        cv::putText(canvas, t, {area.x - 6 - size.width, v + size.height / 2}, font, 0.4, ink, 1,
+                    cv::LINE_AA);
+    }
+    const double xs = plot.logX ? 1.0 : tickStep(xr.high - xr.low, 8);
+    for (double x = std::ceil(xr.low / xs) * xs; x <= xr.high; x += xs) {
+        const double value = plot.logX ? std::pow(10.0, x) : x;
+        const int u = int(std::lround(area.x + (x - xr.low) / (xr.high - xr.low) * area.width));
+        cv::line(canvas, {u, area.y}, {u, area.y + area.height}, grid, 1);
+        const std::string t = formatTick(value, plot.logX ? std::max(value, 1e-300) : xs);
+        int base = 0;
+        const cv::Size size = cv::getTextSize(t, font, 0.4, 1, &base);
+        cv::putText(canvas, t, {u - size.width / 2, area.y + area.height + 16}, font, 0.4, ink, 1,
+                    cv::LINE_AA);
+    }
+    cv::rectangle(canvas, area, ink, 1);
+    // Series.
+    for (size_t k = 0; k < plot.series.size(); ++k) {
+        const PlotSeries& s = plot.series[k];
+        const cv::Scalar colour = bgr(plotColour(int(k)));
+        std::vector<cv::Point> run;
+        auto flush = [&] {
+            if (s.lines && run.size() >= 2) cv::polylines(canvas, run, false, colour, 2, cv::LINE_AA);
+            run.clear();
+        };
+        for (size_t i = 0; i < std::min(s.x.size(), s.y.size()); ++i) {
+            if (!std::isfinite(s.x[i]) || !std::isfinite(s.y[i]) || (plot.logX && s.x[i] <= 0)) {
+                flush();
+                continue;
+            }
+            const cv::Point p(int(std::lround(px(s.x[i]))), int(std::lround(py(s.y[i]))));
+            run.push_back(p);
+            if (s.markers) cv::circle(canvas, p, 5, colour, cv::FILLED, cv::LINE_AA);
+            if (s.labels && i < s.pointLabels.size())
+                cv::putText(canvas, s.pointLabels[i], p + cv::Point(7, -5), font, 0.38, ink, 1, cv::LINE_AA);
+        }
+        flush();
+    }
+    // Legend (top right inside the plot area), title and axis labels.
+    int legendY = area.y + 18;
+    for (size_t k = 0; k < plot.series.size(); ++k) {
+        if (plot.series[k].name.empty()) continue;
+        int base = 0;
+        const cv::Size size = cv::getTextSize(plot.series[k].name, font, 0.42, 1, &base);
+        const int x = area.x + area.width - size.width - 36;
+        cv::rectangle(canvas, {x - 4, legendY - size.height - 3}, {x + size.width + 30, legendY + 5},
+                      cv::Scalar(255, 255, 255), cv::FILLED);
+        cv::line(canvas, {x, legendY - 4}, {x + 20, legendY - 4}, bgr(plotColour(int(k))), 3, cv::LINE_AA);
+        cv::putText(canvas, plot.series[k].name, {x + 26, legendY}, font, 0.42, ink, 1, cv::LINE_AA);
+        legendY += size.height + 10;
+    }
+    cv::putText(canvas, plot.title, {left, 26}, font, 0.6, ink, 1, cv::LINE_AA);
+    {
+        int base = 0;
+        const cv::Size size = cv::getTextSize(plot.xLabel, font, 0.45, 1, &base);
+        cv::putText(canvas, plot.xLabel, {area.x + area.width / 2 - size.width / 2, H - 14}, font, 0.45, ink,
+                    1, cv::LINE_AA);
+    }
+    {
+        // The y label, rotated: drawn on its own strip, then turned.
+        int base = 0;
+        const cv::Size size = cv::getTextSize(plot.yLabel, font, 0.45, 1, &base);
+        cv::Mat strip(size.height + 8, size.width + 4, CV_8UC3, cv::Scalar(255, 255, 255));
+        cv::putText(strip, plot.yLabel, {2, size.height + 2}, font, 0.45, ink, 1, cv::LINE_AA);
+        cv::Mat turned;
+        cv::rotate(strip, turned, cv::ROTATE_90_COUNTERCLOCKWISE);
+        const int y0 = std::max(0, area.y + area.height / 2 - turned.rows / 2);
+        if (y0 + turned.rows <= H && turned.cols + 6 <= left)
+            turned.copyTo(canvas(cv::Rect(6, y0, turned.cols, turned.rows)));
+    }
+    Image image(W, H, {"R", "G", "B"}, PixelType::UInt8);
+    for (int y = 0; y < H; ++y)
+        for (int x = 0; x < W; ++x) {
+            const cv::Vec3b c = canvas.at<cv::Vec3b>(y, x);
+            float* p = &image.pixels[(size_t(y) * size_t(W) + size_t(x)) * 3];
+            p[0] = c[2] / 255.0f, p[1] = c[1] / 255.0f, p[2] = c[0] / 255.0f;
+        }
+    writeImage(path, image);
+}
+
+}  // namespace dejag

@@ -1,0 +1,218 @@
+// The training loop end to end on a tiny generated dataset: the loss goes down, a resumed run ends with
+// the same weights bit for bit, a NaN batch is skipped without touching the weights, repeated failures
+// stop with the checkpoint intact, and export -> load gives identical outputs. Plus the evaluation
+// regions and the plot writer.
+#include "train/trainer.h"
+
+#include <gtest/gtest.h>
+#include <unistd.h>
+
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+
+#include "base/error.h"
+#include "data/image.h"
+#include "data/plot.h"
+#include "nn/safetensors.h"
+#include "tests/test_util.h"
+
+namespace dejag::train {
+namespace {
+
+namespace fs = std::filesystem;
+
+class Training : public ::testing::Test {
+  protected:
+    static void SetUpTestSuite() {
+        root_ = (fs::temp_directory_path() / ("dejag-train-" + std::to_string(::getpid()))).string();
+        fs::remove_all(root_);
+        data_ = root_ + "/data";
+        const std::string command =
+            "'" + std::string(DEJAG_BINARY) +
+            "' data generate --families shapes,pipes,thin,text,foliage --test-families foliage "
+            "--count 20 --size 64x64 --truth 16 --quiet --out '" +
+            data_ + "'";
+        ASSERT_EQ(std::system(command.c_str()), 0);
+    }
+    static void TearDownTestSuite() { fs::remove_all(root_); }
+
+    // A small residual RGB network and a short schedule: seconds on two cores.
+    static TrainConfig tinyConfig(const std::string& name) {
+        TrainConfig c;
+        c.data = data_;
+        c.out = root_ + "/" + name;
+        fs::remove_all(c.out);
+        const std::string arch = root_ + "/tiny.json";
+        if (!fs::exists(arch)) {
+            std::ofstream(arch) << nn::Model::builtinArchitecture("fast", {8, 3, 3}).dump();
+        }
+        c.arch = arch;
+        c.steps = 40, c.batch = 4, c.patch = 32, c.learningRate = 3e-3, c.warmupSteps = 5;
+        c.evalEvery = 20, c.checkpointEvery = 10, c.validationImages = 4, c.quiet = true;
+        return c;
+    }
+    static std::vector<Baseline> baselines() {
+        return {{"no AA", [](const Image& im) { return im; }}};
+    }
+    static std::vector<float> weightsOf(const std::string& modelFile) {
+        return nn::readSafetensors(modelFile).tensors.at("down.weight").f32;
+    }
+    static std::string root_, data_;
+};
+std::string Training::root_, Training::data_;
+
+// The log rows of a run's CSV: step -> loss.
+std::vector<double> lossesOf(const std::string& run) {
+    std::ifstream in(run + "/log.csv");
+    std::string line;
+    std::getline(in, line);
+    std::vector<double> losses;
+    while (std::getline(in, line)) {
+        std::stringstream s(line);
+        std::string cell;
+        for (int i = 0; i < 4; ++i) std::getline(s, cell, ',');
+        if (!cell.empty()) losses.push_back(std::stod(cell));
+    }
+    return losses;
+}
+
+TEST_F(Training, ATinyRunLowersTheLossAndWritesItsRunFolder) {
+    TrainConfig c = tinyConfig("lowers");
+    c.steps = 120, c.evalEvery = 60;
+    const TrainResult r = trainModel(c, baselines());
+    EXPECT_EQ(r.steps, 120);
+    EXPECT_EQ(r.skippedSteps, 0);
+    const std::vector<double> losses = lossesOf(c.out);
+    ASSERT_GE(losses.size(), 6u);
+    const double first = (losses[0] + losses[1]) / 2,
+                 last = (losses[losses.size() - 1] + losses[losses.size() - 2]) / 2;
+    EXPECT_LT(last, 0.8 * first) << "first " << first << ", last " << last;
+    for (const char* f : {"run.json", "checkpoint.safetensors", "best.safetensors", "final.safetensors",
+                          "log.csv", "loss.png", "validation.png"})
+        EXPECT_TRUE(fs::exists(c.out + "/" + f)) << f;
+    // A second run into the same folder without --resume is refused, the run untouched.
+    EXPECT_THROW(trainModel(c, baselines()), Error);
+}
+
+TEST_F(Training, ResumedRunEqualsTheUninterruptedOneBitForBit) {
+    const TrainConfig straight = tinyConfig("straight");
+    trainModel(straight, baselines());
+    TrainConfig broken = tinyConfig("broken");
+    broken.stopAfterSteps = 10;
+    EXPECT_TRUE(trainModel(broken, baselines()).interrupted);
+    broken.resume = true;
+    broken.stopAfterSteps = 20;  // a second interruption, past an evaluation
+    EXPECT_TRUE(trainModel(broken, baselines()).interrupted);
+    broken.stopAfterSteps = 0;
+    const TrainResult r = trainModel(broken, baselines());
+    EXPECT_FALSE(r.interrupted);
+    EXPECT_EQ(r.steps, 40);
+    EXPECT_EQ(weightsOf(straight.out + "/final.safetensors"), weightsOf(broken.out + "/final.safetensors"));
+    EXPECT_EQ(lossesOf(straight.out), lossesOf(broken.out));
+    // Resuming with another learning rate would not continue the same run: refused.
+    broken.learningRate = 1e-2;
+    EXPECT_THROW(trainModel(broken, baselines()), Error);
+}
+
+TEST_F(Training, ANanBatchIsSkippedAndTheWeightsStayClean) {
+    TrainConfig clean = tinyConfig("clean");
+    clean.steps = 10, clean.checkpointEvery = 5;
+    clean.stopAfterSteps = 5;
+    trainModel(clean, baselines());
+    const std::vector<float> before =
+        nn::readSafetensors(clean.out + "/checkpoint.safetensors").tensors.at("parameters").f32;
+
+    TrainConfig poisoned = tinyConfig("poisoned");
+    poisoned.steps = 10, poisoned.checkpointEvery = 5;
+    poisoned.poisonSteps = {5};
+    poisoned.stopAfterSteps = 6;  // step 5 (the sixth) is the poisoned one
+    trainModel(poisoned, baselines());
+    const nn::SafetensorsFile file = nn::readSafetensors(poisoned.out + "/checkpoint.safetensors");
+    const std::vector<float> after = file.tensors.at("parameters").f32;
+    EXPECT_EQ(before, after) << "a skipped step must leave the weights as they were";
+    const nlohmann::json state = nlohmann::json::parse(file.metadata.at("dejag.state"));
+    EXPECT_EQ(state["skipped"], 1);
+    EXPECT_DOUBLE_EQ(state["lr_scale"].get<double>(), 0.5);
+    poisoned.resume = true, poisoned.stopAfterSteps = 0;
+    const TrainResult r = trainModel(poisoned, baselines());
+    EXPECT_EQ(r.skippedSteps, 1);
+    for (float w : weightsOf(poisoned.out + "/final.safetensors")) ASSERT_TRUE(std::isfinite(w));
+}
+
+TEST_F(Training, RepeatedBadStepsStopWithTheLastCheckpointIntact) {
+    TrainConfig c = tinyConfig("diverges");
+    c.maxBadSteps = 3;
+    c.poisonSteps = {12, 13, 14};
+    try {
+        trainModel(c, baselines());
+        FAIL() << "expected an error";
+    } catch (const Error& e) {
+        EXPECT_NE(std::string(e.what()).find("3 bad steps in a row"), std::string::npos) << e.what();
+    }
+    const nn::SafetensorsFile file = nn::readSafetensors(c.out + "/checkpoint.safetensors");
+    EXPECT_EQ(nlohmann::json::parse(file.metadata.at("dejag.state"))["step"], 10);
+    for (float w : file.tensors.at("parameters").f32) ASSERT_TRUE(std::isfinite(w));
+}
+
+TEST_F(Training, ExportThenLoadGivesIdenticalOutputsAndACard) {
+    TrainConfig c = tinyConfig("export");
+    c.steps = 20;
+    trainModel(c, baselines());
+    const std::string modelPath = root_ + "/models/tiny-export.safetensors";
+    fs::create_directories(root_ + "/models");
+    const std::string card = exportModel(c.out, modelPath, baselines(), 3, true);
+    EXPECT_NE(card.find("### Test split"), std::string::npos);
+    EXPECT_NE(card.find("| network |"), std::string::npos);
+    EXPECT_TRUE(fs::exists(root_ + "/models/tiny-export.md"));
+
+    std::map<std::string, std::string> metadata;
+    const nn::Model best = nn::loadModel(c.out + "/best.safetensors");
+    const nn::Model shipped = nn::loadModel(modelPath, &metadata);
+    EXPECT_TRUE(metadata.count("dejag.card"));
+    const auto items = data::loadEvaluationItems(data_, data::Split::Test, 1);
+    ModelRunner a(best), b(shipped);
+    const Image x = a.run(items[0].input), y = b.run(items[0].input);
+    EXPECT_EQ(x.pixels, y.pixels);
+    // Not a finished run: refused.
+    TrainConfig unfinished = tinyConfig("unfinished");
+    unfinished.stopAfterSteps = 10;
+    trainModel(unfinished, baselines());
+    EXPECT_THROW(exportModel(unfinished.out, root_ + "/models/x.safetensors", baselines(), 1, true), Error);
+}
+
+TEST_F(Training, RegionsSplitEdgesFromTextures) {
+    const auto items = data::loadEvaluationItems(data_, data::Split::Validation);
+    ASSERT_FALSE(items.empty());
+    for (const data::EvaluationItem& item : items) {
+        const auto& edge = item.masks[int(data::Region::Edge)].pixels;
+        const auto& texture = item.masks[int(data::Region::Texture)].pixels;
+        for (size_t p = 0; p < edge.size(); ++p) ASSERT_FALSE(edge[p] > 0.5f && texture[p] > 0.5f);
+        // The unfiltered input scores below the truth itself (which is perfect).
+        const data::ImageScore input = data::scoreImage(item, item.input),
+                               truth = data::scoreImage(item, item.truth);
+        EXPECT_TRUE(std::isinf(truth.region[0].psnr));
+        EXPECT_LT(input.region[0].psnr, 100.0);
+    }
+}
+
+TEST(Plot, WritesAPngOfTheAskedSizeAndSkipsNonFinitePoints) {
+    const std::string path =
+        (fs::temp_directory_path() / ("dejag-plot-" + std::to_string(::getpid()) + ".png")).string();
+    Plot plot;
+    plot.title = "t", plot.xLabel = "x", plot.yLabel = "y", plot.width = 320, plot.height = 200;
+    PlotSeries s;
+    s.name = "a";
+    s.x = {1, 2, 3, 4}, s.y = {1, NAN, 3, 2};
+    s.markers = true;
+    plot.series.push_back(s);
+    writePlotPng(path, plot);
+    const Image image = readImage(path);
+    EXPECT_EQ(image.width, 320);
+    EXPECT_EQ(image.height, 200);
+    fs::remove(path);
+    EXPECT_THROW(writePlotPng("/nonexistent-dir/p.png", plot), Error);
+}
+
+}  // namespace
+}  // namespace dejag::train

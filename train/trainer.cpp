@@ -1,0 +1,728 @@
+#include "train/trainer.h"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <map>
+#include <numeric>
+#include <sstream>
+
+#include "base/error.h"
+#include "base/files.h"
+#include "base/progress.h"
+#include "base/thread_pool.h"
+#include "base/timer.h"
+#include "data/patches.h"
+#include "data/plot.h"
+#include "nn/inference.h"
+#include "nn/losses.h"
+#include "nn/optim.h"
+#include "nn/safetensors.h"
+
+namespace dejag::train {
+
+namespace fs = std::filesystem;
+using nlohmann::json;
+
+namespace {
+
+constexpr const char* kCheckpointFormat = "dejag-checkpoint-1";
+
+std::string readText(const std::string& path) {
+    std::ifstream in(path, std::ios::binary);
+    if (!in) throw Error("cannot read '" + path + "'");
+    std::stringstream s;
+    s << in.rdbuf();
+    return s.str();
+}
+
+nlohmann::json architectureFor(const std::string& arch) {
+    if (arch == "seed2020" || arch == "fast") return nn::Model::builtinArchitecture(arch);
+    if (!fs::exists(arch))
+        throw Error("--arch '" + arch + "' is neither seed2020, fast nor an existing JSON file");
+    try {
+        return json::parse(readText(arch));
+    } catch (const json::exception& e) {
+        throw Error("architecture file '" + arch + "' is not valid JSON: " + e.what());
+    }
+}
+
+json configToJson(const TrainConfig& c) {
+    return {{"data", c.data},
+            {"arch", c.arch},
+            {"loss", c.loss},
+            {"steps", c.steps},
+            {"epochs", c.epochs},
+            {"batch", c.batch},
+            {"patch", c.patch},
+            {"lr", c.learningRate},
+            {"warmup_steps", c.warmupSteps},
+            {"clip_norm", c.clipNorm},
+            {"seed", c.seed},
+            {"eval_every", c.evalEvery},
+            {"checkpoint_every", c.checkpointEvery},
+            {"validation_images", c.validationImages},
+            {"patience", c.patience},
+            {"threads", threadCount()}};
+}
+
+// The settings that must not change when a run is resumed (they change the batches or the updates).
+void requireSameRun(const json& saved, const json& now) {
+    for (const char* key : {"arch", "loss", "batch", "patch", "lr", "warmup_steps", "clip_norm", "seed"})
+        if (saved.at(key) != now.at(key))
+            throw Error(std::string("--resume: '") + key + "' was " + saved.at(key).dump() +
+                        " in this run, now " + now.at(key).dump() +
+                        "; resume with the same settings or start a new --out");
+}
+
+// One row of the log: the mean loss since the previous row, and validation figures at evaluations.
+struct LogRow {
+    int64_t step = 0;
+    double seconds = 0, learningRate = 0, loss = NAN;
+    int64_t skipped = 0;
+    bool evaluated = false;
+    double psnr[int(data::Region::Count)]{}, ssim[int(data::Region::Count)]{};
+};
+
+json rowToJson(const LogRow& r) {
+    json j = {{"step", r.step}, {"seconds", r.seconds}, {"lr", r.learningRate}, {"skipped", r.skipped}};
+    j["loss"] = std::isfinite(r.loss) ? json(r.loss) : json(nullptr);
+    if (r.evaluated) {
+        for (int k = 0; k < int(data::Region::Count); ++k) {
+            j[std::string("psnr_") + data::regionName(data::Region(k))] = r.psnr[k];
+            j[std::string("ssim_") + data::regionName(data::Region(k))] = r.ssim[k];
+        }
+    }
+    return j;
+}
+
+double numberOrNan(const json& j) {
+    return j.is_null() ? NAN : j.get<double>();  // JSON has no NaN: nlohmann writes it as null
+}
+
+LogRow rowFromJson(const json& j) {
+    LogRow r;
+    r.step = j.at("step"), r.seconds = j.at("seconds"), r.learningRate = j.at("lr"),
+    r.skipped = j.at("skipped");
+    r.loss = numberOrNan(j.at("loss"));
+    r.evaluated = j.contains("psnr_whole");
+    if (r.evaluated)
+        for (int k = 0; k < int(data::Region::Count); ++k) {
+            r.psnr[k] = numberOrNan(j.at(std::string("psnr_") + data::regionName(data::Region(k))));
+            r.ssim[k] = numberOrNan(j.at(std::string("ssim_") + data::regionName(data::Region(k))));
+        }
+    return r;
+}
+
+// What a checkpoint holds besides the tensors.
+struct TrainState {
+    int64_t step = 0;  // steps done (the next batch is batch `step`)
+    int64_t skipped = 0, badInRow = 0;
+    double learningRateScale = 1.0;
+    double bestPsnr = -1e30;
+    int64_t bestStep = -1;
+    int evaluationsSinceBest = 0;
+    double seconds = 0;
+    std::vector<LogRow> log;
+};
+
+void saveCheckpoint(const std::string& path, const nn::Model& model, const nn::Optimizer& optimizer,
+                    const TrainState& state, const json& config) {
+    const int64_t n = model.parameterCount();
+    for (int64_t i = 0; i < n; ++i)
+        if (!std::isfinite(model.parameterData()[i]))
+            throw Error("refusing to checkpoint non-finite weights (parameter " + std::to_string(i) + ")");
+    json meta = {{"step", state.step},
+                 {"optimizer_steps", optimizer.steps()},
+                 {"skipped", state.skipped},
+                 {"bad_in_row", state.badInRow},
+                 {"lr_scale", state.learningRateScale},
+                 {"best_psnr", state.bestPsnr},
+                 {"best_step", state.bestStep},
+                 {"evaluations_since_best", state.evaluationsSinceBest},
+                 {"seconds", state.seconds},
+                 {"config", config}};
+    json log = json::array();
+    for (const LogRow& r : state.log) log.push_back(rowToJson(r));
+    meta["log"] = log;
+    auto& m = const_cast<nn::Optimizer&>(optimizer);
+    nn::writeSafetensors(path,
+                         {{"parameters", {n}, model.parameterData()},
+                          {"adam.m", {int64_t(m.firstMoment().size())}, m.firstMoment().data()},
+                          {"adam.v", {int64_t(m.secondMoment().size())}, m.secondMoment().data()}},
+                         {{"dejag.format", kCheckpointFormat},
+                          {"dejag.architecture", model.architecture().dump()},
+                          {"dejag.state", meta.dump()}});
+}
+
+TrainState loadCheckpoint(const std::string& path, nn::Model& model, nn::Optimizer& optimizer, json* config) {
+    const nn::SafetensorsFile file = nn::readSafetensors(path);
+    auto meta = [&](const std::string& key) -> const std::string& {
+        const auto it = file.metadata.find(key);
+        if (it == file.metadata.end()) throw Error("checkpoint '" + path + "' has no " + key);
+        return it->second;
+    };
+    if (meta("dejag.format") != kCheckpointFormat) throw Error("'" + path + "' is not a dejag checkpoint");
+    if (json::parse(meta("dejag.architecture")) != model.architecture())
+        throw Error("checkpoint '" + path + "' holds another architecture than --arch");
+    const int64_t n = model.parameterCount();
+    const std::vector<float> params = file.at("parameters").asFloat(), m = file.at("adam.m").asFloat(),
+                             v = file.at("adam.v").asFloat();
+    if (int64_t(params.size()) != n || int64_t(m.size()) != n || int64_t(v.size()) != n)
+        throw Error("checkpoint '" + path + "' has the wrong number of parameters");
+    std::copy(params.begin(), params.end(), model.parameterData());
+    optimizer.firstMoment() = m, optimizer.secondMoment() = v;
+    const json s = json::parse(meta("dejag.state"));
+    optimizer.setSteps(s.at("optimizer_steps"));
+    TrainState state;
+    state.step = s.at("step"), state.skipped = s.at("skipped"), state.badInRow = s.at("bad_in_row");
+    state.learningRateScale = s.at("lr_scale"), state.bestPsnr = s.at("best_psnr"),
+    state.bestStep = s.at("best_step");
+    state.evaluationsSinceBest = s.at("evaluations_since_best"), state.seconds = s.at("seconds");
+    for (const json& r : s.at("log")) state.log.push_back(rowFromJson(r));
+    *config = s.at("config");
+    return state;
+}
+
+void writeLogCsv(const std::string& path, const std::vector<LogRow>& log) {
+    std::ostringstream csv;
+    csv << "step,seconds,lr,loss,skipped,val_psnr,val_ssim,val_edge_psnr,val_edge_ssim,val_texture_psnr,"
+           "val_texture_ssim\n";
+    char line[512];
+    for (const LogRow& r : log) {
+        std::snprintf(line, sizeof line, "%lld,%.3f,%.6g,%s,%lld", (long long)r.step, r.seconds,
+                      r.learningRate, std::isfinite(r.loss) ? std::to_string(r.loss).c_str() : "",
+                      (long long)r.skipped);
+        csv << line;
+        for (int k = 0; k < int(data::Region::Count); ++k) {
+            if (r.evaluated)
+                std::snprintf(line, sizeof line, ",%.4f,%.6f", r.psnr[k], r.ssim[k]);
+            else
+                std::snprintf(line, sizeof line, ",,");
+            csv << line;
+        }
+        csv << '\n';
+    }
+    writeTextFileAtomically(path, csv.str());
+}
+
+void writePlots(const std::string& run, const std::vector<LogRow>& log,
+                const std::vector<MethodScores>& baselines, const std::string& name) {
+    Plot loss{"training loss (" + name + ")", "step", "loss", {}, false, 900, 540};
+    PlotSeries l;
+    l.name = "train loss";
+    for (const LogRow& r : log)
+        if (std::isfinite(r.loss)) l.x.push_back(double(r.step)), l.y.push_back(r.loss);
+    loss.series.push_back(l);
+    writePlotPng((fs::path(run) / "loss.png").string(), loss);
+
+    Plot validation{"validation PSNR, whole images (" + name + ")", "step", "PSNR (dB)", {}, false, 900, 540};
+    PlotSeries net;
+    net.name = "network";
+    net.markers = true;
+    for (const LogRow& r : log)
+        if (r.evaluated) net.x.push_back(double(r.step)), net.y.push_back(r.psnr[0]);
+    validation.series.push_back(net);
+    if (!net.x.empty())
+        for (const MethodScores& b : baselines) {
+            PlotSeries line;
+            line.name = b.name;
+            line.x = {net.x.front(), net.x.back()};
+            line.y = {b.summary.psnr[0], b.summary.psnr[0]};
+            validation.series.push_back(line);
+        }
+    writePlotPng((fs::path(run) / "validation.png").string(), validation);
+}
+
+bool allFinite(const nn::Tensor& t) {
+    return t.findNonFinite() < 0;
+}
+
+}  // namespace
+
+// ---- Running a model on whole images ------------------------------------------------------------------
+
+struct ModelRunner::Impl {
+    const nn::Model* model = nullptr;
+    std::unique_ptr<nn::InferencePlan> plan;
+    nn::Tensor input;
+};
+
+ModelRunner::ModelRunner(const nn::Model& model) : impl_(std::make_unique<Impl>()) {
+    impl_->model = &model;
+}
+ModelRunner::~ModelRunner() = default;
+
+Image ModelRunner::run(const Image& rgb) {
+    if (rgb.channels() != 3) throw Error("the network filter needs an RGB image, got " + rgb.describe());
+    const int C = impl_->model->inputChannels();
+    if (C != 1 && C != 3)
+        throw Error("the network takes " + std::to_string(C) + " channels; images have 1 or 3");
+    // Pad by replicating the border up to a multiple of 8 (two pools or a stride-2 stage need 4 or 2).
+    const int W = rgb.width, H = rgb.height, PW = (W + 7) / 8 * 8, PH = (H + 7) / 8 * 8;
+    const nn::Shape shape{1, C, PH, PW};
+    if (!impl_->plan || impl_->plan->inputShape() != shape) {
+        impl_->plan = std::make_unique<nn::InferencePlan>(*impl_->model, shape);
+        impl_->input = nn::Tensor(shape);
+    }
+    nn::Tensor& in = impl_->input;
+    for (int y = 0; y < PH; ++y)
+        for (int x = 0; x < PW; ++x) {
+            const float* p =
+                &rgb.pixels[(size_t(std::min(y, H - 1)) * size_t(W) + size_t(std::min(x, W - 1))) * 3];
+            if (C == 1)
+                in.at(0, 0, y, x) = 0.21f * p[0] + 0.72f * p[1] + 0.07f * p[2];
+            else
+                for (int c = 0; c < 3; ++c) in.at(0, c, y, x) = p[c];
+        }
+    const nn::Tensor& out = impl_->plan->run(in);
+    const int outC = int(out.dim(1));
+    Image result(W, H, Image::defaultChannelNames(outC), rgb.storage);
+    for (int y = 0; y < H; ++y)
+        for (int x = 0; x < W; ++x)
+            for (int c = 0; c < outC; ++c)
+                result.pixels[(size_t(y) * size_t(W) + size_t(x)) * size_t(outC) + size_t(c)] =
+                    std::clamp(out.at(0, c, y, x), 0.0f, 1.0f);
+    return result;
+}
+
+std::vector<MethodScores> scoreMethods(const std::vector<data::EvaluationItem>& items,
+                                       const std::vector<Method>& methods, bool grey) {
+    std::vector<MethodScores> scores;
+    for (const Method& method : methods) {
+        MethodScores s;
+        s.name = method.name;
+        std::vector<double> ms;
+        for (const data::EvaluationItem& item : items) {
+            const auto start = std::chrono::steady_clock::now();
+            Image out = method.apply(item.input);
+            ms.push_back(
+                std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count());
+            if (grey && out.channels() == 3) out = data::lumaImage(out);
+            s.summary.add(data::scoreImage(item, out));
+        }
+        s.summary.finish();
+        s.millisecondsPerImage = median(ms);
+        scores.push_back(std::move(s));
+    }
+    return scores;
+}
+
+// ---- Training -----------------------------------------------------------------------------------------
+
+TrainResult trainModel(const TrainConfig& config, const std::vector<Baseline>& baselines) {
+    if (config.data.empty() || config.out.empty()) throw Error("--data and --out are required");
+    if (config.batch < 1 || config.patch < 16 || config.patch % 8 != 0)
+        throw Error("--batch must be >= 1 and --patch a multiple of 8, at least 16");
+    if (!(config.learningRate > 0) || !std::isfinite(config.learningRate))
+        throw Error("--lr must be positive");
+    if (config.steps < 0 || config.epochs < 0 || (config.steps == 0 && config.epochs == 0))
+        throw Error("give --steps N or --epochs E (positive)");
+    if (config.evalEvery < 1 || config.checkpointEvery < 1)
+        throw Error("evaluation and checkpoint intervals must be >= 1");
+    const nn::CompositeLoss loss = nn::CompositeLoss::parse(config.loss);
+    nn::Model model = nn::Model::fromArchitecture(architectureFor(config.arch));
+    const bool grey = model.inputChannels() == 1;
+    if (model.inputChannels() != 1 && model.inputChannels() != 3)
+        throw Error("the architecture takes " + std::to_string(model.inputChannels()) +
+                    " channels; dejag trains on RGB (3) or luma (1)");
+    if (model.outputChannels() != model.inputChannels())
+        throw Error("the architecture outputs " + std::to_string(model.outputChannels()) + " channels for " +
+                    std::to_string(model.inputChannels()) + " in");
+    model.outputShape({config.batch, model.inputChannels(), config.patch, config.patch});  // throws if unfit
+
+    fs::create_directories(config.out);
+    const std::string checkpointPath = (fs::path(config.out) / "checkpoint.safetensors").string();
+    json runConfig = configToJson(config);
+    nn::OptimizerConfig adam;
+    adam.learningRate = config.learningRate;
+    nn::Optimizer optimizer(adam, model.parameterCount());
+    TrainState state;
+    if (fs::exists(checkpointPath)) {
+        if (!config.resume)
+            throw Error(
+                "'" + config.out +
+                "' already holds a training run; add --resume to continue it or choose another --out");
+        json saved;
+        state = loadCheckpoint(checkpointPath, model, optimizer, &saved);
+        requireSameRun(saved, runConfig);
+        if (saved.at("threads") != runConfig.at("threads"))
+            std::fprintf(
+                stderr,
+                "dejag train: resuming with %d threads (the run used %s): results will differ in rounding\n",
+                threadCount(), saved.at("threads").dump().c_str());
+    } else {
+        model.initialize(config.seed);
+    }
+
+    data::PatchOptions patches;
+    patches.patchSize = config.patch, patches.batchSize = config.batch, patches.seed = config.seed;
+    patches.grayscale = grey, patches.firstBatch = uint64_t(state.step);
+    data::PatchSampler sampler(config.data, patches);
+    int64_t totalSteps = config.steps;
+    if (totalSteps == 0) {
+        const auto items = data::readManifest(config.data);
+        double pixels = 0;
+        for (const json& r : items)
+            if (r.value("split", "") == "train")
+                pixels += double(r["size"][0].get<int>()) * r["size"][1].get<int>();
+        totalSteps =
+            std::max<int64_t>(1, int64_t(std::ceil(config.epochs * pixels /
+                                                   (double(config.batch) * config.patch * config.patch))));
+    }
+    runConfig["total_steps"] = totalSteps;
+    nn::LrSchedule schedule;
+    schedule.kind = nn::LrSchedule::Kind::Cosine;
+    schedule.baseRate = config.learningRate, schedule.minRate = 0.05 * config.learningRate;
+    schedule.warmupSteps = config.warmupSteps, schedule.totalSteps = totalSteps;
+
+    // Validation: the baselines are scored once; the network at every evaluation.
+    const std::vector<data::EvaluationItem> validation =
+        data::loadEvaluationItems(config.data, data::Split::Validation, config.validationImages);
+    std::vector<Method> baselineMethods;
+    for (const Baseline& b : baselines) baselineMethods.push_back({b.name, b.apply});
+    const std::vector<MethodScores> baselineScores = scoreMethods(validation, baselineMethods, grey);
+
+    {
+        json run = {
+            {"format", "dejag-run-1"},
+            {"config", runConfig},
+            {"command", config.commandLine},
+            {"architecture", model.architecture()},
+            {"parameters", model.parameterCount()},
+            {"macs_per_pixel", double(model.macs({1, model.inputChannels(), 256, 256})) / (256.0 * 256.0)}};
+        const std::string datasetJson = (fs::path(config.data) / "dataset.json").string();
+        if (fs::exists(datasetJson)) run["dataset"] = json::parse(readText(datasetJson));
+        json baselineJson = json::object();
+        for (const MethodScores& b : baselineScores)
+            baselineJson[b.name] = {{"psnr", b.summary.psnr[0]}, {"ssim", b.summary.ssim[0]}};
+        run["validation_baselines"] = baselineJson;
+        writeTextFileAtomically((fs::path(config.out) / "run.json").string(), run.dump(2) + "\n");
+    }
+
+    auto printEvaluation = [&](const LogRow& r) {
+        if (config.json) {
+            json j = rowToJson(r);
+            j["event"] = "evaluation";
+            for (const MethodScores& b : baselineScores) j["baseline_psnr_" + b.name] = b.summary.psnr[0];
+            std::printf("%s\n", j.dump().c_str());
+        } else {
+            std::string base;
+            for (const MethodScores& b : baselineScores) {
+                char t[64];
+                std::snprintf(t, sizeof t, "%s%s %.2f", base.empty() ? "" : ", ", b.name.c_str(),
+                              b.summary.psnr[0]);
+                base += t;
+            }
+            std::printf(
+                "step %6lld  loss %.5f  val PSNR %.2f dB (%s)  SSIM %.4f  edge %.2f  texture %.2f  lr %.2e  "
+                "%s\n",
+                (long long)r.step, r.loss, r.psnr[0], base.c_str(), r.ssim[0], r.psnr[1], r.psnr[2],
+                r.learningRate, formatDuration(r.seconds).c_str());
+        }
+        std::fflush(stdout);
+    };
+
+    auto evaluate = [&](LogRow& row) {
+        ModelRunner runner(model);
+        const std::vector<MethodScores> s =
+            scoreMethods(validation, {{"network", [&](const Image& im) { return runner.run(im); }}}, grey);
+        row.evaluated = true;
+        for (int k = 0; k < int(data::Region::Count); ++k)
+            row.psnr[k] = s[0].summary.psnr[k], row.ssim[k] = s[0].summary.ssim[k];
+    };
+
+    auto saveModelFile = [&](const std::string& name, int64_t step) {
+        nn::saveModel((fs::path(config.out) / name).string(), model,
+                      {{"dejag.provenance", config.commandLine}, {"dejag.step", std::to_string(step)}});
+    };
+
+    TrainResult result;
+    // Log rows fall on checkpoint steps too, so a resumed run logs the same rows.
+    const int64_t logEvery =
+        std::gcd(std::max<int64_t>(1, std::min<int64_t>(50, totalSteps / 200)), config.checkpointEvery);
+    Progress progress("train", totalSteps, config.quiet);
+    progress.advance(state.step);
+    const auto sessionStart = std::chrono::steady_clock::now();
+    const double secondsBefore = state.seconds;
+    auto elapsed = [&] {
+        return secondsBefore +
+               std::chrono::duration<double>(std::chrono::steady_clock::now() - sessionStart).count();
+    };
+    double lossSum = 0;
+    int64_t lossCount = 0;
+    double lastLoss = NAN;
+    nn::Tensor dout;
+    int64_t sessionSteps = 0;
+    bool stop = config.patience > 0 && state.evaluationsSinceBest >= config.patience;  // finished early
+    result.stoppedEarly = stop;
+    while (state.step < totalSteps && !stop) {
+        data::Batch batch = sampler.next();
+        if (std::find(config.poisonSteps.begin(), config.poisonSteps.end(), state.step) !=
+            config.poisonSteps.end())
+            batch.input.data()[batch.input.numel() / 2] = NAN;
+        const double rate = schedule.rateAt(state.step) * state.learningRateScale;
+        std::string bad;
+        double value = NAN;
+        if (!allFinite(batch.input) || !allFinite(batch.target)) {
+            bad = "the batch holds NaN or Inf";
+        } else {
+            const nn::Tensor& out = model.forward(batch.input);
+            if (dout.shape() != out.shape()) dout = nn::Tensor(out.shape());
+            dout.zero();
+            const nn::SsimLossDesc desc{out.dim(0), out.dim(1), out.dim(2), out.dim(3), 1.0};
+            value = loss.evaluate(dout.data(), out.data(), batch.target.data(), desc);
+            if (!std::isfinite(value) || !allFinite(dout)) {
+                bad = "the loss or its gradient is not finite";
+            } else {
+                model.backward(dout);
+                const double norm =
+                    config.clipNorm > 0
+                        ? nn::clipGradientNorm(model.gradientData(), model.parameterCount(), config.clipNorm)
+                        : nn::gradientNorm(model.gradientData(), model.parameterCount());
+                if (!std::isfinite(norm)) bad = "the gradient is not finite";
+            }
+        }
+        if (!bad.empty()) {
+            ++state.skipped, ++state.badInRow;
+            state.learningRateScale *= 0.5;
+            if (config.json)
+                std::printf("%s\n", json{{"event", "skipped"},
+                                         {"step", state.step},
+                                         {"reason", bad},
+                                         {"lr_scale", state.learningRateScale}}
+                                        .dump()
+                                        .c_str());
+            else
+                std::printf("step %6lld  skipped: %s; learning rate scale now %.3g\n", (long long)state.step,
+                            bad.c_str(), state.learningRateScale);
+            std::fflush(stdout);
+            if (state.badInRow >= config.maxBadSteps)
+                throw Error("training diverged: " + std::to_string(state.badInRow) +
+                            " bad steps in a row (last: " + bad + "); the last checkpoint in '" + config.out +
+                            "' is intact");
+        } else {
+            optimizer.step(model.parameterData(), model.gradientData(), rate);
+            state.badInRow = 0;
+            lossSum += value, ++lossCount, lastLoss = value;
+        }
+        ++state.step;
+        const bool evaluationStep = state.step % config.evalEvery == 0 || state.step == totalSteps;
+        if (state.step % logEvery == 0 || evaluationStep) {
+            LogRow row;
+            row.step = state.step, row.seconds = elapsed(), row.learningRate = rate,
+            row.skipped = state.skipped;
+            row.loss = lossCount ? lossSum / double(lossCount) : NAN;
+            lossSum = 0, lossCount = 0;
+            if (evaluationStep) {
+                evaluate(row);
+                if (row.psnr[0] > state.bestPsnr) {
+                    state.bestPsnr = row.psnr[0], state.bestStep = state.step, state.evaluationsSinceBest = 0;
+                    saveModelFile("best.safetensors", state.step);
+                } else if (config.patience > 0 && ++state.evaluationsSinceBest >= config.patience) {
+                    stop = true;
+                    result.stoppedEarly = true;
+                }
+                state.log.push_back(row);
+                printEvaluation(row);
+                writeLogCsv((fs::path(config.out) / "log.csv").string(), state.log);
+                writePlots(config.out, state.log, baselineScores, model.name());
+            } else {
+                state.log.push_back(row);
+            }
+        }
+        if (state.step % config.checkpointEvery == 0 || state.step == totalSteps || stop) {
+            state.seconds = elapsed();
+            saveCheckpoint(checkpointPath, model, optimizer, state, runConfig);
+        }
+        char detail[96];
+        if (state.bestStep >= 0)
+            std::snprintf(detail, sizeof detail, "loss %.5f  best val %.2f dB", lastLoss, state.bestPsnr);
+        else
+            std::snprintf(detail, sizeof detail, "loss %.5f", lastLoss);
+        progress.advance(1, detail);
+        if (config.stopAfterSteps > 0 && ++sessionSteps >= config.stopAfterSteps && state.step < totalSteps &&
+            !stop) {
+            state.seconds = elapsed();
+            saveCheckpoint(checkpointPath, model, optimizer, state, runConfig);
+            result.interrupted = true;
+            result.steps = state.step;
+            return result;
+        }
+    }
+    progress.finish();
+    saveModelFile("final.safetensors", state.step);
+    state.seconds = elapsed();
+    saveCheckpoint(checkpointPath, model, optimizer, state, runConfig);
+    {
+        json run = json::parse(readText((fs::path(config.out) / "run.json").string()));
+        run["finished"] = {{"steps", state.step},         {"seconds", state.seconds},
+                           {"skipped", state.skipped},    {"best_step", state.bestStep},
+                           {"best_psnr", state.bestPsnr}, {"stopped_early", result.stoppedEarly}};
+        writeTextFileAtomically((fs::path(config.out) / "run.json").string(), run.dump(2) + "\n");
+    }
+    result.steps = state.step, result.skippedSteps = state.skipped, result.seconds = state.seconds;
+    result.bestPsnr = state.bestPsnr, result.bestStep = state.bestStep;
+    return result;
+}
+
+// ---- Export and the model card ------------------------------------------------------------------------
+
+namespace {
+
+std::string scoreTable(const std::vector<MethodScores>& scores) {
+    std::ostringstream t;
+    t << "| method | PSNR (dB) | SSIM | edge PSNR | edge SSIM | texture PSNR | texture SSIM | ms per image "
+         "|\n"
+         "|---|---|---|---|---|---|---|---|\n";
+    char line[256];
+    for (const MethodScores& s : scores) {
+        std::snprintf(line, sizeof line, "| %s | %.2f | %.4f | %.2f | %.4f | %.2f | %.4f | %.1f |\n",
+                      s.name.c_str(), s.summary.psnr[0], s.summary.ssim[0], s.summary.psnr[1],
+                      s.summary.ssim[1], s.summary.psnr[2], s.summary.ssim[2], s.millisecondsPerImage);
+        t << line;
+    }
+    return t.str();
+}
+
+json scoresToJson(const std::vector<MethodScores>& scores) {
+    json j = json::object();
+    for (const MethodScores& s : scores) {
+        json m = {{"ms_per_image", s.millisecondsPerImage}};
+        for (int k = 0; k < int(data::Region::Count); ++k)
+            m[data::regionName(data::Region(k))] = {
+                {"psnr", s.summary.psnr[k]}, {"ssim", s.summary.ssim[k]}, {"images", s.summary.images[k]}};
+        j[s.name] = m;
+    }
+    return j;
+}
+
+}  // namespace
+
+std::string exportModel(const std::string& run, const std::string& modelPath,
+                        const std::vector<Baseline>& baselines, int testImages, bool quiet) {
+    const std::string runJsonPath = (fs::path(run) / "run.json").string();
+    const std::string bestPath = (fs::path(run) / "best.safetensors").string();
+    requireReadableFile(runJsonPath);
+    requireReadableFile(bestPath);
+    json runJson;
+    try {
+        runJson = json::parse(readText(runJsonPath));
+    } catch (const json::exception& e) {
+        throw Error("'" + runJsonPath + "' is not valid JSON: " + e.what());
+    }
+    if (!runJson.contains("finished"))
+        throw Error("the run in '" + run + "' has not finished (resume it first)");
+    std::map<std::string, std::string> metadata;
+    nn::Model model = nn::loadModel(bestPath, &metadata);
+    const bool grey = model.inputChannels() == 1;
+    const std::string dataFolder = runJson.at("config").at("data");
+    std::vector<Method> methods;
+    for (const Baseline& b : baselines) methods.push_back({b.name, b.apply});
+    ModelRunner runner(model);
+    methods.push_back({"network", [&](const Image& im) { return runner.run(im); }});
+    if (!quiet)
+        std::fprintf(stderr, "scoring on the validation and test splits of '%s'...\n", dataFolder.c_str());
+    const auto validation =
+        scoreMethods(data::loadEvaluationItems(dataFolder, data::Split::Validation), methods, grey);
+    const auto testItems = data::loadEvaluationItems(dataFolder, data::Split::Test, testImages);
+    const auto test = scoreMethods(testItems, methods, grey);
+
+    const std::string name = fs::path(modelPath).stem().string();
+    const json& config = runJson.at("config");
+    const json& finished = runJson.at("finished");
+    json card = {{"name", name},
+                 {"architecture", model.name()},
+                 {"parameters", model.parameterCount()},
+                 {"macs_per_pixel", runJson.at("macs_per_pixel")},
+                 {"command", runJson.at("command")},
+                 {"training_seconds", finished.at("seconds")},
+                 {"steps", finished.at("steps")},
+                 {"best_step", finished.at("best_step")},
+                 {"validation", scoresToJson(validation)},
+                 {"test", scoresToJson(test)}};
+    std::map<std::string, std::string> out = {{"dejag.provenance", runJson.at("command").get<std::string>()},
+                                              {"dejag.card", card.dump()}};
+    nn::saveModel(modelPath, model, out);
+
+    std::ostringstream md;
+    char line[512];
+    md << "# " << name << "\n\n";
+    md << "Trained by dejag (`dejag train`, then `dejag train export`). Input: "
+       << (grey ? "luma 0.21 R + 0.72 G + 0.07 B" : "RGB")
+       << " of sRGB-encoded values in [0, 1]; output: the same, anti-aliased.\n\n";
+    md << "## Architecture\n\n";
+    std::snprintf(line, sizeof line, "`%s`: %lld parameters, %.0f multiply-adds per input pixel.\n\n",
+                  model.name().c_str(), (long long)model.parameterCount(),
+                  runJson.at("macs_per_pixel").get<double>());
+    md << line;
+    md << "| node | op | inputs | out channels | kernel | stride | activation "
+          "|\n|---|---|---|---|---|---|---|\n";
+    const auto graph = model.graph();
+    for (const nn::GraphNode& n : graph) {
+        std::string inputs;
+        for (int i : n.inputs)
+            inputs += (inputs.empty() ? "" : ", ") + (i < 0 ? std::string("input") : graph[size_t(i)].name);
+        const bool conv = n.op == nn::GraphOp::Conv2d || n.op == nn::GraphOp::ConvTranspose2d;
+        md << "| " << n.name << " | " << nn::graphOpName(n.op) << " | " << inputs << " | "
+           << (conv ? std::to_string(n.outChannels) : "") << " | "
+           << (conv || n.op == nn::GraphOp::MaxPool2d
+                   ? std::to_string(n.kernel) + "x" + std::to_string(n.kernel)
+                   : "")
+           << " | " << (conv || n.op == nn::GraphOp::MaxPool2d ? std::to_string(n.stride) : "") << " | "
+           << (conv || n.op == nn::GraphOp::Activation ? nn::activationName(n.activation.kind) : "")
+           << " |\n";
+    }
+    md << "\n## Training\n\n";
+    md << "Command:\n\n```\n" << runJson.at("command").get<std::string>() << "\n```\n\n";
+    std::snprintf(
+        line, sizeof line,
+        "Loss `%s`, Adam, learning rate %g (cosine decay to 5 %%, %lld warm-up steps), gradient norm clipped "
+        "at %g, batch %d patches of %d px, seed %llu, %d threads.\n",
+        config.at("loss").get<std::string>().c_str(), config.at("lr").get<double>(),
+        (long long)config.at("warmup_steps").get<int64_t>(), config.at("clip_norm").get<double>(),
+        config.at("batch").get<int>(), config.at("patch").get<int>(),
+        (unsigned long long)config.at("seed").get<uint64_t>(), config.at("threads").get<int>());
+    md << line;
+    std::snprintf(
+        line, sizeof line,
+        "%lld steps in %s of wall time on this machine (2 cores); %lld steps skipped by the NaN guard; "
+        "the weights are those of step %lld, the best validation PSNR (%.2f dB on %d images).\n\n",
+        (long long)finished.at("steps").get<int64_t>(), formatDuration(finished.at("seconds")).c_str(),
+        (long long)finished.at("skipped").get<int64_t>(), (long long)finished.at("best_step").get<int64_t>(),
+        finished.at("best_psnr").get<double>(), config.at("validation_images").get<int>());
+    md << line;
+    if (runJson.contains("dataset")) {
+        const json& d = runJson.at("dataset");
+        md << "Data: `" << dataFolder << "`, made by `dejag data generate` with " << d.dump() << ".\n\n";
+    }
+    md << "Data recipe: `make dataset` renders it (docs/data.md); `make models` reruns the training and this "
+          "export.\n\n";
+    md << "## Results\n\nPSNR and SSIM against the 128-sample truth, on sRGB-encoded values (data range 1), "
+          "mean over images; "
+          "edge = pixels within 1 px of a geometric edge, texture = detailed pixels at least 3 px from one "
+          "(data/evaluation.h). Times are single images of the split's size on this machine.\n\n";
+    std::snprintf(line, sizeof line, "### Test split (%zu images of families never trained on)\n\n",
+                  testItems.size());
+    md << line << scoreTable(test) << "\n";
+    md << "### Validation split\n\n" << scoreTable(validation) << "\n";
+    auto gain = [](const std::vector<MethodScores>& s, size_t method) {
+        return s[method].summary.psnr[0] - s[0].summary.psnr[0];
+    };
+    if (test.size() >= 2) {
+        md << "Gain over the first row (" << test[0].name << ") on the test split:";
+        for (size_t m = 1; m < test.size(); ++m) {
+            std::snprintf(line, sizeof line, " %s %+.2f dB%s", test[m].name.c_str(), gain(test, m),
+                          m + 1 < test.size() ? "," : ".\n");
+            md << line;
+        }
+    }
+    const std::string cardPath = (fs::path(modelPath).parent_path() / (name + ".md")).string();
+    writeTextFileAtomically(cardPath, md.str());
+    return md.str();
+}
+
+}  // namespace dejag::train

@@ -1,0 +1,106 @@
+// dejag/train: the training loop behind `dejag train`, its run folder, and model export.
+//
+// A run folder RUN/ holds
+//   run.json                 the configuration, the command line, the data set, wall time so far
+//   checkpoint.safetensors   everything a resumed run needs: parameters, Adam moments, step, LR scale,
+//                            early-stopping state and the log history (written atomically)
+//   best.safetensors         the model of the best validation PSNR so far (a model file)
+//   final.safetensors        the model at the last step
+//   log.csv, loss.png, validation.png   the log and its plots, rewritten at every evaluation
+// Batch k depends only on the seed and k (data/patches.h) and every kernel is deterministic for a
+// thread count, so a resumed run ends with the same weights, bit for bit, as an uninterrupted one.
+//
+// A step whose batch, loss or gradient is not finite is skipped (the weights and the optimizer state are
+// untouched), logged, and the learning rate is halved; `maxBadSteps` bad steps in a row stop the run
+// with an error, the last checkpoint intact.
+#pragma once
+
+#include <cstdint>
+#include <functional>
+#include <string>
+#include <vector>
+
+#include "data/evaluation.h"
+#include "nn/model.h"
+
+namespace dejag::train {
+
+struct TrainConfig {
+    std::string data;            // dataset folder (data/dataset.h)
+    std::string arch = "fast";   // seed2020 | fast | FILE.json
+    std::string out;             // run folder
+    std::string loss = "ssim";   // nn::CompositeLoss::parse: ssim, ssim+l1, 0.84*ssim+0.16*l1, ...
+    int64_t steps = 0;           // total steps (0: from epochs)
+    double epochs = 0;           // one epoch: as many patch pixels as the train split has pixels
+    int batch = 16, patch = 96;  // patches per batch, patch side
+    double learningRate = 1e-3;  // Adam; cosine decay to 5 % after a linear warm-up
+    int64_t warmupSteps = 200;
+    double clipNorm = 1.0;  // global gradient-norm clip (0: off)
+    uint64_t seed = 1;
+    int64_t evalEvery = 250;  // steps between validations
+    int64_t checkpointEvery = 250;
+    int validationImages = 48;  // validation items scored at each evaluation (0: all)
+    int patience = 0;           // evaluations without a better validation PSNR before stopping (0: off)
+    int maxBadSteps = 8;        // non-finite steps in a row before giving up
+    bool resume = false;
+    bool quiet = false;                // no progress bar
+    bool json = false;                 // log lines as JSON objects on stdout
+    std::vector<int64_t> poisonSteps;  // tests: steps whose batch gets a NaN (exercises the guard)
+    int64_t stopAfterSteps = 0;        // tests: end the session after this many steps, checkpointed,
+                                       // as if killed then (0: run to the end)
+    std::string commandLine;           // recorded in run.json and the model card
+};
+
+// A comparison method for validation (no AA and FXAA are wired in by the caller: train/ does not
+// depend on infer/). Takes and returns an sRGB RGB image.
+struct Baseline {
+    std::string name;
+    std::function<Image(const Image&)> apply;
+};
+
+struct TrainResult {
+    int64_t steps = 0, skippedSteps = 0;
+    double seconds = 0;   // wall time of the whole run, including resumed sessions
+    double bestPsnr = 0;  // validation PSNR (whole images) of best.safetensors
+    int64_t bestStep = 0;
+    bool stoppedEarly = false;
+    bool interrupted = false;  // stopAfterSteps ended the session: resume to finish
+};
+
+// Trains, writing the run folder as it goes. Throws dejag::Error on bad configuration or data, or when
+// training diverges (after maxBadSteps bad steps in a row).
+TrainResult trainModel(const TrainConfig& config, const std::vector<Baseline>& baselines);
+
+// Runs a model on whole sRGB RGB images (grey models see the luma and return one channel), padding each
+// side to what the network's strides need. Plans are reused while the image size stays the same.
+class ModelRunner {
+  public:
+    explicit ModelRunner(const nn::Model& model);
+    ~ModelRunner();
+    Image run(const Image& rgb);
+
+  private:
+    struct Impl;
+    std::unique_ptr<Impl> impl_;
+};
+
+// Scores methods on the items: returns a summary per method (same order as `methods`).
+struct Method {
+    std::string name;
+    std::function<Image(const Image&)> apply;  // sRGB RGB in; RGB or luma out
+};
+struct MethodScores {
+    std::string name;
+    data::ScoreSummary summary;
+    double millisecondsPerImage = 0;  // median
+};
+std::vector<MethodScores> scoreMethods(const std::vector<data::EvaluationItem>& items,
+                                       const std::vector<Method>& methods, bool grey);
+
+// `dejag train export`: writes RUN's best model to `modelPath` (metadata: the provenance) and the model
+// card next to it (NAME.md): architecture, parameters, MACs per pixel, data recipe, training command,
+// wall time, and validation and test metrics against the baselines. Returns the card's text.
+std::string exportModel(const std::string& run, const std::string& modelPath,
+                        const std::vector<Baseline>& baselines, int testImages, bool quiet);
+
+}  // namespace dejag::train
