@@ -1,6 +1,7 @@
 // dejag filter: anti-aliasing post-processes on images (FXAA now; TAA and the CNN come next).
 #include <cstdio>
 #include <nlohmann/json.hpp>
+#include <optional>
 
 #include <filesystem>
 #include <fstream>
@@ -10,14 +11,18 @@
 #include "base/progress.h"
 #include "base/timer.h"
 #include "data/image.h"
+#include "infer/cnn.h"
 #include "infer/fxaa.h"
 #include "infer/taa.h"
+#include "nn/model.h"
 
 namespace dejag::cli {
 namespace {
 
 struct FilterArguments {
     std::string method, input, output;
+    std::string model = "models/dejag-fast.safetensors", gate = "auto";
+    int tile = 128;
     int preset = 39;
     bool greenLuma = false, json = false, noSharpen = false;
     RuntimeOptions runtime;
@@ -108,13 +113,34 @@ void runTaa(const FilterArguments& args) {
 void runFilter(const FilterArguments& args) {
     applyRuntimeOptions(args.runtime);
     if (args.method == "taa" || args.method == "taa-sobel") return runTaa(args);
-    if (args.method != "fxaa")
-        throw Error("--method '" + args.method +
-                    "' is not available yet (fxaa, taa, taa-sobel; cnn is planned)");
-    infer::FxaaOptions options;
-    options.preset = args.preset;
-    options.greenAsLuma = args.greenLuma;
-    infer::Fxaa fxaa(options);
+    if (args.method != "fxaa" && args.method != "cnn")
+        throw Error("--method '" + args.method + "' is not one of fxaa, cnn, taa, taa-sobel");
+    // Both filters are built (and the model loaded and checked) before the input is read.
+    std::optional<infer::Fxaa> fxaa;
+    std::optional<infer::CnnFilter> cnn;
+    if (args.method == "fxaa") {
+        infer::FxaaOptions options;
+        options.preset = args.preset;
+        options.greenAsLuma = args.greenLuma;
+        fxaa.emplace(options);
+    } else {
+        infer::CnnOptions options;
+        options.tileSize = args.tile;
+        if (args.gate == "off") {
+            options.gate = false;
+        } else if (args.gate != "auto") {
+            try {
+                size_t used = 0;
+                options.gateThreshold = std::stof(args.gate, &used);
+                if (used != args.gate.size()) throw std::invalid_argument(args.gate);
+            } catch (const std::exception&) {
+                throw Error("--gate '" + args.gate + "' is not off, auto or a luma threshold in [0, 1]");
+            }
+            if (!(options.gateThreshold >= 0 && options.gateThreshold <= 1))
+                throw Error("--gate '" + args.gate + "' is not off, auto or a luma threshold in [0, 1]");
+        }
+        cnn.emplace(nn::loadModel(args.model), options);
+    }
     Image image = readImage(args.input);
     if (image.findChannel("R") != 0 || image.findChannel("G") != 1 || image.findChannel("B") != 2)
         throw Error("'" + args.input + "' has no R, G, B channels first (" + image.describe() + ")");
@@ -133,7 +159,10 @@ void runFilter(const FilterArguments& args) {
     }
     Image out = image;
     const Stopwatch clock;
-    fxaa.apply(image.pixels.data(), out.pixels.data(), image.width, image.height, image.channels());
+    if (fxaa)
+        fxaa->apply(image.pixels.data(), out.pixels.data(), image.width, image.height, image.channels());
+    else
+        cnn->apply(image.pixels.data(), out.pixels.data(), image.width, image.height, image.channels());
     const double ms = clock.elapsedMs();
     if (linear)
         for (size_t p = 0; p < out.pixelCount(); ++p)
@@ -142,17 +171,21 @@ void runFilter(const FilterArguments& args) {
                 v = srgbToLinear(v);
             }
     writeImage(args.output, out);
-    if (args.json)
-        std::printf("%s\n", nlohmann::json{{"method", "fxaa"},
-                                           {"preset", args.preset},
-                                           {"input", args.input},
-                                           {"output", args.output},
-                                           {"width", image.width},
-                                           {"height", image.height},
-                                           {"ms", ms},
-                                           {"processed_fraction", fxaa.processedFraction()}}
-                                .dump()
-                                .c_str());
+    if (args.json) {
+        nlohmann::json j = {{"method", args.method}, {"input", args.input},    {"output", args.output},
+                            {"width", image.width},  {"height", image.height}, {"ms", ms}};
+        if (fxaa) {
+            j["preset"] = args.preset;
+            j["processed_fraction"] = fxaa->processedFraction();
+        } else {
+            j["model"] = args.model;
+            j["gate"] = args.gate;
+            j["tiles"] = cnn->tileCount();
+            j["tiles_processed"] = cnn->tilesProcessed();
+            j["processed_fraction"] = cnn->processedFraction();
+        }
+        std::printf("%s\n", j.dump().c_str());
+    }
 }
 
 }  // namespace
@@ -160,9 +193,12 @@ void runFilter(const FilterArguments& args) {
 void registerFilterCommand(CLI::App& app) {
     auto args = std::make_shared<FilterArguments>();
     CLI::App* command = app.add_subcommand(
-        "filter",
-        "anti-alias an image (FXAA 3.11) or a rendered sequence (TAA: U-TAA, T-TAA); the CNN is planned");
-    command->add_option("--method", args->method, "fxaa | taa | taa-sobel")->required();
+        "filter", "anti-alias an image (FXAA 3.11, the CNN) or a rendered sequence (TAA: U-TAA, T-TAA)");
+    command->add_option("--method", args->method, "fxaa | cnn | taa | taa-sobel")->required();
+    command->add_option("--model", args->model, "CNN: model file")->capture_default_str();
+    command->add_option("--gate", args->gate, "CNN: off | auto | T (run tiles whose luma steps exceed T)")
+        ->capture_default_str();
+    command->add_option("--tile", args->tile, "CNN: tile side in pixels")->capture_default_str();
     command->add_option("--preset", args->preset, "FXAA quality preset: 12, 23 or 39")->capture_default_str();
     command->add_flag("--green-luma", args->greenLuma, "FXAA: use green as luma");
     command->add_flag("--no-sharpen", args->noSharpen, "TAA: skip the final sharpen (see docs/infer.md)");
@@ -172,7 +208,11 @@ void registerFilterCommand(CLI::App& app) {
     command->add_flag("--json", args->json, "print timing as JSON");
     addRuntimeOptions(command, args->runtime);
     command->footer(
-        "FXAA runs on sRGB-encoded colour: 8/16-bit inputs as they are, half/float (linear) inputs encoded\n"
+        "CNN: a trained model (models/*.safetensors, see models/*.md) run in tiles with a receptive-field "
+        "halo,\n"
+        "only on tiles with a luma step above the gate (auto = 0.04); skipped tiles pass through unchanged.\n"
+        "FXAA and the CNN run on sRGB-encoded colour: 8/16-bit inputs as they are, half/float (linear) "
+        "inputs encoded\n"
         "for the filter and decoded back. Constants: subpix 0.75, edge threshold 0.166, minimum 0.0833.\n"
         "TAA (taa = the baseline U-TAA, taa-sobel = T-TAA of spec/taa.md): INPUT is a folder written by\n"
         "dejag render --jitter halton16 --buffers color,albedo,depth,motion,id,prevdepth; OUTPUT a folder\n"

@@ -15,7 +15,7 @@ namespace fs = std::filesystem;
 namespace {
 
 constexpr int kMinimumRegionPixels = 64;
-constexpr float kDepthJump = 0.05f;         // relative depth difference that makes a geometric edge
+constexpr float kDepthJump = 0.05f;         // relative inverse-depth miss that makes a geometric edge
 constexpr int kTextureEdgeDistance = 3;     // texture pixels keep this far from geometric edges
 constexpr float kTextureLumaRange = 0.04f;  // 3x3 truth luma range that counts as detail
 
@@ -59,14 +59,24 @@ void computeRegionMasks(EvaluationItem& item, const Image& buffers) {
     const int id = buffers.findChannel("id.ID"), depth = buffers.findChannel("depth.Z");
     if (id < 0 || depth < 0) throw Error("item " + item.id + " has no id.ID and depth.Z buffers");
     std::vector<uint8_t> edge(size_t(W) * size_t(H), 0);
+    // A depth jump between neighbours p and n = p + d: inverse depth (affine in screen space on any plane,
+    // so planes seen at grazing angles are not edges) extrapolated linearly from either side misses the
+    // other side by more than kDepthJump.
+    auto inverseDepth = [&](int x, int y) { return 1.0f / std::max(buffers.at(x, y, depth), 1e-6f); };
+    auto depthJump = [&](int x, int y, int dx, int dy) {
+        const float w0 = inverseDepth(x, y), w1 = inverseDepth(x + dx, y + dy);
+        const bool before = x - dx >= 0 && y - dy >= 0 && x - dx < W && y - dy < H;
+        const bool after = x + 2 * dx < W && y + 2 * dy < H;
+        const float fromBefore = before ? 2 * w0 - inverseDepth(x - dx, y - dy) : w0;
+        const float fromAfter = after ? 2 * w1 - inverseDepth(x + 2 * dx, y + 2 * dy) : w1;
+        return std::abs(fromBefore - w1) > kDepthJump * w1 && std::abs(fromAfter - w0) > kDepthJump * w0;
+    };
     for (int y = 0; y < H; ++y)
         for (int x = 0; x < W; ++x)
             for (const auto& [dx, dy] : {std::pair{1, 0}, std::pair{0, 1}}) {
                 const int nx = x + dx, ny = y + dy;
                 if (nx >= W || ny >= H) continue;
-                const float d0 = buffers.at(x, y, depth), d1 = buffers.at(nx, ny, depth);
-                if (buffers.at(x, y, id) != buffers.at(nx, ny, id) ||
-                    std::abs(d0 - d1) > kDepthJump * std::min(d0, d1)) {
+                if (buffers.at(x, y, id) != buffers.at(nx, ny, id) || depthJump(x, y, dx, dy)) {
                     edge[size_t(y) * size_t(W) + size_t(x)] = 1;
                     edge[size_t(ny) * size_t(W) + size_t(nx)] = 1;
                 }

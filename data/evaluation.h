@@ -3,8 +3,9 @@
 // Every method (no AA, FXAA, a network) is scored the same way: on the sRGB-encoded image in [0, 1]
 // against the truth, over three regions (spec/seed-cnn.md asks for the last two):
 //   whole    every pixel;
-//   edge     pixels within 1 px of a geometric edge (an object-ID change or a depth jump of more than
-//            5 % between 4-neighbours): where geometric aliasing lives;
+//   edge     pixels within 1 px of a geometric edge (an object-ID change, or a depth jump between
+//            4-neighbours: inverse depth extrapolated from either side misses the other by > 5 %, which
+//            keeps planes at grazing angles out): where geometric aliasing lives;
 //   texture  pixels at least 3 px from every geometric edge whose truth has detail (3x3 luma range
 //            above 0.04): surface texture a filter must keep sharp, not blur.
 // PSNR and SSIM as data/metrics.h computes them (data range 1); averages are means over images of the

@@ -1,0 +1,238 @@
+#include "infer/cnn.h"
+
+#include <algorithm>
+#include <cmath>
+#include <utility>
+
+#include "base/error.h"
+#include "base/thread_pool.h"
+
+namespace dejag::infer {
+
+ReceptiveField receptiveField(const nn::Model& model) {
+    // Per node: the spacing of its pixels in input pixels (scale) and how far its pixels see (radius).
+    const std::vector<nn::GraphNode> graph = model.graph();
+    std::vector<double> scale(graph.size(), 1.0), radius(graph.size(), 0.0);
+    double maxScale = 1.0;
+    for (size_t i = 0; i < graph.size(); ++i) {
+        const nn::GraphNode& n = graph[i];
+        double s = 1.0, r = 0.0;
+        for (size_t k = 0; k < n.inputs.size(); ++k) {
+            const int in = n.inputs[k];
+            const double inScale = in < 0 ? 1.0 : scale[size_t(in)],
+                         inRadius = in < 0 ? 0.0 : radius[size_t(in)];
+            if (k == 0) s = inScale;
+            r = std::max(r, inRadius);
+        }
+        switch (n.op) {
+            case nn::GraphOp::Conv2d:
+                r += ((n.kernel - 1) * n.dilation / 2.0 + (n.stride - 1) + (n.samePadding ? 0 : n.padding)) *
+                     s;
+                s *= n.stride;
+                break;
+            case nn::GraphOp::ConvTranspose2d:
+                r += ((n.kernel - 1) / 2.0 + 1) * s;
+                s /= n.stride;
+                break;
+            case nn::GraphOp::MaxPool2d:
+                r += (n.kernel - 1) * s;
+                s *= n.stride;
+                break;
+            case nn::GraphOp::Upsample:
+            case nn::GraphOp::PixelShuffle:
+                r += s;
+                s /= n.factor;
+                break;
+            default:
+                break;
+        }
+        scale[i] = s, radius[i] = r;
+        maxScale = std::max(maxScale, s);
+    }
+    return {int(std::ceil(radius[size_t(model.outputNode())])), int(std::lround(maxScale))};
+}
+
+struct CnnFilter::Impl {
+    nn::Model model;
+    CnnOptions options;
+    ReceptiveField field;
+    int halo = 0, tile = 0;
+    struct TilePlan {
+        std::unique_ptr<nn::InferencePlan> plan;
+        nn::Tensor input;
+    };
+    std::map<std::pair<int, int>, TilePlan> plans;  // by (height, width) of a tile's input region
+    std::vector<float> luma;                        // (H, W) luma of the frame
+    std::vector<uint8_t> tileActive;
+    int tilesProcessed = 0, tileCount = 0;
+
+    Impl(nn::Model m, const CnnOptions& o) : model(std::move(m)), options(o) {}
+
+    TilePlan& planFor(int height, int width) {
+        auto it = plans.find({height, width});
+        if (it == plans.end()) {
+            TilePlan p;
+            const nn::Shape shape{1, model.inputChannels(), height, width};
+            p.plan = std::make_unique<nn::InferencePlan>(model, shape);
+            p.input = nn::Tensor(shape);
+            it = plans.emplace(std::make_pair(height, width), std::move(p)).first;
+        }
+        return it->second;
+    }
+};
+
+CnnFilter::CnnFilter(nn::Model model, const CnnOptions& options)
+    : impl_(std::make_unique<Impl>(std::move(model), options)) {
+    const int c = impl_->model.inputChannels();
+    if ((c != 1 && c != 3) || impl_->model.outputChannels() != c)
+        throw Error("the CNN filter needs a model taking and returning 1 (luma) or 3 (RGB) channels; '" +
+                    impl_->model.name() + "' takes " + std::to_string(c) + " and returns " +
+                    std::to_string(impl_->model.outputChannels()));
+    if (options.tileSize < 16 || options.tileSize > 4096) throw Error("tile size must be in 16..4096");
+    if (!(options.gateThreshold >= 0) || !std::isfinite(options.gateThreshold))
+        throw Error("the gate threshold must be a finite number >= 0");
+    impl_->field = receptiveField(impl_->model);
+    const int a = impl_->field.stride;
+    impl_->halo = (impl_->field.radius + a + a - 1) / a * a;
+    impl_->tile = (options.tileSize + a - 1) / a * a;
+}
+
+CnnFilter::~CnnFilter() = default;
+CnnFilter::CnnFilter(CnnFilter&&) noexcept = default;
+CnnFilter& CnnFilter::operator=(CnnFilter&&) noexcept = default;
+
+const nn::Model& CnnFilter::model() const {
+    return impl_->model;
+}
+const CnnOptions& CnnFilter::options() const {
+    return impl_->options;
+}
+int CnnFilter::halo() const {
+    return impl_->halo;
+}
+int CnnFilter::alignment() const {
+    return impl_->field.stride;
+}
+double CnnFilter::processedFraction() const {
+    return impl_->tileCount ? double(impl_->tilesProcessed) / impl_->tileCount : 0.0;
+}
+int CnnFilter::tilesProcessed() const {
+    return impl_->tilesProcessed;
+}
+int CnnFilter::tileCount() const {
+    return impl_->tileCount;
+}
+
+void CnnFilter::apply(const float* in, float* out, int width, int height, int channels,
+                      const CnnBuffers& buffers) {
+    if (width < 1 || height < 1 || channels < 3)
+        throw Error("the CNN filter needs an RGB frame of at least 1x1 pixel");
+    Impl& m = *impl_;
+    const int a = m.field.stride, T = m.tile, halo = m.halo;
+    const size_t C = size_t(channels), pixels = size_t(width) * size_t(height);
+    // The frame as the network sees it: padded by replication up to a multiple of the stride.
+    const int PW = (width + a - 1) / a * a, PH = (height + a - 1) / a * a;
+    if (m.luma.size() < pixels) m.luma.resize(pixels);
+    parallelFor(0, height, 16, [&](int64_t y0, int64_t y1) {
+        for (int64_t y = y0; y < y1; ++y)
+            for (int x = 0; x < width; ++x) {
+                const float* p = in + (size_t(y) * size_t(width) + size_t(x)) * C;
+                m.luma[size_t(y) * size_t(width) + size_t(x)] = 0.21f * p[0] + 0.72f * p[1] + 0.07f * p[2];
+            }
+    });
+    std::copy(in, in + pixels * C, out);
+
+    const int tilesX = (width + T - 1) / T, tilesY = (height + T - 1) / T;
+    m.tileCount = tilesX * tilesY;
+    if (m.tileActive.size() < size_t(m.tileCount)) m.tileActive.resize(size_t(m.tileCount));
+    // Gating: a tile (plus one pixel around it) with a luma step, an ID change or a depth jump.
+    parallelFor(0, m.tileCount, 1, [&](int64_t first, int64_t last) {
+        for (int64_t t = first; t < last; ++t) {
+            const int tx = int(t % tilesX), ty = int(t / tilesX);
+            bool active = !m.options.gate;
+            const int x0 = std::max(0, tx * T - 1), x1 = std::min(width - 1, (tx + 1) * T);
+            const int y0 = std::max(0, ty * T - 1), y1 = std::min(height - 1, (ty + 1) * T);
+            for (int y = y0; y <= y1 && !active; ++y) {
+                const float* l = &m.luma[size_t(y) * size_t(width)];
+                const float* below = y + 1 < height ? l + width : l;
+                for (int x = x0; x <= x1; ++x) {
+                    const float right = x + 1 < width ? l[x + 1] : l[x];
+                    if (std::abs(right - l[x]) > m.options.gateThreshold ||
+                        std::abs(below[x] - l[x]) > m.options.gateThreshold) {
+                        active = true;
+                        break;
+                    }
+                }
+                if (active) break;
+                const size_t row = size_t(y) * size_t(width);
+                for (int x = x0; x <= x1 && (buffers.ids || buffers.depth); ++x) {
+                    const size_t p = row + size_t(x), r = x + 1 < width ? p + 1 : p,
+                                 b = y + 1 < height ? p + size_t(width) : p;
+                    if (buffers.ids &&
+                        (buffers.ids[p] != buffers.ids[r] || buffers.ids[p] != buffers.ids[b])) {
+                        active = true;
+                        break;
+                    }
+                    if (buffers.depth) {
+                        const float d = buffers.depth[p];
+                        if (std::abs(d - buffers.depth[r]) > 0.05f * std::min(d, buffers.depth[r]) ||
+                            std::abs(d - buffers.depth[b]) > 0.05f * std::min(d, buffers.depth[b])) {
+                            active = true;
+                            break;
+                        }
+                    }
+                }
+            }
+            m.tileActive[size_t(t)] = active;
+        }
+    });
+
+    const bool grey = m.model.inputChannels() == 1;
+    m.tilesProcessed = 0;
+    for (int t = 0; t < m.tileCount; ++t) {
+        if (!m.tileActive[size_t(t)]) continue;
+        ++m.tilesProcessed;
+        const int tx = t % tilesX, ty = t / tilesX;
+        const int cx0 = tx * T, cy0 = ty * T, cx1 = std::min(width, cx0 + T), cy1 = std::min(height, cy0 + T);
+        // Input region: the core plus the halo, clipped to the padded frame (all multiples of the stride).
+        const int rx0 = std::max(0, cx0 - halo), ry0 = std::max(0, cy0 - halo);
+        const int rx1 = std::min(PW, (cx1 + a - 1) / a * a + halo),
+                  ry1 = std::min(PH, (cy1 + a - 1) / a * a + halo);
+        Impl::TilePlan& plan = m.planFor(ry1 - ry0, rx1 - rx0);
+        nn::Tensor& input = plan.input;
+        const int RW = rx1 - rx0, RH = ry1 - ry0;
+        parallelFor(0, RH, 8, [&](int64_t j0, int64_t j1) {
+            for (int64_t j = j0; j < j1; ++j) {
+                const int y = std::min(int(ry0 + j), height - 1);
+                for (int i = 0; i < RW; ++i) {
+                    const int x = std::min(rx0 + i, width - 1);
+                    const size_t p = size_t(y) * size_t(width) + size_t(x);
+                    if (grey) {
+                        input.at(0, 0, j, i) = m.luma[p];
+                    } else {
+                        const float* s = in + p * C;
+                        for (int c = 0; c < 3; ++c) input.at(0, c, j, i) = s[c];
+                    }
+                }
+            }
+        });
+        const nn::Tensor& result = plan.plan->runUnchecked(input);
+        parallelFor(cy0, cy1, 8, [&](int64_t y0, int64_t y1) {
+            for (int64_t y = y0; y < y1; ++y)
+                for (int x = cx0; x < cx1; ++x) {
+                    const size_t p = size_t(y) * size_t(width) + size_t(x);
+                    float* o = out + p * C;
+                    const int64_t j = y - ry0, i = x - rx0;
+                    if (grey) {
+                        const float change = result.at(0, 0, j, i) - m.luma[p];
+                        for (int c = 0; c < 3; ++c)
+                            o[c] = std::clamp(in[p * C + size_t(c)] + change, 0.0f, 1.0f);
+                    } else {
+                        for (int c = 0; c < 3; ++c) o[c] = std::clamp(result.at(0, c, j, i), 0.0f, 1.0f);
+                    }
+                }
+        });
+    }
+}
+
+}  // namespace dejag::infer

@@ -1,0 +1,74 @@
+// dejag/infer: the CNN anti-aliasing filter — a trained network (models/*.safetensors) run over a frame
+// in tiles, and only on the tiles that can hold aliasing.
+//
+// Tiles: the frame is cut into tiles of `tileSize` pixels; each runs with a halo of the network's
+// receptive field around it (clipped at the frame's border, where the network pads as it would on the
+// whole frame), so the result equals the whole-frame one to float rounding and memory stays bounded
+// whatever the frame size. Tile origins are multiples of the network's total stride.
+//
+// Gating: a tile is processed only if aliasing can exist in it — a luma step between 4-neighbours above
+// the gate threshold (the jaggies of an edge, a texture at Nyquist), or, when buffers are given, an
+// object-ID change or a depth jump. Skipped tiles are copied through bit for bit.
+//
+// After the first frame of a size, apply() allocates nothing: plans and tile buffers are kept.
+#pragma once
+
+#include <cstdint>
+#include <map>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "nn/inference.h"
+#include "nn/model.h"
+
+namespace dejag::infer {
+
+struct CnnOptions {
+    int tileSize = 128;           // core tile side (rounded up to a multiple of the network's stride)
+    bool gate = true;             // false: every tile runs
+    float gateThreshold = 0.04f;  // luma step (sRGB-encoded, [0, 1]) that marks a tile as needing work
+};
+
+// Optional G-buffers for gating (each width x height, row-major), any may be null.
+struct CnnBuffers {
+    const float* depth = nullptr;
+    const float* ids = nullptr;
+};
+
+class CnnFilter {
+  public:
+    // Throws dejag::Error if the model does not take and return 1 or 3 channels of the same count.
+    CnnFilter(nn::Model model, const CnnOptions& options = {});
+    ~CnnFilter();
+    CnnFilter(CnnFilter&&) noexcept;
+    CnnFilter& operator=(CnnFilter&&) noexcept;
+
+    // frame: (height, width, channels) interleaved, channels >= 3, R G B first, sRGB-encoded in [0, 1];
+    // other channels (alpha) pass through. A grey model filters the luma and adds its change to R, G
+    // and B. Out of place; in and out must not overlap.
+    void apply(const float* in, float* out, int width, int height, int channels,
+               const CnnBuffers& buffers = {});
+
+    const nn::Model& model() const;
+    const CnnOptions& options() const;
+    int halo() const;                  // pixels of context around each tile
+    int alignment() const;             // the network's total stride
+    double processedFraction() const;  // of the last apply(): tiles run / tiles
+    int tilesProcessed() const;
+    int tileCount() const;
+
+  private:
+    struct Impl;
+    std::unique_ptr<Impl> impl_;
+};
+
+// The receptive field of a model: how many input pixels on each side of a pixel can change its output,
+// and the product of its strides. Exact for conv, transposed conv, pooling, resampling and shuffles.
+struct ReceptiveField {
+    int radius = 0;
+    int stride = 1;
+};
+ReceptiveField receptiveField(const nn::Model& model);
+
+}  // namespace dejag::infer

@@ -1,0 +1,143 @@
+// The CNN filter: tiles with a receptive-field halo equal the whole frame, gating passes skipped tiles
+// through bit for bit and equals the ungated result inside processed ones, no allocation per frame, and
+// models it cannot run are refused.
+#include "infer/cnn.h"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <random>
+
+#include "base/error.h"
+#include "tests/alloc_counter.h"
+
+namespace dejag::infer {
+namespace {
+
+nn::Model seeded(const std::string& name, uint64_t seed) {
+    nn::Model m = nn::Model::builtin(name);
+    m.initialize(seed);
+    return m;
+}
+
+// A frame with flat areas, a few hard-edged shapes and a noisy patch; alpha in channel 3.
+std::vector<float> testFrame(int width, int height, int channels) {
+    std::vector<float> frame(size_t(width) * size_t(height) * size_t(channels));
+    std::mt19937 rng(5);
+    std::uniform_real_distribution<float> u(0.0f, 1.0f);
+    for (int y = 0; y < height; ++y)
+        for (int x = 0; x < width; ++x) {
+            float* p = &frame[(size_t(y) * size_t(width) + size_t(x)) * size_t(channels)];
+            const bool disc = (x - 40) * (x - 40) + (y - 30) * (y - 30) < 400;
+            const bool slab = x + 2 * y > 2 * width && x < width - 10;
+            const bool noise = x > width / 2 && y < 24;
+            for (int c = 0; c < 3; ++c) p[c] = 0.3f + 0.1f * float(c);
+            if (disc) p[0] = 0.9f, p[1] = 0.8f;
+            if (slab) p[2] = 0.05f;
+            if (noise) p[1] = u(rng);
+            for (int c = 3; c < channels; ++c) p[c] = 0.5f;
+        }
+    return frame;
+}
+
+float maxDifference(const std::vector<float>& a, const std::vector<float>& b) {
+    float worst = 0;
+    for (size_t i = 0; i < a.size(); ++i) worst = std::max(worst, std::abs(a[i] - b[i]));
+    return worst;
+}
+
+TEST(Cnn, ReceptiveFieldOfTheShippedArchitectures) {
+    const ReceptiveField seed = receptiveField(nn::Model::builtin("seed2020"));
+    EXPECT_EQ(seed.stride, 4);
+    EXPECT_GE(seed.radius, 2 + 1 + 1 + 2 + 4 + 4);  // 5x5, 3x3, pools, 3x3 at 1/4, transposed convs
+    const ReceptiveField fast = receptiveField(nn::Model::builtin("fast"));
+    EXPECT_EQ(fast.stride, 2);
+    EXPECT_GE(fast.radius, 3);
+}
+
+class CnnTiles : public ::testing::TestWithParam<const char*> {};
+
+TEST_P(CnnTiles, TiledEqualsWholeFrame) {
+    const int W = 203, H = 141, C = 4;  // not multiples of any tile or stride
+    const std::vector<float> frame = testFrame(W, H, C);
+    std::vector<float> whole(frame.size()), tiled(frame.size());
+    CnnOptions big;
+    big.tileSize = 1024, big.gate = false;
+    CnnFilter reference(seeded(GetParam(), 3), big);
+    reference.apply(frame.data(), whole.data(), W, H, C);
+    EXPECT_EQ(reference.tileCount(), 1);
+    CnnOptions small;
+    small.tileSize = 48, small.gate = false;
+    CnnFilter filter(seeded(GetParam(), 3), small);
+    filter.apply(frame.data(), tiled.data(), W, H, C);
+    EXPECT_GT(filter.tileCount(), 12);
+    EXPECT_LE(maxDifference(whole, tiled), 1e-5f);
+    for (size_t p = 0; p < size_t(W) * H; ++p) ASSERT_EQ(tiled[p * C + 3], 0.5f) << "alpha passes through";
+}
+
+INSTANTIATE_TEST_SUITE_P(Architectures, CnnTiles, ::testing::Values("seed2020", "fast"));
+
+TEST(Cnn, GatedTilesAreTheInputOrTheUngatedResult) {
+    const int W = 256, H = 192, C = 3;
+    const std::vector<float> frame = testFrame(W, H, C);
+    std::vector<float> ungated(frame.size()), gated(frame.size());
+    CnnOptions off;
+    off.tileSize = 64, off.gate = false;
+    CnnFilter all(seeded("fast", 7), off);
+    all.apply(frame.data(), ungated.data(), W, H, C);
+    CnnOptions on = off;
+    on.gate = true;
+    CnnFilter some(seeded("fast", 7), on);
+    some.apply(frame.data(), gated.data(), W, H, C);
+    EXPECT_GT(some.processedFraction(), 0.0);
+    EXPECT_LT(some.processedFraction(), 1.0);
+    int skipped = 0;
+    for (int ty = 0; ty < H / 64; ++ty)
+        for (int tx = 0; tx < W / 64; ++tx) {
+            bool same = true, equalsInput = true;
+            for (int y = ty * 64; y < ty * 64 + 64; ++y)
+                for (int x = tx * 64; x < tx * 64 + 64; ++x)
+                    for (int c = 0; c < C; ++c) {
+                        const size_t i = (size_t(y) * W + size_t(x)) * C + size_t(c);
+                        same = same && gated[i] == ungated[i];
+                        equalsInput = equalsInput && gated[i] == frame[i];
+                    }
+            EXPECT_TRUE(same || equalsInput) << "tile " << tx << "," << ty;
+            skipped += !same && equalsInput;
+        }
+    EXPECT_EQ(skipped, some.tileCount() - some.tilesProcessed());
+    // A constant frame needs nothing: every tile skipped, the output the input.
+    std::vector<float> flat(frame.size(), 0.25f), out(frame.size());
+    some.apply(flat.data(), out.data(), W, H, C);
+    EXPECT_EQ(some.tilesProcessed(), 0);
+    EXPECT_EQ(out, flat);
+    // ID buffers alone open a tile.
+    std::vector<float> ids(size_t(W) * H, 1.0f);
+    ids[size_t(100) * W + 10] = 2.0f;
+    some.apply(flat.data(), out.data(), W, H, C, {nullptr, ids.data()});
+    EXPECT_EQ(some.tilesProcessed(), 1);
+}
+
+TEST(Cnn, NoAllocationPerFrameAfterWarmUp) {
+    const int W = 160, H = 120, C = 3;
+    const std::vector<float> frame = testFrame(W, H, C);
+    std::vector<float> out(frame.size());
+    CnnOptions options;
+    options.tileSize = 64;
+    CnnFilter filter(seeded("fast", 1), options);
+    filter.apply(frame.data(), out.data(), W, H, C);
+    const int64_t before = testing::allocationCount();
+    for (int i = 0; i < 3; ++i) filter.apply(frame.data(), out.data(), W, H, C);
+    EXPECT_EQ(testing::allocationCount() - before, 0);
+}
+
+TEST(Cnn, RefusesModelsItCannotRun) {
+    nlohmann::json arch = nn::Model::builtinArchitecture("fast", {8, 3, 4});
+    EXPECT_THROW(CnnFilter(nn::Model::fromArchitecture(arch)), Error);  // 4 channels
+    CnnOptions bad;
+    bad.tileSize = 4;
+    EXPECT_THROW(CnnFilter(nn::Model::builtin("fast"), bad), Error);
+}
+
+}  // namespace
+}  // namespace dejag::infer
