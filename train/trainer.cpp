@@ -398,7 +398,9 @@ TrainResult trainModel(const TrainConfig& config, const std::vector<Baseline>& b
         if (fs::exists(datasetJson)) run["dataset"] = json::parse(readText(datasetJson));
         json baselineJson = json::object();
         for (const MethodScores& b : baselineScores)
-            baselineJson[b.name] = {{"psnr", b.summary.psnr[0]}, {"ssim", b.summary.ssim[0]}};
+            for (int k = 0; k < int(data::Region::Count); ++k)
+                baselineJson[b.name][data::regionName(data::Region(k))] = {{"psnr", b.summary.psnr[k]},
+                                                                          {"ssim", b.summary.ssim[k]}};
         run["validation_baselines"] = baselineJson;
         writeTextFileAtomically((fs::path(config.out) / "run.json").string(), run.dump(2) + "\n");
     }

@@ -319,9 +319,17 @@ TEST(Cli, FilterFxaaKeepsBitDepthAndAlphaAndRefusesWhatItCannotDo) {
             changed = changed || out.at(x, y, 0) != edge.at(x, y, 0);
         }
     EXPECT_TRUE(changed);
+    expectOneLineError(run("filter --method cnn --model '" + dir.file("none.safetensors") + "' '" +
+                               dir.file("edge.png") + "' '" + dir.file("t.png") + "'",
+                           dir),
+                       "none.safetensors");
+    std::ofstream(dir.file("bad.safetensors")) << "not a model";
+    expectOneLineError(run("filter --method cnn --model '" + dir.file("bad.safetensors") + "' '" +
+                               dir.file("edge.png") + "' '" + dir.file("t.png") + "'",
+                           dir),
+                       "bad.safetensors");
     expectOneLineError(
-        run("filter --method cnn '" + dir.file("edge.png") + "' '" + dir.file("t.png") + "'", dir),
-        "not available yet");
+        run("filter --method blur '" + dir.file("edge.png") + "' '" + dir.file("t.png") + "'", dir), "blur");
     expectOneLineError(
         run("filter --method taa '" + dir.file("edge.png") + "' '" + dir.file("t.png") + "'", dir),
         "folder written by dejag render");
