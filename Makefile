@@ -1,4 +1,5 @@
 # dejag: the two quick-start commands and their helpers. Everything goes through CMake presets.
+#   make demo    install what is missing, build, run every method with the shipped models, write a report
 #   make test    install what is missing, configure, build, run every test
 #   make bench   build and run the benchmarks
 #   make build   configure and build (Release)
@@ -14,7 +15,7 @@ ifneq ($(CI),)
 CMAKE_FLAGS += -DDEJAG_WERROR=ON
 endif
 
-.PHONY: all deps configure build test test-asan test-tsan bench dataset models golden format clean
+.PHONY: all deps configure build demo test test-asan test-tsan bench dataset models golden format clean
 
 all: build
 
@@ -26,6 +27,11 @@ configure: deps
 
 build: configure
 	cmake --build $(BUILD_DIR) -j $(JOBS)
+
+# The main job on a fresh machine: renders the demo scenes, runs no AA, FXAA, U-TAA, T-TAA and the shipped
+# networks, prints the table and writes out/demo/report.html, mosaic.png and pareto.png.
+demo: build
+	$(BUILD_DIR)/dejag demo --out out/demo
 
 test: build
 	cd $(BUILD_DIR) && ctest --output-on-failure -j $(JOBS)

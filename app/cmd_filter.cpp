@@ -22,7 +22,7 @@ namespace {
 struct FilterArguments {
     std::string method, input, output;
     std::string model = "models/dejag-fast.safetensors", gate = "auto";
-    int tile = 128;
+    int tile = 256;
     int preset = 39;
     bool greenLuma = false, json = false, noSharpen = false;
     RuntimeOptions runtime;

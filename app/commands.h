@@ -10,6 +10,7 @@ void registerBenchCommand(CLI::App& app);
 void registerRenderCommand(CLI::App& app);
 void registerDataCommand(CLI::App& app);
 void registerTrainCommand(CLI::App& app);
+void registerDemoCommand(CLI::App& app);
 void registerFilterCommand(CLI::App& app);
 
 }  // namespace dejag::cli

@@ -44,6 +44,7 @@ int main(int argc, char** argv) {
     dejag::cli::registerFilterCommand(app);
     dejag::cli::registerMetricsCommand(app);
     dejag::cli::registerBenchCommand(app);
+    dejag::cli::registerDemoCommand(app);
 
     try {
         app.parse(argc, argv);

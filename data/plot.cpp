@@ -167,4 +167,46 @@ void writePlotPng(const std::string& path, const Plot& plot) {
     writeImage(path, image);
 }
 
+void writeMosaicPng(const std::string& path, const std::vector<std::vector<Image>>& rows,
+                    const std::vector<std::string>& rowLabels, const std::vector<std::string>& columnLabels) {
+    if (rows.empty() || rows[0].empty()) throw Error("a mosaic needs at least one image");
+    const int cw = rows[0][0].width, ch = rows[0][0].height, columns = int(rows[0].size());
+    const int left = 150, top = 30, gap = 4;
+    const int W = left + columns * (cw + gap), H = top + int(rows.size()) * (ch + gap);
+    cv::Mat canvas(H, W, CV_8UC3, cv::Scalar(255, 255, 255));
+    const int font = cv::FONT_HERSHEY_SIMPLEX;
+    const cv::Scalar ink(40, 40, 40);
+    for (size_t r = 0; r < rows.size(); ++r) {
+        if (int(rows[r].size()) != columns) throw Error("mosaic rows differ in length");
+        for (int c = 0; c < columns; ++c) {
+            const Image& im = rows[r][size_t(c)];
+            if (im.width != cw || im.height != ch || im.channels() < 3)
+                throw Error("mosaic cells must be RGB images of one size");
+            const int x0 = left + c * (cw + gap), y0 = top + int(r) * (ch + gap);
+            for (int y = 0; y < ch; ++y)
+                for (int x = 0; x < cw; ++x) {
+                    const float* p = &im.pixels[(size_t(y) * size_t(cw) + size_t(x)) * size_t(im.channels())];
+                    auto byte = [](float v) {
+                        return uchar(std::lround(std::clamp(v, 0.0f, 1.0f) * 255.0f));
+                    };
+                    canvas.at<cv::Vec3b>(y0 + y, x0 + x) = cv::Vec3b(byte(p[2]), byte(p[1]), byte(p[0]));
+                }
+        }
+        if (r < rowLabels.size())
+            cv::putText(canvas, rowLabels[r], {6, top + int(r) * (ch + gap) + ch / 2}, font, 0.45, ink, 1,
+                        cv::LINE_AA);
+    }
+    for (int c = 0; c < columns && c < int(columnLabels.size()); ++c)
+        cv::putText(canvas, columnLabels[size_t(c)], {left + c * (cw + gap) + 4, 20}, font, 0.45, ink, 1,
+                    cv::LINE_AA);
+    Image image(W, H, {"R", "G", "B"}, PixelType::UInt8);
+    for (int y = 0; y < H; ++y)
+        for (int x = 0; x < W; ++x) {
+            const cv::Vec3b v = canvas.at<cv::Vec3b>(y, x);
+            float* p = &image.pixels[(size_t(y) * size_t(W) + size_t(x)) * 3];
+            p[0] = v[2] / 255.0f, p[1] = v[1] / 255.0f, p[2] = v[0] / 255.0f;
+        }
+    writeImage(path, image);
+}
+
 }  // namespace dejag

@@ -8,6 +8,7 @@
 #include <vector>
 
 #include "data/colormap.h"
+#include "data/image.h"
 
 namespace dejag {
 
@@ -28,6 +29,11 @@ struct Plot {
 
 // Throws dejag::Error if the file cannot be written.
 void writePlotPng(const std::string& path, const Plot& plot);
+
+// A grid of RGB images (sRGB-encoded, [0, 1]; every cell the same size) with a label above each column
+// and one left of each row: side-by-side comparisons. Throws dejag::Error on mismatched cells.
+void writeMosaicPng(const std::string& path, const std::vector<std::vector<Image>>& rows,
+                    const std::vector<std::string>& rowLabels, const std::vector<std::string>& columnLabels);
 
 // The colour of series `index` (a fixed qualitative palette).
 Rgb plotColour(int index);

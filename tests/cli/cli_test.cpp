@@ -11,6 +11,7 @@
 #include <sstream>
 
 #include "data/image.h"
+#include "nn/model.h"
 #include "tests/test_util.h"
 
 namespace dejag {
@@ -482,6 +483,47 @@ TEST(Cli, TrainBadInputIsOneLine) {
     expectOneLineError(
         run("train export '" + dir.file("norun") + "' '" + dir.file("m.safetensors") + "'", dir), "norun");
     EXPECT_FALSE(std::filesystem::exists(dir.file("m.safetensors")));
+}
+
+TEST(Cli, DemoRunsEveryMethodAndWritesTheReport) {
+    testing::TempDir dir;
+    const std::string model = dir.file("tiny.safetensors");
+    {
+        nn::Model m = nn::Model::builtin("fast", {4, 2, 3});
+        m.initialize(1);
+        nn::saveModel(model, m);
+    }
+    const std::string out = dir.file("demo");
+    const RunResult r =
+        run("demo --out '" + out +
+                "' --size 96x64 --truth 8 --scenes pipe,flowers --repeat 1 --quiet --json --models '" +
+                model + "," + dir.file("missing.safetensors") + "'",
+            dir);
+    ASSERT_EQ(r.exitCode, 0) << r.err;
+    EXPECT_NE(r.err.find("missing.safetensors not found"), std::string::npos) << r.err;
+    std::set<std::string> methods;
+    std::stringstream lines(r.out);
+    std::string line;
+    int rows = 0;
+    while (std::getline(lines, line)) {
+        const nlohmann::json j = nlohmann::json::parse(line);
+        methods.insert(j["method"].get<std::string>());
+        ++rows;
+        if (j["method"] == "no AA" && j["scene"] != "mean") {
+            EXPECT_LT(j["psnr_whole"].get<double>(), 60.0);
+        }
+    }
+    EXPECT_EQ(methods, (std::set<std::string>{"no AA", "FXAA", "U-TAA", "T-TAA", "tiny", "tiny (ungated)"}));
+    EXPECT_EQ(rows, 3 * 6);
+    for (const char* f : {"report.html", "mosaic.png", "pareto.png", "results.csv", "results.json",
+                          "images/pipe_FXAA_crop.png", "images/flowers_tiny_ssim.png"})
+        EXPECT_TRUE(std::filesystem::exists(out + "/" + f)) << f;
+    expectOneLineError(run("demo --out '" + dir.file("d2") + "' --scenes teapot", dir), "teapot");
+    std::ofstream(dir.file("bad.safetensors")) << "garbage";
+    expectOneLineError(
+        run("demo --out '" + dir.file("d2") + "' --models '" + dir.file("bad.safetensors") + "'", dir),
+        "bad.safetensors");
+    EXPECT_FALSE(std::filesystem::exists(dir.file("d2")));
 }
 
 }  // namespace

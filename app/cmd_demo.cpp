@@ -1,0 +1,77 @@
+// dejag demo: every anti-aliasing method, including the shipped networks, on a set of rendered scenes;
+// prints the table and writes an HTML report (what `make demo` runs).
+#include <cstdio>
+#include <sstream>
+
+#include "app/cli.h"
+#include "app/commands.h"
+#include "base/error.h"
+#include "bench/demo.h"
+
+namespace dejag::cli {
+
+void registerDemoCommand(CLI::App& app) {
+    auto options = std::make_shared<bench::DemoOptions>();
+    auto runtime = std::make_shared<RuntimeOptions>();
+    auto size = std::make_shared<std::string>("640x360");
+    auto scenes = std::make_shared<std::string>();
+    auto models =
+        std::make_shared<std::string>("models/dejag-fast.safetensors,models/seed2020-gray.safetensors");
+    auto json = std::make_shared<bool>(false);
+    CLI::App* command = app.add_subcommand(
+        "demo",
+        "render a scene set, run every method (FXAA, TAA, the shipped networks), write an HTML report");
+    command->add_option("--out", options->out, "report folder")->capture_default_str();
+    command->add_option("--size", *size, "WxH of the frames")->capture_default_str();
+    command->add_option("--truth", options->truthSamples, "samples of the truth")->capture_default_str();
+    command->add_option("--scenes", *scenes,
+                        "comma-separated scenes (default: atrium,hard-edges,flowers,pipe,text-wall,planes)");
+    command->add_option("--models", *models, "comma-separated model files")->capture_default_str();
+    command->add_option("--repeat", options->repeat, "timing repeats")->capture_default_str();
+    command->add_flag("--json", *json, "print the rows as JSON lines instead of the table");
+    command->add_flag("--quiet", options->quiet, "no progress bar");
+    addRuntimeOptions(command, *runtime);
+    command->footer(
+        "Writes OUT/report.html (crops and SSIM maps side by side), OUT/mosaic.png, OUT/pareto.png (ms "
+        "against\n"
+        "PSNR), OUT/results.csv and OUT/results.json. Models not found are skipped with a note.");
+    command->callback([=] {
+        applyRuntimeOptions(*runtime);
+        const Size s = parseSize(*size, "--size");
+        options->width = s.width, options->height = s.height;
+        auto split = [](const std::string& text) {
+            std::vector<std::string> items;
+            std::stringstream stream(text);
+            std::string item;
+            while (std::getline(stream, item, ','))
+                if (!item.empty()) items.push_back(item);
+            return items;
+        };
+        options->scenes = split(*scenes);
+        options->models = split(*models);
+        if (options->repeat < 1) throw Error("--repeat must be >= 1");
+        const std::vector<nlohmann::json> rows = bench::runDemo(*options);
+        if (*json) {
+            for (const nlohmann::json& r : rows) std::printf("%s\n", r.dump().c_str());
+            return;
+        }
+        std::printf("%-12s %-26s %9s %8s %9s %9s %9s  %s\n", "scene", "method", "PSNR dB", "SSIM", "edge dB",
+                    "texture", "ms", "");
+        for (const nlohmann::json& r : rows) {
+            auto number = [&](const char* key, const char* format) {
+                char text[32];
+                if (r[key].is_null()) return std::string("-");
+                std::snprintf(text, sizeof text, format, r[key].get<double>());
+                return std::string(text);
+            };
+            std::printf("%-12s %-26s %9s %8s %9s %9s %9s  %s\n", r["scene"].get<std::string>().c_str(),
+                        r["method"].get<std::string>().c_str(), number("psnr_whole", "%.2f").c_str(),
+                        number("ssim_whole", "%.4f").c_str(), number("psnr_edge", "%.2f").c_str(),
+                        number("psnr_texture", "%.2f").c_str(), number("ms", "%.2f").c_str(),
+                        r.value("note", "").c_str());
+        }
+        std::printf("report: %s/report.html\n", options->out.c_str());
+    });
+}
+
+}  // namespace dejag::cli
