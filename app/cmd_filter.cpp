@@ -1,13 +1,18 @@
-// dejag filter: anti-aliasing post-processes on images (FXAA now; TAA and the CNN come next).
+// dejag filter: anti-aliasing post-processes on images and sequences — FXAA 3.11, the CNN, U-TAA and
+// T-TAA — alone or chained (--chain taa,cnn).
+#include <algorithm>
 #include <cstdio>
-#include <nlohmann/json.hpp>
-#include <optional>
-
 #include <filesystem>
 #include <fstream>
+#include <memory>
+#include <nlohmann/json.hpp>
+#include <optional>
+#include <sstream>
+
 #include "app/cli.h"
 #include "app/commands.h"
 #include "base/error.h"
+#include "base/files.h"
 #include "base/progress.h"
 #include "base/timer.h"
 #include "data/image.h"
@@ -19,12 +24,14 @@
 namespace dejag::cli {
 namespace {
 
+namespace fs = std::filesystem;
+
 struct FilterArguments {
-    std::string method, input, output;
+    std::string method, chain, input, output;
     std::string model = "models/dejag-fast.safetensors", gate = "auto";
     int tile = 256;
     int preset = 39;
-    bool greenLuma = false, json = false, noSharpen = false;
+    bool greenLuma = false, json = false, noSharpen = false, quiet = false;
     RuntimeOptions runtime;
 };
 
@@ -49,9 +56,197 @@ std::vector<float> channelsOf(const Image& image, const std::vector<std::string>
     return out;
 }
 
-// TAA over a sequence written by dejag render: INPUT is its folder, OUTPUT a folder of sRGB PNGs.
-void runTaa(const FilterArguments& args) {
-    namespace fs = std::filesystem;
+// One image filter of a chain: works in place on an sRGB-encoded frame (R G B first, other channels
+// left alone). TAA is not one: it needs the rendered buffers and runs first.
+struct ImageStage {
+    std::string name;
+    std::optional<infer::Fxaa> fxaa;
+    std::optional<infer::CnnFilter> cnn;
+    std::vector<float> scratch;
+    double lastFraction = 0;
+    void apply(std::vector<float>& frame, int width, int height, int channels,
+               const infer::CnnBuffers& buffers) {
+        scratch.resize(frame.size());
+        if (fxaa) {
+            fxaa->apply(frame.data(), scratch.data(), width, height, channels);
+            lastFraction = fxaa->processedFraction();
+        } else {
+            cnn->apply(frame.data(), scratch.data(), width, height, channels, buffers);
+            lastFraction = cnn->processedFraction();
+        }
+        frame.swap(scratch);
+    }
+};
+
+ImageStage makeStage(const std::string& method, const FilterArguments& args) {
+    ImageStage stage;
+    stage.name = method;
+    if (method == "fxaa") {
+        infer::FxaaOptions options;
+        options.preset = args.preset;
+        options.greenAsLuma = args.greenLuma;
+        stage.fxaa.emplace(options);
+    } else if (method == "cnn") {
+        infer::CnnOptions options;
+        options.tileSize = args.tile;
+        if (args.gate == "off") {
+            options.gate = false;
+        } else if (args.gate != "auto") {
+            try {
+                size_t used = 0;
+                options.gateThreshold = std::stof(args.gate, &used);
+                if (used != args.gate.size()) throw std::invalid_argument(args.gate);
+            } catch (const std::exception&) {
+                throw Error("--gate '" + args.gate + "' is not off, auto or a luma threshold in [0, 1]");
+            }
+            if (!(options.gateThreshold >= 0 && options.gateThreshold <= 1))
+                throw Error("--gate '" + args.gate + "' is not off, auto or a luma threshold in [0, 1]");
+        }
+        stage.cnn.emplace(nn::loadModel(args.model), options);
+    } else {
+        throw Error("--method/--chain: '" + method + "' is not one of fxaa, cnn, taa, taa-sobel");
+    }
+    return stage;
+}
+
+bool isImageFile(const fs::path& path) {
+    std::string ext = path.extension().string();
+    std::transform(ext.begin(), ext.end(), ext.begin(),
+                   [](unsigned char c) { return char(std::tolower(c)); });
+    return ext == ".png" || ext == ".jpg" || ext == ".jpeg" || ext == ".tif" || ext == ".tiff" ||
+           ext == ".exr";
+}
+
+// "frame_%04d.png" -> the path of frame i; throws unless the pattern has exactly one integer field.
+std::string formatPattern(const std::string& pattern, int index) {
+    char text[4096];
+    std::snprintf(text, sizeof text, pattern.c_str(), index);
+    return text;
+}
+bool isPattern(const std::string& path) {
+    const size_t percent = path.find('%');
+    if (percent == std::string::npos) return false;
+    size_t i = percent + 1;
+    while (i < path.size() && (std::isdigit(static_cast<unsigned char>(path[i])) || path[i] == '0')) ++i;
+    if (i >= path.size() || path[i] != 'd' || path.find('%', i) != std::string::npos)
+        throw Error("'" + path + "': a sequence pattern holds one integer field such as %04d");
+    return true;
+}
+
+// The (input, output) pairs: one file, a folder of images, or a printf-style numbered sequence.
+std::vector<std::pair<std::string, std::string>> framePairs(const std::string& input,
+                                                            const std::string& output) {
+    std::vector<std::pair<std::string, std::string>> pairs;
+    if (isPattern(input)) {
+        if (!isPattern(output))
+            throw Error("input '" + input + "' is a sequence: OUTPUT must be a pattern too");
+        int first = -1;
+        for (int i = 0; i <= 1; ++i)
+            if (fs::exists(formatPattern(input, i))) {
+                first = i;
+                break;
+            }
+        if (first < 0) throw Error("no frame of '" + input + "' found (tried indices 0 and 1)");
+        for (int i = first; fs::exists(formatPattern(input, i)); ++i)
+            pairs.emplace_back(formatPattern(input, i), formatPattern(output, i));
+    } else if (fs::is_directory(input)) {
+        std::vector<fs::path> files;
+        for (const auto& entry : fs::directory_iterator(input))
+            if (entry.is_regular_file() && isImageFile(entry.path())) files.push_back(entry.path());
+        std::sort(files.begin(), files.end());
+        if (files.empty()) throw Error("folder '" + input + "' holds no PNG, JPEG, TIFF or EXR image");
+        if (fs::exists(output) && !fs::is_directory(output))
+            throw Error("input '" + input + "' is a folder: OUTPUT '" + output + "' must be a folder too");
+        for (const fs::path& f : files)
+            pairs.emplace_back(f.string(), (fs::path(output) / f.filename()).string());
+    } else {
+        requireReadableFile(input);
+        pairs.emplace_back(input, output);
+    }
+    return pairs;
+}
+
+void makeParentFolder(const std::string& path) {
+    const fs::path parent = fs::path(path).parent_path();
+    if (parent.empty()) return;
+    std::error_code ec;
+    fs::create_directories(parent, ec);
+    if (ec || !fs::is_directory(parent))
+        throw Error("cannot write to the output folder '" + parent.string() + "'");
+}
+
+// Image filters (FXAA, CNN, chains of them) over single images, folders and numbered sequences.
+void runImageChain(const FilterArguments& args, std::vector<ImageStage>& stages) {
+    const auto pairs = framePairs(args.input, args.output);
+    Progress progress("filter", int64_t(pairs.size()), args.json || args.quiet || pairs.size() == 1);
+    nlohmann::json frames = nlohmann::json::array();
+    for (const auto& [in, out] : pairs) {
+        Image image = readImage(in);
+        if (image.findChannel("R") != 0 || image.findChannel("G") != 1 || image.findChannel("B") != 2)
+            throw Error("'" + in + "' has no R, G, B channels first (" + image.describe() + ")");
+        if (auto bad = findNonFinite(image))
+            throw Error("'" + in + "' has a non-finite value at pixel (" + std::to_string(bad->x) + ", " +
+                        std::to_string(bad->y) + ")");
+        // The filters work on display-referred colour: half and float files hold linear light, so they are
+        // encoded to sRGB for the filters and decoded back; 8- and 16-bit files are sRGB-encoded already.
+        const bool linear = image.storage == PixelType::Half || image.storage == PixelType::Float;
+        const size_t C = size_t(image.channels());
+        if (linear)
+            for (size_t p = 0; p < image.pixelCount(); ++p)
+                for (size_t c = 0; c < 3; ++c) {
+                    float& v = image.pixels[p * C + c];
+                    v = std::clamp(linearToSrgb(std::max(v, 0.0f)), 0.0f, 1.0f);
+                }
+        nlohmann::json stageTimes = nlohmann::json::array();
+        const Stopwatch total;
+        for (ImageStage& stage : stages) {
+            const Stopwatch clock;
+            stage.apply(image.pixels, image.width, image.height, image.channels(), {});
+            stageTimes.push_back({{"method", stage.name},
+                                  {"ms", clock.elapsedMs()},
+                                  {"processed_fraction", stage.lastFraction}});
+        }
+        const double ms = total.elapsedMs();
+        if (linear)
+            for (size_t p = 0; p < image.pixelCount(); ++p)
+                for (size_t c = 0; c < 3; ++c)
+                    image.pixels[p * C + c] = srgbToLinear(image.pixels[p * C + c]);
+        makeParentFolder(out);
+        writeImage(out, image);
+        frames.push_back({{"input", in},
+                          {"output", out},
+                          {"width", image.width},
+                          {"height", image.height},
+                          {"ms", ms},
+                          {"stages", stageTimes}});
+        progress.advance(1);
+    }
+    progress.finish();
+    if (args.json) {
+        if (frames.size() == 1) {
+            nlohmann::json j = frames[0];
+            j["method"] = args.chain.empty() ? args.method : args.chain;
+            j["processed_fraction"] = j["stages"].back()["processed_fraction"];
+            if (stages.back().cnn) {
+                j["tiles"] = stages.back().cnn->tileCount();
+                j["tiles_processed"] = stages.back().cnn->tilesProcessed();
+                j["model"] = args.model;
+                j["gate"] = args.gate;
+            }
+            if (stages.back().fxaa) j["preset"] = args.preset;
+            std::printf("%s\n", j.dump().c_str());
+        } else {
+            std::printf("%s\n", nlohmann::json{{"method", args.chain.empty() ? args.method : args.chain},
+                                               {"frames", frames}}
+                                    .dump()
+                                    .c_str());
+        }
+    }
+}
+
+// TAA over a sequence written by dejag render (INPUT its folder, OUTPUT a folder of sRGB PNGs), then any
+// image filters of the chain on each TAA frame.
+void runTaaChain(const FilterArguments& args, const std::string& taaMethod, std::vector<ImageStage>& stages) {
     if (!fs::is_directory(args.input))
         throw Error("TAA filters a sequence: '" + args.input + "' must be a folder written by dejag render");
     std::vector<std::string> frames;
@@ -72,10 +267,11 @@ void runTaa(const FilterArguments& args) {
     if (ec || !fs::is_directory(args.output))
         throw Error("cannot write to the output folder '" + args.output + "'");
     infer::TaaOptions options;
-    options.improved = args.method == "taa-sobel";
+    options.improved = taaMethod == "taa-sobel";
     options.sharpen = !args.noSharpen;
     infer::Taa taa(options);
-    Progress progress("filter " + args.method, int64_t(frames.size()), args.json);
+    Progress progress("filter " + (args.chain.empty() ? args.method : args.chain), int64_t(frames.size()),
+                      args.json || args.quiet);
     std::vector<float> out;
     nlohmann::json timings = nlohmann::json::array();
     for (const std::string& path : frames) {
@@ -88,104 +284,69 @@ void runTaa(const FilterArguments& args) {
         infer::TaaFrame f;
         f.width = frame.width, f.height = frame.height;
         f.colour = colour.data(), f.depth = depth.data(), f.motion = motion.data();
+        if (options.improved || !stages.empty()) {
+            ids = channelsOf(frame, {"id.ID"}, path);
+            f.ids = ids.data();
+        }
         if (options.improved) {
             albedo = channelsOf(frame, {"albedo.R", "albedo.G", "albedo.B"}, path, true);
-            ids = channelsOf(frame, {"id.ID"}, path);
             previousDepth = channelsOf(frame, {"prevdepth.Z"}, path);
             for (float& d : previousDepth) d = float(d / far);
-            f.albedo = albedo.data(), f.ids = ids.data(), f.previousDepth = previousDepth.data();
+            f.albedo = albedo.data(), f.previousDepth = previousDepth.data();
         }
         out.resize(colour.size());
         const Stopwatch clock;
         taa.apply(f, out.data());
+        nlohmann::json stageTimes =
+            nlohmann::json::array({{{"method", taaMethod}, {"ms", clock.elapsedMs()}}});
+        for (ImageStage& stage : stages) {
+            const Stopwatch stageClock;
+            stage.apply(out, frame.width, frame.height, 3, {depth.data(), ids.data()});
+            stageTimes.push_back({{"method", stage.name},
+                                  {"ms", stageClock.elapsedMs()},
+                                  {"processed_fraction", stage.lastFraction}});
+        }
         const double ms = clock.elapsedMs();
         Image result(frame.width, frame.height, {"R", "G", "B"}, PixelType::UInt8);
         result.pixels = out;
         const std::string name = fs::path(path).stem().string() + ".png";
         writeImage((fs::path(args.output) / name).string(), result);
-        timings.push_back({{"frame", name}, {"ms", ms}});
+        timings.push_back({{"frame", name}, {"ms", ms}, {"stages", stageTimes}});
         progress.advance(1);
     }
+    progress.finish();
     if (args.json)
-        std::printf("%s\n", nlohmann::json{{"method", args.method}, {"frames", timings}}.dump().c_str());
+        std::printf("%s\n", nlohmann::json{{"method", args.chain.empty() ? args.method : args.chain},
+                                           {"frames", timings}}
+                                .dump()
+                                .c_str());
 }
 
 void runFilter(const FilterArguments& args) {
     applyRuntimeOptions(args.runtime);
-    if (args.method == "taa" || args.method == "taa-sobel") return runTaa(args);
-    if (args.method != "fxaa" && args.method != "cnn")
-        throw Error("--method '" + args.method + "' is not one of fxaa, cnn, taa, taa-sobel");
-    // Both filters are built (and the model loaded and checked) before the input is read.
-    std::optional<infer::Fxaa> fxaa;
-    std::optional<infer::CnnFilter> cnn;
-    if (args.method == "fxaa") {
-        infer::FxaaOptions options;
-        options.preset = args.preset;
-        options.greenAsLuma = args.greenLuma;
-        fxaa.emplace(options);
+    if (args.method.empty() == args.chain.empty()) throw Error("give --method M or --chain M1,M2,...");
+    std::vector<std::string> methods;
+    if (!args.method.empty()) {
+        methods.push_back(args.method);
     } else {
-        infer::CnnOptions options;
-        options.tileSize = args.tile;
-        if (args.gate == "off") {
-            options.gate = false;
-        } else if (args.gate != "auto") {
-            try {
-                size_t used = 0;
-                options.gateThreshold = std::stof(args.gate, &used);
-                if (used != args.gate.size()) throw std::invalid_argument(args.gate);
-            } catch (const std::exception&) {
-                throw Error("--gate '" + args.gate + "' is not off, auto or a luma threshold in [0, 1]");
-            }
-            if (!(options.gateThreshold >= 0 && options.gateThreshold <= 1))
-                throw Error("--gate '" + args.gate + "' is not off, auto or a luma threshold in [0, 1]");
-        }
-        cnn.emplace(nn::loadModel(args.model), options);
+        std::stringstream stream(args.chain);
+        std::string item;
+        while (std::getline(stream, item, ','))
+            if (!item.empty()) methods.push_back(item);
+        if (methods.empty()) throw Error("--chain is empty");
     }
-    Image image = readImage(args.input);
-    if (image.findChannel("R") != 0 || image.findChannel("G") != 1 || image.findChannel("B") != 2)
-        throw Error("'" + args.input + "' has no R, G, B channels first (" + image.describe() + ")");
-    if (auto bad = findNonFinite(image))
-        throw Error("'" + args.input + "' has a non-finite value at pixel (" + std::to_string(bad->x) + ", " +
-                    std::to_string(bad->y) + ")");
-    // FXAA works on display-referred colour: half and float files hold linear light, so they are encoded
-    // to sRGB for the filter and decoded back; 8- and 16-bit files are sRGB-encoded already.
-    const bool linear = image.storage == PixelType::Half || image.storage == PixelType::Float;
-    if (linear) {
-        for (size_t p = 0; p < image.pixelCount(); ++p)
-            for (int c = 0; c < 3; ++c) {
-                float& v = image.pixels[p * size_t(image.channels()) + size_t(c)];
-                v = std::clamp(linearToSrgb(std::max(v, 0.0f)), 0.0f, 1.0f);
-            }
-    }
-    Image out = image;
-    const Stopwatch clock;
-    if (fxaa)
-        fxaa->apply(image.pixels.data(), out.pixels.data(), image.width, image.height, image.channels());
-    else
-        cnn->apply(image.pixels.data(), out.pixels.data(), image.width, image.height, image.channels());
-    const double ms = clock.elapsedMs();
-    if (linear)
-        for (size_t p = 0; p < out.pixelCount(); ++p)
-            for (int c = 0; c < 3; ++c) {
-                float& v = out.pixels[p * size_t(out.channels()) + size_t(c)];
-                v = srgbToLinear(v);
-            }
-    writeImage(args.output, out);
-    if (args.json) {
-        nlohmann::json j = {{"method", args.method}, {"input", args.input},    {"output", args.output},
-                            {"width", image.width},  {"height", image.height}, {"ms", ms}};
-        if (fxaa) {
-            j["preset"] = args.preset;
-            j["processed_fraction"] = fxaa->processedFraction();
+    std::string taaMethod;
+    std::vector<ImageStage> stages;  // built (models loaded and checked) before any input is read
+    for (size_t i = 0; i < methods.size(); ++i) {
+        if (methods[i] == "taa" || methods[i] == "taa-sobel") {
+            if (i != 0) throw Error("--chain: TAA needs the rendered buffers, so it must come first");
+            taaMethod = methods[i];
         } else {
-            j["model"] = args.model;
-            j["gate"] = args.gate;
-            j["tiles"] = cnn->tileCount();
-            j["tiles_processed"] = cnn->tilesProcessed();
-            j["processed_fraction"] = cnn->processedFraction();
+            stages.push_back(makeStage(methods[i], args));
         }
-        std::printf("%s\n", j.dump().c_str());
     }
+    if (!taaMethod.empty()) return runTaaChain(args, taaMethod, stages);
+    runImageChain(args, stages);
 }
 
 }  // namespace
@@ -193,8 +354,9 @@ void runFilter(const FilterArguments& args) {
 void registerFilterCommand(CLI::App& app) {
     auto args = std::make_shared<FilterArguments>();
     CLI::App* command = app.add_subcommand(
-        "filter", "anti-alias an image (FXAA 3.11, the CNN) or a rendered sequence (TAA: U-TAA, T-TAA)");
-    command->add_option("--method", args->method, "fxaa | cnn | taa | taa-sobel")->required();
+        "filter", "anti-alias images and sequences: FXAA 3.11, the CNN, U-TAA, T-TAA, alone or chained");
+    command->add_option("--method", args->method, "fxaa | cnn | taa | taa-sobel");
+    command->add_option("--chain", args->chain, "methods in order, e.g. taa,cnn or fxaa,cnn");
     command->add_option("--model", args->model, "CNN: model file")->capture_default_str();
     command->add_option("--gate", args->gate, "CNN: off | auto | T (run tiles whose luma steps exceed T)")
         ->capture_default_str();
@@ -202,21 +364,29 @@ void registerFilterCommand(CLI::App& app) {
     command->add_option("--preset", args->preset, "FXAA quality preset: 12, 23 or 39")->capture_default_str();
     command->add_flag("--green-luma", args->greenLuma, "FXAA: use green as luma");
     command->add_flag("--no-sharpen", args->noSharpen, "TAA: skip the final sharpen (see docs/infer.md)");
-    command->add_option("input", args->input, "input image (PNG, JPEG, TIFF, EXR)")->required();
-    command->add_option("output", args->output, "output image (bit depth and extra channels kept)")
+    command->add_option("input", args->input, "image, folder of images, or sequence pattern (frame_%04d.png)")
         ->required();
-    command->add_flag("--json", args->json, "print timing as JSON");
+    command
+        ->add_option("output", args->output, "image, folder or pattern (bit depth and extra channels kept)")
+        ->required();
+    command->add_flag("--json", args->json, "print per-frame timing (and gating) as JSON");
+    command->add_flag("--quiet", args->quiet, "no progress bar");
     addRuntimeOptions(command, args->runtime);
     command->footer(
+        "INPUT/OUTPUT: single images (PNG, JPEG, TIFF, EXR), folders (every image, same names), or "
+        "printf-style\n"
+        "sequences (frame_%04d.png, from index 0 or 1 until a frame is missing). Files are written "
+        "atomically.\n"
+        "FXAA and the CNN run on sRGB-encoded colour: 8/16-bit inputs as they are, half/float (linear) "
+        "inputs\n"
+        "encoded for the filter and decoded back. FXAA constants: subpix 0.75, edge threshold 0.166, min "
+        "0.0833.\n"
         "CNN: a trained model (models/*.safetensors, see models/*.md) run in tiles with a receptive-field "
         "halo,\n"
         "only on tiles with a luma step above the gate (auto = 0.04); skipped tiles pass through unchanged.\n"
-        "FXAA and the CNN run on sRGB-encoded colour: 8/16-bit inputs as they are, half/float (linear) "
-        "inputs encoded\n"
-        "for the filter and decoded back. Constants: subpix 0.75, edge threshold 0.166, minimum 0.0833.\n"
         "TAA (taa = the baseline U-TAA, taa-sobel = T-TAA of spec/taa.md): INPUT is a folder written by\n"
         "dejag render --jitter halton16 --buffers color,albedo,depth,motion,id,prevdepth; OUTPUT a folder\n"
-        "of sRGB PNGs, one per frame. History starts with the first frame.");
+        "of sRGB PNGs, one per frame. History starts with the first frame. In a chain TAA comes first.");
     command->callback([args] { runFilter(*args); });
 }
 

@@ -526,5 +526,66 @@ TEST(Cli, DemoRunsEveryMethodAndWritesTheReport) {
     EXPECT_FALSE(std::filesystem::exists(dir.file("d2")));
 }
 
+TEST(Cli, FilterRunsFoldersSequencesAndChainsKeepingBitDepthAndAlpha) {
+    testing::TempDir dir;
+    const std::string model = dir.file("tiny.safetensors");
+    {
+        nn::Model m = nn::Model::builtin("fast", {4, 2, 3});
+        m.initialize(2);
+        nn::saveModel(model, m);
+    }
+    // Three 16-bit RGBA frames of a hard diagonal edge, numbered from 1.
+    std::filesystem::create_directories(dir.file("in"));
+    for (int i = 1; i <= 3; ++i) {
+        Image frame(40, 30, {"R", "G", "B", "A"}, PixelType::UInt16);
+        for (int y = 0; y < 30; ++y)
+            for (int x = 0; x < 40; ++x) {
+                const bool inside = x + i > y;
+                for (int c = 0; c < 3; ++c) frame.at(x, y, c) = inside ? 0.9f : 0.1f;
+                frame.at(x, y, 3) = float(x) / 39.0f;
+            }
+        char name[64];
+        std::snprintf(name, sizeof name, "in/frame_%04d.png", i);
+        writeImage(dir.file(name), frame);
+    }
+    RunResult r = run("filter --chain fxaa,cnn --model '" + model + "' --json '" +
+                          dir.file("in/frame_%04d.png") + "' '" + dir.file("out/f_%02d.png") + "'",
+                      dir);
+    ASSERT_EQ(r.exitCode, 0) << r.err;
+    nlohmann::json j = nlohmann::json::parse(r.out);
+    ASSERT_EQ(j["frames"].size(), 3u);
+    EXPECT_EQ(j["frames"][0]["stages"].size(), 2u);
+    EXPECT_EQ(j["frames"][0]["stages"][1]["method"], "cnn");
+    for (int i = 1; i <= 3; ++i) {
+        char name[64];
+        std::snprintf(name, sizeof name, "out/f_%02d.png", i);
+        const Image out = readImage(dir.file(name));
+        char inName[64];
+        std::snprintf(inName, sizeof inName, "in/frame_%04d.png", i);
+        const Image in = readImage(dir.file(inName));
+        EXPECT_EQ(out.storage, PixelType::UInt16);
+        ASSERT_EQ(out.channels(), 4);
+        for (int x = 0; x < 40; ++x) EXPECT_EQ(out.at(x, 5, 3), in.at(x, 5, 3)) << "alpha untouched";
+    }
+    // A folder in, a folder out, with the same names; the CNN alone, gated.
+    r = run("filter --method cnn --model '" + model + "' --gate 0.01 --json --quiet '" + dir.file("in") +
+                "' '" + dir.file("folder-out") + "'",
+            dir);
+    ASSERT_EQ(r.exitCode, 0) << r.err;
+    EXPECT_TRUE(std::filesystem::exists(dir.file("folder-out/frame_0002.png")));
+    // Bad chains and sequences are one line.
+    expectOneLineError(run("filter --chain fxaa,taa '" + dir.file("in") + "' '" + dir.file("o") + "'", dir),
+                       "first");
+    expectOneLineError(
+        run("filter --method fxaa --chain fxaa '" + dir.file("in") + "' '" + dir.file("o") + "'", dir),
+        "--method");
+    expectOneLineError(
+        run("filter --method fxaa '" + dir.file("in/x_%04d.png") + "' '" + dir.file("o_%04d.png") + "'", dir),
+        "no frame");
+    expectOneLineError(
+        run("filter --method fxaa '" + dir.file("in/frame_%04d.png") + "' '" + dir.file("o.png") + "'", dir),
+        "pattern");
+}
+
 }  // namespace
 }  // namespace dejag
