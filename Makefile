@@ -49,9 +49,13 @@ dataset: build
 RUNS ?= out/runs
 SEED_RECIPE = --arch seed2020 --loss ssim --steps 9000 --batch 8 --patch 128 --lr 2e-3 --eval-every 500 \
 	--checkpoint-every 500 --val-images 48 --threads 1
+FAST_RECIPE = --arch fast --loss '0.84*ssim+0.16*l1' --steps 13000 --batch 12 --patch 128 --lr 2e-3 \
+	--eval-every 1000 --checkpoint-every 1000 --val-images 48 --threads 1
 models: dataset
 	$(BUILD_DIR)/dejag train --data $(DATASET) --out $(RUNS)/seed2020-gray $(SEED_RECIPE) --resume
 	$(BUILD_DIR)/dejag train export $(RUNS)/seed2020-gray models/seed2020-gray.safetensors
+	$(BUILD_DIR)/dejag train --data $(DATASET) --out $(RUNS)/dejag-fast $(FAST_RECIPE) --resume
+	$(BUILD_DIR)/dejag train export $(RUNS)/dejag-fast models/dejag-fast.safetensors
 
 test-asan:
 	$(MAKE) test PRESET=asan

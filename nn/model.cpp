@@ -362,16 +362,33 @@ nlohmann::json Model::builtinArchitecture(const std::string& name, const ModelOp
                 {"output", "up2"}};
     }
     if (name == "fast") {
-        // Residual RGB: output = input + correction. The correction runs at half resolution: a stride-2
-        // conv in, (depth - 2) convs, a conv to 4 x channels and a pixel shuffle back to full resolution.
-        const int w = options.width, c = options.channels;
-        if (w < 1 || options.depth < 2 || c < 1) throw Error("the fast family needs width >= 1, depth >= 2");
+        // Residual RGB: output = input + correction. The correction is a small U-Net that never works at
+        // full resolution: a stride-2 conv to 1/2 (width w), then per level a stride-2 conv and a conv
+        // (widths 2w, 4w, ...) down to 1/2^depth; back up, each level is pixel-shuffled to the next finer
+        // one, concatenated with its encoder features and convolved; a last conv makes 4 x channels at
+        // 1/2 and a pixel shuffle brings them to full resolution. The coarse levels see far along an edge
+        // for a few multiply-adds per pixel (docs/train.md).
+        const int w = options.width, c = options.channels, levels = options.depth;
+        if (w < 2 || w % 2 != 0 || levels < 2 || levels > 6 || c < 1)
+            throw Error("the fast family needs an even width >= 2 and depth (levels) in 2..6");
         json nodes = json::array();
-        nodes.push_back(conv("down", "input", w, 3, "relu", 2));
-        std::string previous = "down";
-        for (int i = 1; i <= options.depth - 2; ++i) {
-            nodes.push_back(conv("body" + std::to_string(i), previous, w, 3, "relu"));
-            previous = "body" + std::to_string(i);
+        nodes.push_back(conv("enc1", "input", w, 3, "relu", 2));
+        std::vector<std::string> encoder = {"enc1"};  // the output of each level
+        for (int l = 2; l <= levels; ++l) {
+            const std::string n = "enc" + std::to_string(l);
+            const int width = w << (l - 1);
+            nodes.push_back(conv(n, encoder.back(), width, 3, "relu", 2));
+            nodes.push_back(conv(n + "b", n, width, 3, "relu"));
+            encoder.push_back(n + "b");
+        }
+        std::string previous = encoder.back();
+        for (int l = levels; l >= 2; --l) {
+            const std::string up = "up" + std::to_string(l), cat = "cat" + std::to_string(l - 1),
+                              dec = "dec" + std::to_string(l - 1);
+            nodes.push_back({{"name", up}, {"op", "pixel_shuffle"}, {"inputs", {previous}}, {"factor", 2}});
+            nodes.push_back({{"name", cat}, {"op", "concat"}, {"inputs", {up, encoder[size_t(l - 2)]}}});
+            nodes.push_back(conv(dec, cat, w << (l - 2), 3, "relu"));
+            previous = dec;
         }
         nodes.push_back(conv("to_subpixels", previous, 4 * c, 3, "none"));
         nodes.back()["init_scale"] = 0.1;  // the correction starts small: the network starts near identity
@@ -385,7 +402,7 @@ nlohmann::json Model::builtinArchitecture(const std::string& name, const ModelOp
                 {"init", "he_normal"},
                 {"nodes", nodes},
                 {"output", "residual"},
-                {"family", {{"width", w}, {"depth", options.depth}}}};
+                {"family", {{"width", w}, {"depth", levels}}}};
     }
     throw Error("unknown built-in architecture '" + name + "' (seed2020, fast)");
 }

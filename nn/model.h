@@ -79,7 +79,7 @@ struct GraphNode {
 };
 
 struct ModelOptions {
-    int width = 16, depth = 3;  // the "fast" residual family
+    int width = 16, depth = 3;  // the "fast" residual U-Net: first width (even), levels
     int channels = 3;
 };
 
