@@ -56,7 +56,7 @@ class Training : public ::testing::Test {
         return {{"no AA", [](const Image& im) { return im; }}};
     }
     static std::vector<float> weightsOf(const std::string& modelFile) {
-        return nn::readSafetensors(modelFile).tensors.at("down.weight").f32;
+        return nn::readSafetensors(modelFile).tensors.at("enc1.weight").f32;
     }
     static std::string root_, data_;
 };
