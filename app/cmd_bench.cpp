@@ -14,6 +14,7 @@
 #include "base/error.h"
 #include "bench/bench.h"
 #include "bench/filter_bench.h"
+#include "bench/quality.h"
 #include "bench/render_bench.h"
 #include "bench/taa_bench.h"
 
@@ -249,6 +250,49 @@ void registerBenchCommand(CLI::App& app) {
                         row["psnr"]["best"].get<double>(), row["psnr"]["worst"].get<double>(),
                         row["psnr"]["mean"].get<double>(), row["ssim"]["mean"].get<double>());
         }
+    });
+
+    auto quality = std::make_shared<bench::QualityBenchOptions>();
+    quality->data = "out/dataset";
+    auto qualityModels =
+        std::make_shared<std::string>("models/dejag-fast.safetensors,models/seed2020-gray.safetensors");
+    auto qualityJson = std::make_shared<bool>(false);
+    auto qualityRuntime = std::make_shared<RuntimeOptions>();
+    CLI::App* qualityBench = bench->add_subcommand(
+        "quality",
+        "run time against error: every single-frame method on the test split, report and Pareto plot");
+    qualityBench->add_option("--data", quality->data, "dataset folder (its test split; \"\" to skip)")
+        ->capture_default_str();
+    qualityBench->add_option("--pairs", quality->pairs, "folder of NAME_input.* / NAME_truth.* pairs");
+    qualityBench->add_option("--models", *qualityModels, "comma-separated model files")
+        ->capture_default_str();
+    qualityBench->add_option("--out", quality->out, "report folder")->capture_default_str();
+    qualityBench->add_option("--limit", quality->limit, "test items (0: all)")->capture_default_str();
+    qualityBench->add_option("--repeat", quality->repeat, "timing repeats")->capture_default_str();
+    qualityBench->add_option("--report-items", quality->reportItems, "frames shown with crops in the report")
+        ->capture_default_str();
+    qualityBench->add_flag(
+        "--no-1080p", [quality](int64_t) { quality->fullHd = false; }, "skip timing on a 1920x1080 frame");
+    qualityBench->add_flag("--json", *qualityJson, "print every row as a JSON line");
+    qualityBench->add_flag("--quiet", quality->quiet, "no progress bar");
+    addRuntimeOptions(qualityBench, *qualityRuntime);
+    qualityBench->footer(
+        "Methods: no AA, FXAA presets 12/23/39, each model gated and ungated, FXAA then each model. Writes\n"
+        "OUT/results.csv, results.json, pareto.png (ms at 1920x1080 against PSNR), mosaic.png and "
+        "report.html.");
+    qualityBench->callback([=] {
+        applyRuntimeOptions(*qualityRuntime);
+        quality->models.clear();
+        std::stringstream stream(*qualityModels);
+        std::string item;
+        while (std::getline(stream, item, ','))
+            if (!item.empty()) quality->models.push_back(item);
+        const std::vector<nlohmann::json> rows = bench::benchQuality(*quality);
+        if (*qualityJson)
+            for (const nlohmann::json& r : rows) std::printf("%s\n", r.dump().c_str());
+        else
+            bench::printQualityTable(rows, true);
+        if (!*qualityJson) std::printf("report: %s/report.html\n", quality->out.c_str());
     });
 
     auto args = std::make_shared<BenchArguments>();

@@ -7,6 +7,7 @@
 #include "app/commands.h"
 #include "base/error.h"
 #include "bench/demo.h"
+#include "bench/quality.h"
 
 namespace dejag::cli {
 
@@ -55,21 +56,7 @@ void registerDemoCommand(CLI::App& app) {
             for (const nlohmann::json& r : rows) std::printf("%s\n", r.dump().c_str());
             return;
         }
-        std::printf("%-12s %-26s %9s %8s %9s %9s %9s  %s\n", "scene", "method", "PSNR dB", "SSIM", "edge dB",
-                    "texture", "ms", "");
-        for (const nlohmann::json& r : rows) {
-            auto number = [&](const char* key, const char* format) {
-                char text[32];
-                if (r[key].is_null()) return std::string("-");
-                std::snprintf(text, sizeof text, format, r[key].get<double>());
-                return std::string(text);
-            };
-            std::printf("%-12s %-26s %9s %8s %9s %9s %9s  %s\n", r["scene"].get<std::string>().c_str(),
-                        r["method"].get<std::string>().c_str(), number("psnr_whole", "%.2f").c_str(),
-                        number("ssim_whole", "%.4f").c_str(), number("psnr_edge", "%.2f").c_str(),
-                        number("psnr_texture", "%.2f").c_str(), number("ms", "%.2f").c_str(),
-                        r.value("note", "").c_str());
-        }
+        bench::printQualityTable(rows, false);
         std::printf("report: %s/report.html\n", options->out.c_str());
     });
 }

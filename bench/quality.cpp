@@ -1,0 +1,516 @@
+#include "bench/quality.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <map>
+#include <optional>
+#include <sstream>
+
+#include "base/error.h"
+#include "base/files.h"
+#include "base/progress.h"
+#include "base/timer.h"
+#include "data/frame_image.h"
+#include "data/metrics.h"
+#include "data/plot.h"
+#include "infer/cnn.h"
+#include "infer/fxaa.h"
+#include "nn/model.h"
+#include "render/renderer.h"
+#include "render/scene.h"
+
+namespace dejag::bench {
+
+namespace fs = std::filesystem;
+using nlohmann::json;
+
+namespace {
+
+constexpr int kCropZoom = 4;  // report crops are zoomed this much (the mosaic half as much)
+
+Image rgbImage(std::vector<float> pixels, int width, int height) {
+    Image image(width, height, {"R", "G", "B"}, PixelType::Float);
+    image.pixels = std::move(pixels);
+    return image;
+}
+
+void writePng(const fs::path& path, Image image) {
+    image.storage = PixelType::UInt8;
+    writeImage(path.string(), image);
+}
+
+// The window (of the crop's size) where the unfiltered frame is furthest from the truth.
+struct Window {
+    int x = 0, y = 0, width = 0, height = 0;
+};
+Window worstWindow(const Image& input, const Image& truth, int width, int height) {
+    const int W = input.width, H = input.height;
+    width = std::clamp(width, 1, W), height = std::clamp(height, 1, H);
+    std::vector<double> integral(size_t(W + 1) * size_t(H + 1), 0.0);
+    auto at = [&](int i, int j) -> double& { return integral[size_t(j) * size_t(W + 1) + size_t(i)]; };
+    for (int y = 0; y < H; ++y)
+        for (int x = 0; x < W; ++x) {
+            double e = 0;
+            for (int c = 0; c < 3; ++c) e += std::abs(input.at(x, y, c) - truth.at(x, y, c));
+            at(x + 1, y + 1) = e + at(x + 1, y) + at(x, y + 1) - at(x, y);
+        }
+    Window best{0, 0, width, height};
+    double bestSum = -1;
+    for (int y = 0; y + height <= H; y += 2)
+        for (int x = 0; x + width <= W; x += 2) {
+            const double s = at(x + width, y + height) - at(x, y + height) - at(x + width, y) + at(x, y);
+            if (s > bestSum) bestSum = s, best.x = x, best.y = y;
+        }
+    return best;
+}
+
+Image zoomedCrop(const Image& image, const Window& w, int zoom) {
+    Image out(w.width * zoom, w.height * zoom, {"R", "G", "B"}, PixelType::Float);
+    for (int y = 0; y < out.height; ++y)
+        for (int x = 0; x < out.width; ++x)
+            for (int c = 0; c < 3; ++c) out.at(x, y, c) = image.at(w.x + x / zoom, w.y + y / zoom, c);
+    return out;
+}
+
+std::string slug(std::string text) {
+    for (char& c : text)
+        if (!std::isalnum(static_cast<unsigned char>(c))) c = '-';
+    return text;
+}
+
+std::string htmlEscape(const std::string& text) {
+    std::string out;
+    for (char c : text) {
+        if (c == '<')
+            out += "&lt;";
+        else if (c == '>')
+            out += "&gt;";
+        else if (c == '&')
+            out += "&amp;";
+        else
+            out += c;
+    }
+    return out;
+}
+
+const char* const kKeys[] = {"psnr_whole", "ssim_whole",   "psnr_edge",
+                             "ssim_edge",  "psnr_texture", "ssim_texture"};
+
+}  // namespace
+
+// ---- Single-frame methods -----------------------------------------------------------------------------
+
+struct StillMethods::Impl {
+    struct Method {
+        std::string name;
+        std::optional<infer::Fxaa> fxaa;        // FXAA, or the first stage of a chain
+        std::unique_ptr<infer::CnnFilter> cnn;  // a network
+        bool identity = false;
+    };
+    std::vector<Method> methods;
+    std::vector<std::string> notes;
+    std::vector<float> scratch;
+
+    void apply(Method& m, const Image& in, const float* depth, const float* ids, std::vector<float>& out,
+               std::string& note) {
+        const int W = in.width, H = in.height;
+        out.resize(in.pixels.size());
+        if (m.identity) {
+            std::copy(in.pixels.begin(), in.pixels.end(), out.begin());
+            return;
+        }
+        const float* source = in.pixels.data();
+        if (m.fxaa) {
+            if (!m.cnn) {
+                m.fxaa->apply(source, out.data(), W, H, 3);
+                return;
+            }
+            scratch.resize(in.pixels.size());
+            m.fxaa->apply(source, scratch.data(), W, H, 3);
+            source = scratch.data();
+        }
+        m.cnn->apply(source, out.data(), W, H, 3, {depth, ids});
+        char text[64];
+        std::snprintf(text, sizeof text, "%s%.0f %% of tiles", m.cnn->options().gate ? "gated: " : "",
+                      100.0 * m.cnn->processedFraction());
+        note = text;
+    }
+};
+
+StillMethods::StillMethods(const Options& options) : impl_(std::make_unique<Impl>()) {
+    auto& methods = impl_->methods;
+    methods.push_back({"no AA", std::nullopt, nullptr, true});
+    for (int preset : options.fxaaPresets) {
+        Impl::Method m;
+        m.name = options.fxaaPresets.size() == 1 ? "FXAA" : "FXAA " + std::to_string(preset);
+        infer::FxaaOptions o;
+        o.preset = preset;
+        m.fxaa.emplace(o);
+        methods.push_back(std::move(m));
+    }
+    for (const std::string& path : options.models) {
+        if (!fs::exists(path)) {
+            impl_->notes.push_back("model " + path + " not found: skipped (make models trains it)");
+            continue;
+        }
+        const std::string name = fs::path(path).stem().string();
+        const bool rgb = nn::loadModel(path).inputChannels() == 3;
+        for (int variant = 0; variant < 3; ++variant) {
+            const bool gate = variant != 1, chain = variant == 2;
+            if (!gate && (!rgb || !options.ungated)) continue;
+            if (chain && !options.chains) continue;
+            Impl::Method m;
+            m.name = chain ? "FXAA > " + name : name + (gate ? "" : " (ungated)");
+            infer::CnnOptions o;
+            o.gate = gate;
+            m.cnn = std::make_unique<infer::CnnFilter>(nn::loadModel(path), o);
+            if (chain) m.fxaa.emplace();
+            methods.push_back(std::move(m));
+        }
+    }
+}
+
+StillMethods::~StillMethods() = default;
+
+const std::vector<std::string>& StillMethods::notes() const {
+    return impl_->notes;
+}
+
+std::vector<std::string> StillMethods::names() const {
+    std::vector<std::string> names;
+    for (const auto& m : impl_->methods) names.push_back(m.name);
+    return names;
+}
+
+void StillMethods::run(QualityCase& c, int repeat) {
+    const float* depth = c.depth.empty() ? nullptr : c.depth.data();
+    const float* ids = c.ids.empty() ? nullptr : c.ids.data();
+    for (Impl::Method& m : impl_->methods) {
+        MethodResult r;
+        r.name = m.name;
+        std::vector<float> out;
+        impl_->apply(m, c.item.input, depth, ids, out, r.note);  // warm-up: plans, buffers
+        r.ms = medianMilliseconds(repeat, [&] { impl_->apply(m, c.item.input, depth, ids, out, r.note); });
+        r.output = rgbImage(std::move(out), c.item.input.width, c.item.input.height);
+        c.methods.push_back(std::move(r));
+    }
+}
+
+std::vector<double> StillMethods::time(const Image& frame, const float* depth, const float* ids, int repeat) {
+    std::vector<double> ms;
+    std::vector<float> out;
+    std::string note;
+    for (Impl::Method& m : impl_->methods) {
+        impl_->apply(m, frame, depth, ids, out, note);
+        ms.push_back(medianMilliseconds(repeat, [&] { impl_->apply(m, frame, depth, ids, out, note); }));
+    }
+    return ms;
+}
+
+void scoreCase(QualityCase& c) {
+    for (MethodResult& r : c.methods) r.score = data::scoreImage(c.item, r.output);
+}
+
+// ---- The report ---------------------------------------------------------------------------------------
+
+std::vector<json> writeQualityReport(const ReportOptions& options, const std::vector<QualityCase>& cases) {
+    const fs::path out(options.out);
+    fs::create_directories(out / "images");
+    std::vector<json> rows;
+    std::vector<std::string> methodOrder;
+    std::vector<std::vector<Image>> mosaicRows;
+    std::vector<std::string> mosaicLabels, mosaicColumns{"truth"};
+    std::ostringstream sections;
+    for (const QualityCase& c : cases) {
+        for (const MethodResult& r : c.methods) {
+            json row = {{"scene", c.name}, {"held_out", c.heldOut},       {"method", r.name},
+                        {"ms", r.ms},      {"width", c.item.input.width}, {"height", c.item.input.height},
+                        {"note", r.note}};
+            for (int k = 0; k < int(data::Region::Count); ++k) {
+                const std::string region = data::regionName(data::Region(k));
+                const data::RegionScore& s = r.score.region[k];
+                row["psnr_" + region] = s.scored ? json(std::min(s.psnr, 100.0)) : json(nullptr);
+                row["ssim_" + region] = s.scored ? json(s.ssim) : json(nullptr);
+            }
+            rows.push_back(row);
+            if (std::find(methodOrder.begin(), methodOrder.end(), r.name) == methodOrder.end())
+                methodOrder.push_back(r.name);
+        }
+        if (!c.inReport) continue;
+        const int W = c.item.input.width, H = c.item.input.height;
+        const Window window =
+            worstWindow(c.item.input, c.item.truth, std::max(16, W / 6), std::max(12, H / 6));
+        const std::string base = slug(c.name);
+        writePng(out / "images" / (base + "_truth.png"), c.item.truth);
+        writePng(out / "images" / (base + "_truth_crop.png"), zoomedCrop(c.item.truth, window, kCropZoom));
+        std::vector<Image> mosaicRow{zoomedCrop(c.item.truth, window, 2)};
+        sections << "<h2>" << htmlEscape(c.name)
+                 << (c.heldOut ? " <small>(held-out family: never trained on)</small>" : "")
+                 << "</h2>\n<div class=row>\n<figure><a href=\"images/" << base
+                 << "_truth.png\"><img src=\"images/" << base
+                 << "_truth_crop.png\"></a><figcaption>truth</figcaption></figure>\n";
+        for (const MethodResult& r : c.methods) {
+            MetricOptions metricOptions;
+            metricOptions.dataRange = 1.0, metricOptions.wantSsimMap = true;
+            const std::vector<float> map = compareImages(c.item.truth, r.output, metricOptions).ssimMap;
+            const std::string file = base + "_" + slug(r.name);
+            writePng(out / "images" / (file + ".png"), r.output);
+            writePng(out / "images" / (file + "_crop.png"), zoomedCrop(r.output, window, kCropZoom));
+            writeSsimMapPng((out / "images" / (file + "_ssim.png")).string(), map, W, H);
+            mosaicRow.push_back(zoomedCrop(r.output, window, 2));
+            if (mosaicColumns.size() < c.methods.size() + 1) mosaicColumns.push_back(r.name);
+            char caption[320];
+            std::snprintf(caption, sizeof caption, "%s<br>%.2f dB · SSIM %.4f · %.2f ms%s%s",
+                          htmlEscape(r.name).c_str(), std::min(r.score.region[0].psnr, 100.0),
+                          r.score.region[0].ssim, r.ms, r.note.empty() ? "" : "<br>",
+                          htmlEscape(r.note).c_str());
+            sections << "<figure><a href=\"images/" << file << ".png\"><img src=\"images/" << file
+                     << "_crop.png\"></a><figcaption>" << caption << "</figcaption><a href=\"images/" << file
+                     << "_ssim.png\"><img class=map src=\"images/" << file << "_ssim.png\"></a></figure>\n";
+        }
+        sections << "</div>\n";
+        if (mosaicRows.empty() || mosaicRows[0].size() == mosaicRow.size()) {
+            mosaicRows.push_back(std::move(mosaicRow));
+            mosaicLabels.push_back(c.name);
+        }
+    }
+
+    // Means per method over cases (PSNR capped at 100 dB per image: identical images are infinite).
+    std::vector<json> means;
+    for (const std::string& method : methodOrder) {
+        json mean = {{"scene", "mean"}, {"method", method}};
+        std::vector<double> ms;
+        for (const char* key : kKeys) {
+            double sum = 0;
+            int n = 0;
+            for (const json& r : rows)
+                if (r["method"] == method && !r[key].is_null()) sum += r[key].get<double>(), ++n;
+            mean[key] = n ? json(sum / n) : json(nullptr);
+        }
+        for (const json& r : rows)
+            if (r["method"] == method) ms.push_back(r["ms"].get<double>());
+        mean["ms"] = median(ms);
+        mean["cases"] = ms.size();
+        for (const auto& [name, value] : options.fullHdMs)
+            if (name == method) mean["ms_1080p"] = value;
+        means.push_back(mean);
+    }
+    rows.insert(rows.end(), means.begin(), means.end());
+
+    {
+        std::ostringstream csv;
+        csv << "scene,method,ms,ms_1080p,psnr_whole,ssim_whole,psnr_edge,ssim_edge,psnr_texture,ssim_"
+               "texture\n";
+        for (const json& r : rows) {
+            csv << r["scene"].get<std::string>() << ',' << r["method"].get<std::string>() << ','
+                << r["ms"].get<double>() << ','
+                << (r.contains("ms_1080p") ? std::to_string(r["ms_1080p"].get<double>()) : "");
+            for (const char* key : kKeys)
+                csv << ',' << (r[key].is_null() ? std::string() : std::to_string(r[key].get<double>()));
+            csv << '\n';
+        }
+        writeTextFileAtomically((out / "results.csv").string(), csv.str());
+        writeTextFileAtomically((out / "results.json").string(), json(rows).dump(2) + "\n");
+    }
+    const bool useFullHd = !options.fullHdMs.empty();
+    {
+        Plot pareto;
+        pareto.title = "run time against error (mean PSNR over the frames)";
+        pareto.xLabel =
+            useFullHd ? "ms per 1920x1080 frame (median, log scale)" : "ms per frame (median, log scale)";
+        pareto.yLabel = "PSNR (dB)";
+        pareto.logX = true;
+        PlotSeries points;
+        points.lines = false, points.markers = true, points.labels = true;
+        for (const json& m : means) {
+            const double ms =
+                useFullHd && m.contains("ms_1080p") ? m["ms_1080p"].get<double>() : m["ms"].get<double>();
+            points.x.push_back(std::max(ms, 0.01));
+            points.y.push_back(m["psnr_whole"].is_null() ? NAN : m["psnr_whole"].get<double>());
+            points.pointLabels.push_back(m["method"]);
+        }
+        pareto.series.push_back(points);
+        writePlotPng((out / "pareto.png").string(), pareto);
+    }
+    if (!mosaicRows.empty())
+        writeMosaicPng((out / "mosaic.png").string(), mosaicRows, mosaicLabels, mosaicColumns);
+    {
+        std::ostringstream html;
+        html << "<!doctype html>\n<html><head><meta charset=utf-8><title>" << htmlEscape(options.title)
+             << "</"
+                "title>\n<style>body{font-family:sans-serif;margin:24px;color:#222}table{border-collapse:"
+                "collapse}"
+                "td,th{border:1px solid #ccc;padding:4px 8px;text-align:right}th{background:#f3f3f3}"
+                "td:first-child{text-align:left}.row{display:flex;flex-wrap:wrap;gap:8px}"
+                "figure{margin:0;font-size:12px}img{image-rendering:pixelated;display:block}"
+                "img.map{width:240px;margin-top:4px}</style></head><body>\n";
+        html << "<h1>" << htmlEscape(options.title) << "</h1>\n<p>" << options.intro << "</p>\n";
+        for (const std::string& n : options.notes) html << "<p><b>Note:</b> " << htmlEscape(n) << "</p>\n";
+        html
+            << "<h2>Mean over frames</h2>\n<table><tr><th>method</th><th>PSNR (dB)</th><th>SSIM</th><th>edge "
+               "PSNR</th><th>edge SSIM</th><th>texture PSNR</th><th>texture SSIM</th><th>ms per frame</th>"
+            << (useFullHd ? "<th>ms at 1920×1080</th>" : "") << "</tr>\n";
+        for (const json& m : means) {
+            auto cell = [&](const char* key, const char* format) {
+                if (!m.contains(key) || m[key].is_null()) return std::string("–");
+                char text[32];
+                std::snprintf(text, sizeof text, format, m[key].get<double>());
+                return std::string(text);
+            };
+            html << "<tr><td>" << htmlEscape(m["method"]) << "</td><td>" << cell("psnr_whole", "%.2f")
+                 << "</td><td>" << cell("ssim_whole", "%.4f") << "</td><td>" << cell("psnr_edge", "%.2f")
+                 << "</td><td>" << cell("ssim_edge", "%.4f") << "</td><td>" << cell("psnr_texture", "%.2f")
+                 << "</td><td>" << cell("ssim_texture", "%.4f") << "</td><td>" << cell("ms", "%.2f")
+                 << "</td>" << (useFullHd ? "<td>" + cell("ms_1080p", "%.1f") + "</td>" : "") << "</tr>\n";
+        }
+        html << "</table>\n<p><img src=\"pareto.png\" width=720></p>\n"
+             << "<p>Crops: where the unfiltered frame is furthest from the truth, zoomed " << kCropZoom
+             << "× (click for the full frame); below each, its SSIM map (yellow = 1, dark = 0).</p>\n"
+             << sections.str();
+        if (!mosaicRows.empty())
+            html << "<h2>Mosaic</h2><p><img src=\"mosaic.png\" style=\"max-width:100%\"></p>\n";
+        html << "</body></html>\n";
+        writeTextFileAtomically((out / "report.html").string(), html.str());
+    }
+    return rows;
+}
+
+void printQualityTable(const std::vector<json>& rows, bool meansOnly) {
+    const bool fullHd =
+        std::any_of(rows.begin(), rows.end(), [](const json& r) { return r.contains("ms_1080p"); });
+    std::printf("%-14s %-24s %9s %8s %9s %9s %9s%s  %s\n", "scene", "method", "PSNR dB", "SSIM", "edge dB",
+                "texture", "ms", fullHd ? "  ms 1080p" : "", "");
+    for (const json& r : rows) {
+        if (meansOnly && r["scene"] != "mean") continue;
+        auto number = [&](const char* key, const char* format) {
+            if (!r.contains(key) || r[key].is_null()) return std::string("-");
+            char text[32];
+            std::snprintf(text, sizeof text, format, r[key].get<double>());
+            return std::string(text);
+        };
+        std::printf(
+            "%-14s %-24s %9s %8s %9s %9s %9s%s  %s\n", r["scene"].get<std::string>().c_str(),
+            r["method"].get<std::string>().c_str(), number("psnr_whole", "%.2f").c_str(),
+            number("ssim_whole", "%.4f").c_str(), number("psnr_edge", "%.2f").c_str(),
+            number("psnr_texture", "%.2f").c_str(), number("ms", "%.2f").c_str(),
+            fullHd ? ("  " + std::string(9 - std::min<size_t>(9, number("ms_1080p", "%.1f").size()), ' ') +
+                      number("ms_1080p", "%.1f"))
+                         .c_str()
+                   : "",
+            r.value("note", "").c_str());
+    }
+}
+
+// ---- dejag bench quality ------------------------------------------------------------------------------
+
+std::vector<json> benchQuality(const QualityBenchOptions& options) {
+    if (options.data.empty() && options.pairs.empty())
+        throw Error("give a dataset folder (--data) and/or --pairs");
+    if (options.repeat < 1) throw Error("--repeat must be >= 1");
+    StillMethods::Options methodOptions;
+    methodOptions.models = options.models;
+    methodOptions.fxaaPresets = {12, 23, 39};
+    methodOptions.chains = true;
+    StillMethods methods(methodOptions);
+    std::vector<QualityCase> cases;
+    if (!options.data.empty()) {
+        for (data::EvaluationItem& item :
+             data::loadEvaluationItems(options.data, data::Split::Test, options.limit)) {
+            QualityCase c;
+            c.name = item.family + "/" + item.id;
+            c.heldOut = true;
+            c.item = std::move(item);
+            cases.push_back(std::move(c));
+        }
+    }
+    if (!options.pairs.empty()) {
+        if (!fs::is_directory(options.pairs)) throw Error("--pairs '" + options.pairs + "' is not a folder");
+        std::vector<fs::path> inputs;
+        for (const auto& entry : fs::directory_iterator(options.pairs)) {
+            const std::string stem = entry.path().stem().string();
+            if (stem.size() > 6 && stem.compare(stem.size() - 6, 6, "_input") == 0)
+                inputs.push_back(entry.path());
+        }
+        std::sort(inputs.begin(), inputs.end());
+        if (inputs.empty()) throw Error("--pairs '" + options.pairs + "' holds no NAME_input.* image");
+        for (const fs::path& input : inputs) {
+            const std::string stem = input.stem().string(), name = stem.substr(0, stem.size() - 6);
+            fs::path truth;
+            for (const auto& entry : fs::directory_iterator(options.pairs))
+                if (entry.path().stem().string() == name + "_truth") truth = entry.path();
+            if (truth.empty()) throw Error("pair '" + name + "' has no " + name + "_truth image");
+            QualityCase c;
+            c.name = name;
+            c.item.id = name;
+            Image in = readImage(input.string()), tr = readImage(truth.string());
+            auto toSrgb = [](Image image, const std::string& what) {
+                if (image.findChannel("R") != 0 || image.findChannel("G") != 1 || image.findChannel("B") != 2)
+                    throw Error("'" + what + "' has no R, G, B channels first");
+                const bool linear = image.storage == PixelType::Half || image.storage == PixelType::Float;
+                Image out(image.width, image.height, {"R", "G", "B"}, PixelType::Float);
+                for (size_t p = 0; p < image.pixelCount(); ++p)
+                    for (size_t k = 0; k < 3; ++k) {
+                        const float v = image.pixels[p * size_t(image.channels()) + k];
+                        out.pixels[p * 3 + k] =
+                            std::clamp(linear ? linearToSrgb(std::max(v, 0.0f)) : v, 0.0f, 1.0f);
+                    }
+                return out;
+            };
+            c.item.input = toSrgb(std::move(in), input.string());
+            c.item.truth = toSrgb(std::move(tr), truth.string());
+            if (c.item.input.width != c.item.truth.width || c.item.input.height != c.item.truth.height)
+                throw Error("pair '" + name + "': input and truth differ in size");
+            // No buffers: scored on whole images only.
+            for (int r = 0; r < int(data::Region::Count); ++r) {
+                c.item.masks[r] = Image(c.item.input.width, c.item.input.height, {"Y"}, PixelType::Float);
+                c.item.hasRegion[r] = r == int(data::Region::Whole);
+            }
+            cases.push_back(std::move(c));
+        }
+    }
+    Progress progress("bench quality", int64_t(cases.size()), options.quiet);
+    for (size_t i = 0; i < cases.size(); ++i) {
+        methods.run(cases[i], options.repeat);
+        scoreCase(cases[i]);
+        // Only a spread of cases keeps its images (crops for the report); the rest keep their scores.
+        cases[i].inReport =
+            options.reportItems > 0 && (i * size_t(options.reportItems)) / cases.size() !=
+                                           ((i + 1) * size_t(options.reportItems)) / cases.size();
+        if (!cases[i].inReport)
+            for (MethodResult& r : cases[i].methods) r.output = Image();
+        progress.advance(1);
+    }
+    progress.finish();
+    ReportOptions report;
+    report.out = options.out;
+    report.title = "dejag bench quality: run time against error";
+    report.intro =
+        "Every single-frame method on the test split (families never trained on)" +
+        std::string(options.pairs.empty() ? "" : " and the given pairs") +
+        ", against the 128-sample truth. Scores on sRGB values in [0, 1]; edge = within 1 px of a "
+        "geometric edge, texture = detailed pixels 3 px or more from one. TAA needs sequences: see "
+        "dejag demo and dejag bench taa.";
+    report.notes = methods.notes();
+    if (options.fullHd) {
+        // A rendered 1920x1080 frame with its buffers: the size the targets are set at.
+        const auto context = render::createOsMesaContext();
+        const render::Scene scene = render::buildScene("atrium");
+        render::Renderer renderer(*context, scene, 1920, 1080);
+        render::FrameRequest request;
+        request.buffers = render::BufferSet::parse("color,depth,id");
+        const render::Frame frame = renderer.render(request);
+        const Image rgb = rgbImage(frameChannels(frame, 0, 3, true), 1920, 1080);
+        const Image buffers = imageFromFrame(render::Frame(frame));
+        const std::vector<float> depth = frameChannels(frame, buffers.findChannel("depth.Z"), 1, false);
+        const std::vector<float> ids = frameChannels(frame, buffers.findChannel("id.ID"), 1, false);
+        const std::vector<double> ms = methods.time(rgb, depth.data(), ids.data(), options.repeat);
+        const std::vector<std::string> names = methods.names();
+        for (size_t i = 0; i < names.size(); ++i) report.fullHdMs.emplace_back(names[i], ms[i]);
+    }
+    for (const std::string& n : report.notes) std::fprintf(stderr, "bench quality: %s\n", n.c_str());
+    return writeQualityReport(report, cases);
+}
+
+}  // namespace dejag::bench

@@ -1,0 +1,94 @@
+// dejag/bench: run time against error — every method scored on the same frames against their truth,
+// with the report shared by `dejag demo` and `dejag bench quality`.
+//
+// A case is one frame (sRGB RGB in [0, 1]) with its truth and region masks (data/evaluation.h) and,
+// when rendered, its depth and ID buffers (the CNN's gate uses them). Single-frame methods: no AA, FXAA
+// (presets), each network gated and ungated, and chains (FXAA then the network). Sequence methods
+// (U-TAA, T-TAA) are added by the caller when the case has a sequence.
+#pragma once
+
+#include <functional>
+#include <memory>
+#include <nlohmann/json.hpp>
+#include <string>
+#include <vector>
+
+#include "data/evaluation.h"
+#include "data/image.h"
+
+namespace dejag::bench {
+
+struct MethodResult {
+    std::string name;
+    Image output;            // sRGB RGB, float
+    double ms = 0;           // median per frame at the case's size
+    data::ImageScore score;  // filled by scoreCase()
+    std::string note;        // "gated: 42 % of tiles"
+};
+
+struct QualityCase {
+    std::string name;
+    bool heldOut = false;  // from a family no network trained on
+    data::EvaluationItem item;
+    std::vector<float> depth, ids;  // (H, W) each, or empty
+    std::vector<MethodResult> methods;
+    bool inReport = true;  // crops and SSIM maps in the HTML report
+};
+
+// The single-frame methods, built once (models loaded and checked up front).
+class StillMethods {
+  public:
+    struct Options {
+        std::vector<std::string> models;  // model files; missing ones are noted and skipped
+        std::vector<int> fxaaPresets = {39};
+        bool ungated = true;  // RGB networks also without gating
+        bool chains = false;  // FXAA 39 then each network
+    };
+    explicit StillMethods(const Options& options);
+    ~StillMethods();
+    const std::vector<std::string>& notes() const;
+    std::vector<std::string> names() const;
+    // Runs every method on the case (one warm-up run, then the median of `repeat` timed runs).
+    void run(QualityCase& c, int repeat);
+    // Median ms per method on a frame of any size (sRGB RGB), e.g. 1920x1080; same order as names().
+    std::vector<double> time(const Image& frame, const float* depth, const float* ids, int repeat);
+
+  private:
+    struct Impl;
+    std::unique_ptr<Impl> impl_;
+};
+
+// Scores every method of the case on every region.
+void scoreCase(QualityCase& c);
+
+struct ReportOptions {
+    std::string out;    // folder: report.html, mosaic.png, pareto.png, results.csv, results.json, images/
+    std::string title;  // of the report
+    std::string intro;  // HTML paragraph under the title
+    std::vector<std::string> notes;
+    std::vector<std::pair<std::string, double>> fullHdMs;  // optional: method -> ms at 1920x1080
+};
+// Writes the report from scored cases; returns one JSON row per (case, method) and a "mean" row per
+// method (means over cases, ms a median; plus ms_1080p when given).
+std::vector<nlohmann::json> writeQualityReport(const ReportOptions& options,
+                                               const std::vector<QualityCase>& cases);
+
+// Prints rows as a table (the "mean" rows, or all rows).
+void printQualityTable(const std::vector<nlohmann::json>& rows, bool meansOnly);
+
+// `dejag bench quality`: the test split of a dataset (and/or a folder of pairs NAME_input.* +
+// NAME_truth.*), every single-frame method, timing at native size and at 1920x1080.
+struct QualityBenchOptions {
+    std::string data;   // dataset folder ("" to skip)
+    std::string pairs;  // folder of pairs ("" to skip)
+    std::string out = "out/quality";
+    std::vector<std::string> models;
+    int limit = 0;  // test items (0: all)
+    int repeat = 3;
+    int reportItems = 8;  // cases with crops in the report
+    bool fullHd = true;   // time every method on a rendered 1920x1080 frame
+    bool quiet = false;
+};
+std::vector<nlohmann::json> benchQuality(const QualityBenchOptions& options);
+
+}  // namespace dejag::bench
