@@ -81,6 +81,10 @@ void registerTrainCommand(CLI::App& app) {
         ->add_option("--patience", config->patience,
                      "stop after this many evaluations without improvement (0: never)")
         ->capture_default_str();
+    auto families = std::make_shared<std::string>();
+    trainCommand->add_option(
+        "--families", *families,
+        "train and validate on these families only (comma-separated; default: all but the test ones)");
     trainCommand->add_flag("--resume", config->resume, "continue the run in --out from its checkpoint");
     trainCommand->add_flag("--json", config->json, "log lines as JSON objects");
     trainCommand->add_flag("--quiet", config->quiet, "no progress bar");
@@ -123,6 +127,11 @@ void registerTrainCommand(CLI::App& app) {
         if (exportCommand->parsed()) return;
         applyRuntimeOptions(*runtime);
         config->poisonSteps = parseSteps(*poison);
+        config->families.clear();
+        std::stringstream list(*families);
+        std::string family;
+        while (std::getline(list, family, ','))
+            if (!family.empty()) config->families.push_back(family);
         config->commandLine = invocation();
         const train::TrainResult r = train::trainModel(*config, standardBaselines());
         if (config->json)

@@ -122,10 +122,14 @@ void computeRegionMasks(EvaluationItem& item, const Image& buffers) {
     for (int r = 0; r < int(Region::Count); ++r) item.hasRegion[r] = counts[r] >= kMinimumRegionPixels;
 }
 
-std::vector<EvaluationItem> loadEvaluationItems(const std::string& folder, Split split, int limit) {
+std::vector<EvaluationItem> loadEvaluationItems(const std::string& folder, Split split, int limit,
+                                                const std::vector<std::string>& families) {
     std::vector<nlohmann::json> records;
     for (nlohmann::json& record : readManifest(folder))
-        if (record.value("split", "") == splitName(split)) records.push_back(std::move(record));
+        if (record.value("split", "") == splitName(split) &&
+            (families.empty() ||
+             std::find(families.begin(), families.end(), record.value("family", "")) != families.end()))
+            records.push_back(std::move(record));
     if (records.empty())
         throw Error("'" + folder + "' has no " + std::string(splitName(split)) + " items to evaluate on");
     std::vector<size_t> chosen;

@@ -31,9 +31,10 @@ struct EvaluationItem {
     bool hasRegion[int(Region::Count)]{};  // the region holds enough pixels to score (>= 64)
 };
 
-// Items of `split` (all, or `limit` of them spread evenly over the split's manifest order). Throws
-// dejag::Error if the split is empty or an item cannot be read.
-std::vector<EvaluationItem> loadEvaluationItems(const std::string& folder, Split split, int limit = 0);
+// Items of `split` (all, or `limit` of them spread evenly over the split's manifest order), of the given
+// families only if any. Throws dejag::Error if none is left or an item cannot be read.
+std::vector<EvaluationItem> loadEvaluationItems(const std::string& folder, Split split, int limit = 0,
+                                                const std::vector<std::string>& families = {});
 
 // Region masks of an item from its rendered buffers (id.ID, depth.Z) and its truth (sRGB RGB).
 void computeRegionMasks(EvaluationItem& item, const Image& buffers);

@@ -91,7 +91,10 @@ PatchSampler::PatchSampler(const std::string& folder, const PatchOptions& option
     // manifest's whatever the thread count.
     std::vector<nlohmann::json> records;
     for (nlohmann::json& record : readManifest(folder))
-        if (record["split"] == splitName(options.split)) records.push_back(std::move(record));
+        if (record["split"] == splitName(options.split) &&
+            (options.families.empty() || std::find(options.families.begin(), options.families.end(),
+                                                   record.value("family", "")) != options.families.end()))
+            records.push_back(std::move(record));
     items_.resize(records.size());
     parallelFor(0, int64_t(records.size()), 1, [&](int64_t first, int64_t last) {
         for (int64_t i = first; i < last; ++i) loadItem(records[size_t(i)], items_[size_t(i)]);

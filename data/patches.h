@@ -29,8 +29,9 @@ struct PatchOptions {
     double hueJitter = 0.03;        // per-channel gain in [1 - h, 1 + h]
     bool grayscale = false;         // luma 0.21 R + 0.72 G + 0.07 B of the sRGB-encoded values
     uint64_t seed = 1;
-    int prefetch = 2;         // batches assembled ahead on the background thread
-    uint64_t firstBatch = 0;  // next() starts at this batch (a resumed training run)
+    int prefetch = 2;                   // batches assembled ahead on the background thread
+    uint64_t firstBatch = 0;            // next() starts at this batch (a resumed training run)
+    std::vector<std::string> families;  // only items of these families (empty: all)
 };
 
 // Values are sRGB-encoded in [0, 1] (the networks see display-referred images, like FXAA).

@@ -66,16 +66,19 @@ json configToJson(const TrainConfig& c) {
             {"checkpoint_every", c.checkpointEvery},
             {"validation_images", c.validationImages},
             {"patience", c.patience},
+            {"families", c.families},
             {"threads", threadCount()}};
 }
 
 // The settings that must not change when a run is resumed (they change the batches or the updates).
 void requireSameRun(const json& saved, const json& now) {
-    for (const char* key : {"arch", "loss", "batch", "patch", "lr", "warmup_steps", "clip_norm", "seed"})
-        if (saved.at(key) != now.at(key))
-            throw Error(std::string("--resume: '") + key + "' was " + saved.at(key).dump() +
-                        " in this run, now " + now.at(key).dump() +
-                        "; resume with the same settings or start a new --out");
+    for (const char* key :
+         {"arch", "loss", "batch", "patch", "lr", "warmup_steps", "clip_norm", "seed", "families"}) {
+        const json before = saved.contains(key) ? saved.at(key) : json::array();  // runs before --families
+        if (before != now.at(key))
+            throw Error(std::string("--resume: '") + key + "' was " + before.dump() + " in this run, now " +
+                        now.at(key).dump() + "; resume with the same settings or start a new --out");
+    }
 }
 
 // One row of the log: the mean loss since the previous row, and validation figures at evaluations.
@@ -361,6 +364,7 @@ TrainResult trainModel(const TrainConfig& config, const std::vector<Baseline>& b
     data::PatchOptions patches;
     patches.patchSize = config.patch, patches.batchSize = config.batch, patches.seed = config.seed;
     patches.grayscale = grey, patches.firstBatch = uint64_t(state.step);
+    patches.families = config.families;
     data::PatchSampler sampler(config.data, patches);
     int64_t totalSteps = config.steps;
     if (totalSteps == 0) {
@@ -380,8 +384,8 @@ TrainResult trainModel(const TrainConfig& config, const std::vector<Baseline>& b
     schedule.warmupSteps = config.warmupSteps, schedule.totalSteps = totalSteps;
 
     // Validation: the baselines are scored once; the network at every evaluation.
-    const std::vector<data::EvaluationItem> validation =
-        data::loadEvaluationItems(config.data, data::Split::Validation, config.validationImages);
+    const std::vector<data::EvaluationItem> validation = data::loadEvaluationItems(
+        config.data, data::Split::Validation, config.validationImages, config.families);
     std::vector<Method> baselineMethods;
     for (const Baseline& b : baselines) baselineMethods.push_back({b.name, b.apply});
     const std::vector<MethodScores> baselineScores = scoreMethods(validation, baselineMethods, grey);
@@ -400,7 +404,7 @@ TrainResult trainModel(const TrainConfig& config, const std::vector<Baseline>& b
         for (const MethodScores& b : baselineScores)
             for (int k = 0; k < int(data::Region::Count); ++k)
                 baselineJson[b.name][data::regionName(data::Region(k))] = {{"psnr", b.summary.psnr[k]},
-                                                                          {"ssim", b.summary.ssim[k]}};
+                                                                           {"ssim", b.summary.ssim[k]}};
         run["validation_baselines"] = baselineJson;
         writeTextFileAtomically((fs::path(config.out) / "run.json").string(), run.dump(2) + "\n");
     }
@@ -628,8 +632,10 @@ std::string exportModel(const std::string& run, const std::string& modelPath,
     methods.push_back({"network", [&](const Image& im) { return runner.run(im); }});
     if (!quiet)
         std::fprintf(stderr, "scoring on the validation and test splits of '%s'...\n", dataFolder.c_str());
-    const auto validation =
-        scoreMethods(data::loadEvaluationItems(dataFolder, data::Split::Validation), methods, grey);
+    const std::vector<std::string> families =
+        runJson.at("config").value("families", std::vector<std::string>{});
+    const auto validation = scoreMethods(
+        data::loadEvaluationItems(dataFolder, data::Split::Validation, 0, families), methods, grey);
     const auto testItems = data::loadEvaluationItems(dataFolder, data::Split::Test, testImages);
     const auto test = scoreMethods(testItems, methods, grey);
 
@@ -710,7 +716,15 @@ std::string exportModel(const std::string& run, const std::string& modelPath,
     std::snprintf(line, sizeof line, "### Test split (%zu images of families never trained on)\n\n",
                   testItems.size());
     md << line << scoreTable(test) << "\n";
-    md << "### Validation split\n\n" << scoreTable(validation) << "\n";
+    {
+        std::string trained = "every family but the test ones";
+        if (!families.empty()) {
+            trained.clear();
+            for (const std::string& f : families) trained += (trained.empty() ? "" : ", ") + f;
+        }
+        md << "### Validation split (held-out items of the families trained on: " << trained << ")\n\n"
+           << scoreTable(validation) << "\n";
+    }
     auto gain = [](const std::vector<MethodScores>& s, size_t method) {
         return s[method].summary.psnr[0] - s[0].summary.psnr[0];
     };

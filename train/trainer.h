@@ -43,12 +43,13 @@ struct TrainConfig {
     int patience = 0;           // evaluations without a better validation PSNR before stopping (0: off)
     int maxBadSteps = 8;        // non-finite steps in a row before giving up
     bool resume = false;
-    bool quiet = false;                // no progress bar
-    bool json = false;                 // log lines as JSON objects on stdout
-    std::vector<int64_t> poisonSteps;  // tests: steps whose batch gets a NaN (exercises the guard)
-    int64_t stopAfterSteps = 0;        // tests: end the session after this many steps, checkpointed,
-                                       // as if killed then (0: run to the end)
-    std::string commandLine;           // recorded in run.json and the model card
+    bool quiet = false;                 // no progress bar
+    bool json = false;                  // log lines as JSON objects on stdout
+    std::vector<int64_t> poisonSteps;   // tests: steps whose batch gets a NaN (exercises the guard)
+    int64_t stopAfterSteps = 0;         // tests: end the session after this many steps, checkpointed,
+                                        // as if killed then (0: run to the end)
+    std::string commandLine;            // recorded in run.json and the model card
+    std::vector<std::string> families;  // train and validate on these families only (empty: all but test)
 };
 
 // A comparison method for validation (no AA and FXAA are wired in by the caller: train/ does not

@@ -181,6 +181,21 @@ TEST_F(Training, ExportThenLoadGivesIdenticalOutputsAndACard) {
     EXPECT_THROW(exportModel(unfinished.out, root_ + "/models/x.safetensors", baselines(), 1, true), Error);
 }
 
+TEST_F(Training, FamiliesRestrictTrainingAndNeverReachTheTestSplit) {
+    TrainConfig c = tinyConfig("families");
+    c.steps = 10, c.evalEvery = 10;
+    c.families = {"shapes", "pipes"};
+    trainModel(c, baselines());
+    const auto run = nlohmann::json::parse(std::ifstream(c.out + "/run.json"));
+    EXPECT_EQ(run["config"]["families"], nlohmann::json({"shapes", "pipes"}));
+    TrainConfig held = tinyConfig("held-out");
+    held.families = {"foliage"};  // a test family has no train items: refused
+    EXPECT_THROW(trainModel(held, baselines()), Error);
+    // Resuming with other families would not continue the same run.
+    c.resume = true, c.families = {"shapes"};
+    EXPECT_THROW(trainModel(c, baselines()), Error);
+}
+
 TEST_F(Training, RegionsSplitEdgesFromTextures) {
     const auto items = data::loadEvaluationItems(data_, data::Split::Validation);
     ASSERT_FALSE(items.empty());
