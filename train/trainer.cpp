@@ -689,7 +689,7 @@ std::string exportModel(const std::string& run, const std::string& modelPath,
     std::snprintf(
         line, sizeof line,
         "Loss `%s`, Adam, learning rate %g (cosine decay to 5 %%, %lld warm-up steps), gradient norm clipped "
-        "at %g, batch %d patches of %d px, seed %llu, %d threads.\n",
+        "at %g, batch %d patches of %d px, seed %llu, threads: %d.\n",
         config.at("loss").get<std::string>().c_str(), config.at("lr").get<double>(),
         (long long)config.at("warmup_steps").get<int64_t>(), config.at("clip_norm").get<double>(),
         config.at("batch").get<int>(), config.at("patch").get<int>(),
@@ -735,6 +735,40 @@ std::string exportModel(const std::string& run, const std::string& modelPath,
                           m + 1 < test.size() ? "," : ".\n");
             md << line;
         }
+    }
+    // The quality targets of the shipped models, checked on the test split (families never trained on).
+    auto find = [](const std::vector<MethodScores>& s, const std::string& method) -> const MethodScores* {
+        for (const MethodScores& m : s)
+            if (m.name == method) return &m;
+        return nullptr;
+    };
+    const MethodScores *none = find(test, "no AA"), *fxaa = find(test, "FXAA"), *net = find(test, "network");
+    if (none && fxaa && net) {
+        const double netGain = net->summary.psnr[0] - none->summary.psnr[0],
+                     fxaaGain = fxaa->summary.psnr[0] - none->summary.psnr[0];
+        auto verdict = [](bool ok) { return ok ? "**met**" : "**not met**"; };
+        md << "\n### Targets on the test split\n\n";
+        std::snprintf(line, sizeof line, "- network > FXAA > no AA (PSNR): %s (%.2f > %.2f > %.2f dB)\n",
+                      verdict(net->summary.psnr[0] > fxaa->summary.psnr[0] &&
+                              fxaa->summary.psnr[0] > none->summary.psnr[0]),
+                      net->summary.psnr[0], fxaa->summary.psnr[0], none->summary.psnr[0]);
+        md << line;
+        std::snprintf(line, sizeof line,
+                      "- PSNR gain over no AA at least twice FXAA's: %s (%+.2f dB against 2 x %+.2f dB)\n",
+                      verdict(netGain >= 2 * fxaaGain), netGain, fxaaGain);
+        md << line;
+        std::snprintf(line, sizeof line, "- SSIM at least FXAA's: %s (%.4f against %.4f)\n",
+                      verdict(net->summary.ssim[0] >= fxaa->summary.ssim[0]), net->summary.ssim[0],
+                      fxaa->summary.ssim[0]);
+        md << line;
+        const int t = int(data::Region::Texture);
+        std::snprintf(
+            line, sizeof line,
+            "- texture pixels never below no AA: %s (PSNR %.2f against %.2f dB, SSIM %.4f against %.4f)\n",
+            verdict(net->summary.psnr[t] >= none->summary.psnr[t] &&
+                    net->summary.ssim[t] >= none->summary.ssim[t]),
+            net->summary.psnr[t], none->summary.psnr[t], net->summary.ssim[t], none->summary.ssim[t]);
+        md << line;
     }
     const std::string cardPath = (fs::path(modelPath).parent_path() / (name + ".md")).string();
     writeTextFileAtomically(cardPath, md.str());
