@@ -308,15 +308,40 @@ const Tensor& InferencePlan::runUnchecked(const Tensor& input) {
                 blockedAdd(out, os, in, is, m.data(n.inputs[1]), m.shape(n.inputs[1]));
                 break;
             case GraphOp::Concat: {
-                forEachOutputElement(os, [&](int64_t b, int64_t c, int64_t y, int64_t x) {
-                    int64_t channel = c;
-                    for (int source : n.inputs) {
-                        const BlockedShape& ss = m.shape(source);
-                        if (channel < ss.channels) {
-                            element(out, os, b, c, y, x) = element(m.data(source), ss, b, channel, y, x);
-                            return;
+                // Row by row: a whole output block that is a whole source block is one copy; otherwise
+                // each lane is copied from its source channel (lanes past the channel count are zeroed).
+                const int B = os.block;
+                forEachRow(os, [&](int64_t b, int64_t ob, int64_t y) {
+                    float* o = out + os.offset(b, ob, y, 0);
+                    const float* sources[64];
+                    int whole = -1;  // a source whose block feeds this output block entirely
+                    for (int l = 0; l < B; ++l) {
+                        int64_t channel = ob * B + l;
+                        sources[l] = nullptr;
+                        if (channel >= os.channels) continue;
+                        for (int source : n.inputs) {
+                            const BlockedShape& ss = m.shape(source);
+                            if (channel < ss.channels) {
+                                sources[l] = m.data(source) + ss.offset(b, channel / B, y, 0) + channel % B;
+                                if (l == 0 && channel % B == 0 && channel + B <= ss.channels &&
+                                    ob * B + B <= os.channels)
+                                    whole = source;
+                                break;
+                            }
+                            channel -= ss.channels;
                         }
-                        channel -= ss.channels;
+                    }
+                    if (whole >= 0) {
+                        std::memcpy(o, sources[0], size_t(os.width * B) * sizeof(float));
+                        return;
+                    }
+                    for (int l = 0; l < B; ++l) {
+                        const float* src = sources[l];
+                        if (!src) {
+                            for (int64_t x = 0; x < os.width; ++x) o[x * B + l] = 0.0f;
+                        } else {
+                            for (int64_t x = 0; x < os.width; ++x) o[x * B + l] = src[x * B];
+                        }
                     }
                 });
                 break;
@@ -346,10 +371,24 @@ const Tensor& InferencePlan::runUnchecked(const Tensor& input) {
                 break;
             }
             case GraphOp::PixelShuffle: {
+                // out(c, y, x) = in((c f + y % f) f + x % f, y / f, x / f), row by row and lane by lane.
                 const int64_t f = n.factor;
-                forEachOutputElement(os, [&](int64_t b, int64_t c, int64_t y, int64_t x) {
-                    element(out, os, b, c, y, x) =
-                        element(in, is, b, (c * f + y % f) * f + x % f, y / f, x / f);
+                const int B = os.block;
+                forEachRow(os, [&](int64_t b, int64_t ob, int64_t y) {
+                    float* o = out + os.offset(b, ob, y, 0);
+                    for (int l = 0; l < B; ++l) {
+                        const int64_t c = ob * B + l;
+                        if (c >= os.channels) {
+                            for (int64_t x = 0; x < os.width; ++x) o[x * B + l] = 0.0f;
+                            continue;
+                        }
+                        for (int64_t j = 0; j < f; ++j) {
+                            const int64_t k = (c * f + y % f) * f + j;
+                            const float* src = in + is.offset(b, k / B, y / f, 0) + k % B;
+                            for (int64_t x = j, sx = 0; x < os.width; x += f, ++sx)
+                                o[x * B + l] = src[sx * B];
+                        }
+                    }
                 });
                 break;
             }
