@@ -28,11 +28,20 @@ TEST(Simd, FmaPeakIsMeasuredOnEveryLevel) {
     const SimdLevel original = activeSimdLevel();
     setThreadCount(1);
     setSimdLevel(SimdLevel::Scalar);
-    const double scalar = measureFmaPeak(30.0).gmacsTotal;
+    // The best of five short measurements: on a loaded machine a single one may lose its core midway.
+    auto best = [] {
+        FmaPeak top = measureFmaPeak(30.0);
+        for (int i = 0; i < 4; ++i) {
+            const FmaPeak p = measureFmaPeak(30.0);
+            if (p.gmacsTotal > top.gmacsTotal) top = p;
+        }
+        return top;
+    };
+    const double scalar = best().gmacsTotal;
     EXPECT_GT(scalar, 0.1);
     for (int level = 1; level <= int(cpuSimdLevel()); ++level) {
         setSimdLevel(SimdLevel(level));
-        const FmaPeak peak = measureFmaPeak(30.0);
+        const FmaPeak peak = best();
         EXPECT_EQ(peak.threads, 1);
         EXPECT_EQ(peak.level, SimdLevel(level));
         // 8 or 16 lanes against 1: far more multiply-adds per second, whatever the machine's load. (AVX-512
