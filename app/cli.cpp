@@ -1,5 +1,7 @@
 #include "app/cli.h"
 
+#include <sstream>
+
 #include <regex>
 
 #include "base/error.h"
@@ -34,6 +36,15 @@ Size parseSize(const std::string& text, const std::string& what) {
 std::string& invocation() {
     static std::string line;
     return line;
+}
+
+std::vector<std::string> splitList(const std::string& text) {
+    std::vector<std::string> items;
+    std::stringstream stream(text);
+    std::string item;
+    while (std::getline(stream, item, ','))
+        if (!item.empty()) items.push_back(item);
+    return items;
 }
 
 }  // namespace dejag::cli

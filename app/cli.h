@@ -3,6 +3,7 @@
 
 #include <CLI/CLI.hpp>
 #include <string>
+#include <vector>
 
 namespace dejag::cli {
 
@@ -20,6 +21,9 @@ struct Size {
 };
 // "1920x1080" -> {1920, 1080}; throws dejag::Error naming `what` on anything else or a side outside 1..16384.
 Size parseSize(const std::string& text, const std::string& what);
+
+// "a,b,,c" -> {"a", "b", "c"}: the comma-separated lists of the flags (empty items dropped).
+std::vector<std::string> splitList(const std::string& text);
 
 // The command line as typed (set by main), recorded in what a command writes (run.json, model cards).
 std::string& invocation();

@@ -282,11 +282,7 @@ void registerBenchCommand(CLI::App& app) {
         "report.html.");
     qualityBench->callback([=] {
         applyRuntimeOptions(*qualityRuntime);
-        quality->models.clear();
-        std::stringstream stream(*qualityModels);
-        std::string item;
-        while (std::getline(stream, item, ','))
-            if (!item.empty()) quality->models.push_back(item);
+        quality->models = splitList(*qualityModels);
         const std::vector<nlohmann::json> rows = bench::benchQuality(*quality);
         if (*qualityJson)
             for (const nlohmann::json& r : rows) std::printf("%s\n", r.dump().c_str());

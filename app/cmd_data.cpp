@@ -11,15 +11,6 @@
 namespace dejag::cli {
 namespace {
 
-std::vector<std::string> splitList(const std::string& text) {
-    std::vector<std::string> items;
-    std::stringstream stream(text);
-    std::string item;
-    while (std::getline(stream, item, ','))
-        if (!item.empty()) items.push_back(item);
-    return items;
-}
-
 struct GenerateArguments {
     std::string families = "all", testFamilies = "default", size = "256x256", out;
     int count = 0, truth = 128, workers = 2;

@@ -40,16 +40,8 @@ void registerDemoCommand(CLI::App& app) {
         applyRuntimeOptions(*runtime);
         const Size s = parseSize(*size, "--size");
         options->width = s.width, options->height = s.height;
-        auto split = [](const std::string& text) {
-            std::vector<std::string> items;
-            std::stringstream stream(text);
-            std::string item;
-            while (std::getline(stream, item, ','))
-                if (!item.empty()) items.push_back(item);
-            return items;
-        };
-        options->scenes = split(*scenes);
-        options->models = split(*models);
+        options->scenes = splitList(*scenes);
+        options->models = splitList(*models);
         if (options->repeat < 1) throw Error("--repeat must be >= 1");
         const std::vector<nlohmann::json> rows = bench::runDemo(*options);
         if (*json) {

@@ -329,10 +329,7 @@ void runFilter(const FilterArguments& args) {
     if (!args.method.empty()) {
         methods.push_back(args.method);
     } else {
-        std::stringstream stream(args.chain);
-        std::string item;
-        while (std::getline(stream, item, ','))
-            if (!item.empty()) methods.push_back(item);
+        methods = splitList(args.chain);
         if (methods.empty()) throw Error("--chain is empty");
     }
     std::string taaMethod;

@@ -127,11 +127,7 @@ void registerTrainCommand(CLI::App& app) {
         if (exportCommand->parsed()) return;
         applyRuntimeOptions(*runtime);
         config->poisonSteps = parseSteps(*poison);
-        config->families.clear();
-        std::stringstream list(*families);
-        std::string family;
-        while (std::getline(list, family, ','))
-            if (!family.empty()) config->families.push_back(family);
+        config->families = splitList(*families);
         config->commandLine = invocation();
         const train::TrainResult r = train::trainModel(*config, standardBaselines());
         if (config->json)

@@ -49,6 +49,18 @@ struct Range {
     }
 };
 
+// An 8-bit BGR OpenCV canvas written as an 8-bit RGB PNG (atomically, by writeImage).
+void writeCanvas(const std::string& path, const cv::Mat& canvas) {
+    Image image(canvas.cols, canvas.rows, {"R", "G", "B"}, PixelType::UInt8);
+    for (int y = 0; y < canvas.rows; ++y)
+        for (int x = 0; x < canvas.cols; ++x) {
+            const cv::Vec3b c = canvas.at<cv::Vec3b>(y, x);
+            float* p = &image.pixels[(size_t(y) * size_t(canvas.cols) + size_t(x)) * 3];
+            p[0] = c[2] / 255.0f, p[1] = c[1] / 255.0f, p[2] = c[0] / 255.0f;
+        }
+    writeImage(path, image);
+}
+
 }  // namespace
 
 Rgb plotColour(int index) {
@@ -157,14 +169,7 @@ void writePlotPng(const std::string& path, const Plot& plot) {
         if (y0 + turned.rows <= H && turned.cols + 6 <= left)
             turned.copyTo(canvas(cv::Rect(6, y0, turned.cols, turned.rows)));
     }
-    Image image(W, H, {"R", "G", "B"}, PixelType::UInt8);
-    for (int y = 0; y < H; ++y)
-        for (int x = 0; x < W; ++x) {
-            const cv::Vec3b c = canvas.at<cv::Vec3b>(y, x);
-            float* p = &image.pixels[(size_t(y) * size_t(W) + size_t(x)) * 3];
-            p[0] = c[2] / 255.0f, p[1] = c[1] / 255.0f, p[2] = c[0] / 255.0f;
-        }
-    writeImage(path, image);
+    writeCanvas(path, canvas);
 }
 
 void writeMosaicPng(const std::string& path, const std::vector<std::vector<Image>>& rows,
@@ -199,14 +204,7 @@ void writeMosaicPng(const std::string& path, const std::vector<std::vector<Image
     for (int c = 0; c < columns && c < int(columnLabels.size()); ++c)
         cv::putText(canvas, columnLabels[size_t(c)], {left + c * (cw + gap) + 4, 20}, font, 0.45, ink, 1,
                     cv::LINE_AA);
-    Image image(W, H, {"R", "G", "B"}, PixelType::UInt8);
-    for (int y = 0; y < H; ++y)
-        for (int x = 0; x < W; ++x) {
-            const cv::Vec3b v = canvas.at<cv::Vec3b>(y, x);
-            float* p = &image.pixels[(size_t(y) * size_t(W) + size_t(x)) * 3];
-            p[0] = v[2] / 255.0f, p[1] = v[1] / 255.0f, p[2] = v[0] / 255.0f;
-        }
-    writeImage(path, image);
+    writeCanvas(path, canvas);
 }
 
 }  // namespace dejag
