@@ -397,7 +397,8 @@ TrainResult trainModel(const TrainConfig& config, const std::vector<Baseline>& b
             {"command", config.commandLine},
             {"architecture", model.architecture()},
             {"parameters", model.parameterCount()},
-            {"macs_per_pixel", double(model.macs({1, model.inputChannels(), 256, 256})) / (256.0 * 256.0)}};
+            {"macs_per_pixel", double(model.macs({1, model.inputChannels(), 256, 256})) / (256.0 * 256.0)},
+            {"validation_items", validation.size()}};
         const std::string datasetJson = (fs::path(config.data) / "dataset.json").string();
         if (fs::exists(datasetJson)) run["dataset"] = json::parse(readText(datasetJson));
         json baselineJson = json::object();
@@ -701,7 +702,8 @@ std::string exportModel(const std::string& run, const std::string& modelPath,
         "the weights are those of step %lld, the best validation PSNR (%.2f dB on %d images).\n\n",
         (long long)finished.at("steps").get<int64_t>(), formatDuration(finished.at("seconds")).c_str(),
         (long long)finished.at("skipped").get<int64_t>(), (long long)finished.at("best_step").get<int64_t>(),
-        finished.at("best_psnr").get<double>(), config.at("validation_images").get<int>());
+        finished.at("best_psnr").get<double>(),
+        runJson.value("validation_items", config.at("validation_images").get<int>()));
     md << line;
     if (runJson.contains("dataset")) {
         const json& d = runJson.at("dataset");
