@@ -746,8 +746,6 @@ std::string exportModel(const std::string& run, const std::string& modelPath,
     };
     const MethodScores *none = find(test, "no AA"), *fxaa = find(test, "FXAA"), *net = find(test, "network");
     if (none && fxaa && net) {
-        const double netGain = net->summary.psnr[0] - none->summary.psnr[0],
-                     fxaaGain = fxaa->summary.psnr[0] - none->summary.psnr[0];
         auto verdict = [](bool ok) { return ok ? "**met**" : "**not met**"; };
         md << "\n### Targets on the test split\n\n";
         std::snprintf(line, sizeof line, "- network > FXAA > no AA (PSNR): %s (%.2f > %.2f > %.2f dB)\n",
@@ -755,6 +753,11 @@ std::string exportModel(const std::string& run, const std::string& modelPath,
                               fxaa->summary.psnr[0] > none->summary.psnr[0]),
                       net->summary.psnr[0], fxaa->summary.psnr[0], none->summary.psnr[0]);
         md << line;
+    }
+    if (none && fxaa && net && !grey) {  // dejag-fast's targets; the grey replica: the published ordering
+        const double netGain = net->summary.psnr[0] - none->summary.psnr[0],
+                     fxaaGain = fxaa->summary.psnr[0] - none->summary.psnr[0];
+        auto verdict = [](bool ok) { return ok ? "**met**" : "**not met**"; };
         std::snprintf(line, sizeof line,
                       "- PSNR gain over no AA at least twice FXAA's: %s (%+.2f dB against 2 x %+.2f dB)\n",
                       verdict(netGain >= 2 * fxaaGain), netGain, fxaaGain);
