@@ -70,11 +70,14 @@ std::vector<json> runDemo(const DemoOptions& options) {
 
         // TAA: `historyFrames` Halton-jittered frames of the still camera, the last one scored; time =
         // median per frame after the first two.
-        infer::TaaOptions u, t;
+        // As spec/taa.md has them (with their sharpen), and T-TAA without its sharpen (docs/infer.md: the
+        // sharpen costs several dB on edge-dense frames).
+        infer::TaaOptions u, t, tFlat;
         t.improved = true;
-        infer::Taa taas[2] = {infer::Taa(u), infer::Taa(t)};
-        std::vector<float> outputs[2];
-        std::vector<double> times[2];
+        tFlat.improved = true, tFlat.sharpen = false;
+        infer::Taa taas[3] = {infer::Taa(u), infer::Taa(t), infer::Taa(tFlat)};
+        std::vector<float> outputs[3];
+        std::vector<double> times[3];
         for (int i = 0; i < options.historyFrames; ++i) {
             render::FrameRequest r;
             r.time = 0, r.previousTime = 0;
@@ -93,15 +96,15 @@ std::vector<json> runDemo(const DemoOptions& options) {
             frame.width = W, frame.height = H;
             frame.colour = colour.data(), frame.albedo = albedo.data(), frame.depth = depth.data();
             frame.motion = motion.data(), frame.ids = ids.data(), frame.previousDepth = previousDepth.data();
-            for (int k = 0; k < 2; ++k) {
+            for (int k = 0; k < 3; ++k) {
                 outputs[k].resize(colour.size());
                 const Stopwatch clock;
                 taas[k].apply(frame, outputs[k].data());
                 if (i >= 2) times[k].push_back(clock.elapsedMs());
             }
         }
-        const char* names[2] = {"U-TAA", "T-TAA"};
-        for (int k = 0; k < 2; ++k) {
+        const char* names[3] = {"U-TAA", "T-TAA", "T-TAA unsharpened"};
+        for (int k = 0; k < 3; ++k) {
             MethodResult r;
             r.name = names[k];
             r.ms = times[k].empty() ? 0.0 : median(times[k]);
@@ -122,7 +125,7 @@ std::vector<json> runDemo(const DemoOptions& options) {
         std::to_string(W) + "×" + std::to_string(H) +
         " frames; truth: " + std::to_string(options.truthSamples) +
         " Halton samples per pixel (adaptive). No AA, FXAA and the networks filter one unjittered frame; "
-        "U-TAA and T-TAA (spec/taa.md, with their sharpen) the last of " +
+        "U-TAA and T-TAA (spec/taa.md, with their sharpen; and T-TAA without it) the last of " +
         std::to_string(options.historyFrames) +
         " jittered frames. Scores on sRGB values in [0, 1]; edge = within 1 px of a geometric edge, "
         "texture = detailed pixels 3 px or more from one.";

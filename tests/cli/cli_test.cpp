@@ -513,8 +513,9 @@ TEST(Cli, DemoRunsEveryMethodAndWritesTheReport) {
             EXPECT_LT(j["psnr_whole"].get<double>(), 60.0);
         }
     }
-    EXPECT_EQ(methods, (std::set<std::string>{"no AA", "FXAA", "U-TAA", "T-TAA", "tiny", "tiny (ungated)"}));
-    EXPECT_EQ(rows, 3 * 6);
+    EXPECT_EQ(methods, (std::set<std::string>{"no AA", "FXAA", "U-TAA", "T-TAA", "T-TAA unsharpened", "tiny",
+                                              "tiny (ungated)"}));
+    EXPECT_EQ(rows, 3 * 7);
     for (const char* f : {"report.html", "mosaic.png", "pareto.png", "results.csv", "results.json",
                           "images/pipe_FXAA_crop.png", "images/flowers_tiny_ssim.png"})
         EXPECT_TRUE(std::filesystem::exists(out + "/" + f)) << f;
