@@ -29,7 +29,7 @@ int main(int argc, char** argv) {
     dejag::flushDenormalsOnThisThread();
     for (int i = 0; i < argc; ++i) {
         std::string word = i == 0 ? std::string("dejag") : std::string(argv[i]);
-        if (word.find_first_of(" \t'\"") != std::string::npos) word = "'" + word + "'";
+        if (word.find_first_of(" \t'\"*?[]$&;|<>(){}!~`") != std::string::npos) word = "'" + word + "'";
         dejag::cli::invocation() += (i ? " " : "") + word;
     }
     CLI::App app{
