@@ -30,6 +30,8 @@ using nlohmann::json;
 namespace {
 
 constexpr const char* kCheckpointFormat = "dejag-checkpoint-1";
+// A validation PSNR counts as better (a new best model, patience restarts) only above the best by this.
+constexpr double kMinimumImprovementDb = 0.001;
 
 std::string readText(const std::string& path) {
     std::ifstream in(path, std::ios::binary);
@@ -526,7 +528,7 @@ TrainResult trainModel(const TrainConfig& config, const std::vector<Baseline>& b
             lossSum = 0, lossCount = 0;
             if (evaluationStep) {
                 evaluate(row);
-                if (row.psnr[0] > state.bestPsnr) {
+                if (row.psnr[0] > state.bestPsnr + kMinimumImprovementDb) {
                     state.bestPsnr = row.psnr[0], state.bestStep = state.step, state.evaluationsSinceBest = 0;
                     saveModelFile("best.safetensors", state.step);
                 } else if (config.patience > 0 && ++state.evaluationsSinceBest >= config.patience) {

@@ -181,6 +181,19 @@ TEST_F(Training, ExportThenLoadGivesIdenticalOutputsAndACard) {
     EXPECT_THROW(exportModel(unfinished.out, root_ + "/models/x.safetensors", baselines(), 1, true), Error);
 }
 
+TEST_F(Training, EarlyStoppingEndsAfterPatienceEvaluationsWithoutProgress) {
+    TrainConfig c = tinyConfig("patience");
+    c.steps = 200, c.evalEvery = 5, c.checkpointEvery = 5, c.patience = 1;
+    c.learningRate = 1e-9, c.warmupSteps = 0;  // nothing improves: the second evaluation stops the run
+    const TrainResult r = trainModel(c, baselines());
+    EXPECT_TRUE(r.stoppedEarly);
+    EXPECT_LT(r.steps, 200);
+    EXPECT_TRUE(fs::exists(c.out + "/final.safetensors"));
+    // Resuming a run that stopped early has nothing left to do.
+    c.resume = true;
+    EXPECT_EQ(trainModel(c, baselines()).steps, r.steps);
+}
+
 TEST_F(Training, FamiliesRestrictTrainingAndNeverReachTheTestSplit) {
     TrainConfig c = tinyConfig("families");
     c.steps = 10, c.evalEvery = 10;
