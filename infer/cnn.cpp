@@ -93,7 +93,7 @@ CnnFilter::CnnFilter(nn::Model model, const CnnOptions& options)
         throw Error("the gate threshold must be a finite number >= 0");
     impl_->field = receptiveField(impl_->model);
     const int a = impl_->field.stride;
-    impl_->halo = (impl_->field.radius + a + a - 1) / a * a;
+    impl_->halo = (impl_->field.radius + a - 1) / a * a;  // the receptive field, rounded up to the stride
     impl_->tile = (options.tileSize + a - 1) / a * a;
 }
 
