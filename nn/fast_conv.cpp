@@ -18,28 +18,39 @@ Tensor allocateBlocked(const BlockedShape& shape) {
     return Tensor({shape.floatCount()});
 }
 
+// Both conversions go row by row (all rows of all images and channel blocks in parallel, so a
+// 3-channel input keeps both cores busy) and, within a row, pixel by pixel: each pixel's lanes are
+// written (or read) together, one cache line of the blocked tensor at a time.
 void toBlocked(float* blocked, const float* plain, const BlockedShape& s) {
-    parallelFor(0, s.batch * s.channels, 1, [&](int64_t first, int64_t last) {
-        for (int64_t plane = first; plane < last; ++plane) {
-            const int64_t n = plane / s.channels, c = plane % s.channels;
-            const float* src = plain + plane * s.height * s.width;
-            for (int64_t y = 0; y < s.height; ++y) {
-                float* dst = blocked + s.offset(n, c / s.block, y, 0) + c % s.block;
-                for (int64_t x = 0; x < s.width; ++x) dst[x * s.block] = src[y * s.width + x];
-            }
+    const int64_t rows = s.batch * s.channelBlocks() * s.height;
+    parallelFor(0, rows, 8, [&](int64_t first, int64_t last) {
+        for (int64_t r = first; r < last; ++r) {
+            const int64_t y = r % s.height, cb = (r / s.height) % s.channelBlocks(),
+                          n = r / (s.height * s.channelBlocks());
+            const int lanes = int(std::min<int64_t>(s.block, s.channels - cb * s.block));
+            const float* src[64];
+            for (int l = 0; l < lanes; ++l)
+                src[l] = plain + ((n * s.channels + cb * s.block + l) * s.height + y) * s.width;
+            float* dst = blocked + s.offset(n, cb, y, 0);
+            for (int64_t x = 0; x < s.width; ++x)
+                for (int l = 0; l < lanes; ++l) dst[x * s.block + l] = src[l][x];
         }
     });
 }
 
 void fromBlocked(float* plain, const float* blocked, const BlockedShape& s) {
-    parallelFor(0, s.batch * s.channels, 1, [&](int64_t first, int64_t last) {
-        for (int64_t plane = first; plane < last; ++plane) {
-            const int64_t n = plane / s.channels, c = plane % s.channels;
-            float* dst = plain + plane * s.height * s.width;
-            for (int64_t y = 0; y < s.height; ++y) {
-                const float* src = blocked + s.offset(n, c / s.block, y, 0) + c % s.block;
-                for (int64_t x = 0; x < s.width; ++x) dst[y * s.width + x] = src[x * s.block];
-            }
+    const int64_t rows = s.batch * s.channelBlocks() * s.height;
+    parallelFor(0, rows, 8, [&](int64_t first, int64_t last) {
+        for (int64_t r = first; r < last; ++r) {
+            const int64_t y = r % s.height, cb = (r / s.height) % s.channelBlocks(),
+                          n = r / (s.height * s.channelBlocks());
+            const int lanes = int(std::min<int64_t>(s.block, s.channels - cb * s.block));
+            float* dst[64];
+            for (int l = 0; l < lanes; ++l)
+                dst[l] = plain + ((n * s.channels + cb * s.block + l) * s.height + y) * s.width;
+            const float* src = blocked + s.offset(n, cb, y, 0);
+            for (int64_t x = 0; x < s.width; ++x)
+                for (int l = 0; l < lanes; ++l) dst[l][x] = src[x * s.block + l];
         }
     });
 }
