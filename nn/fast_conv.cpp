@@ -20,38 +20,35 @@ Tensor allocateBlocked(const BlockedShape& shape) {
 
 // Both conversions go row by row (all rows of all images and channel blocks in parallel, so a
 // 3-channel input keeps both cores busy) and, within a row, pixel by pixel: each pixel's lanes are
-// written (or read) together, one cache line of the blocked tensor at a time.
-void toBlocked(float* blocked, const float* plain, const BlockedShape& s) {
+// written (or read) together, one cache line of the blocked tensor at a time. copyRow(blockedRow,
+// planeRows, lanes) gets the blocked row and the matching row of each of the block's planes.
+template <class Plain, class Blocked, class F>
+void forEachBlockedRow(Blocked* blocked, Plain* plain, const BlockedShape& s, const F& copyRow) {
     const int64_t rows = s.batch * s.channelBlocks() * s.height;
     parallelFor(0, rows, 8, [&](int64_t first, int64_t last) {
         for (int64_t r = first; r < last; ++r) {
             const int64_t y = r % s.height, cb = (r / s.height) % s.channelBlocks(),
                           n = r / (s.height * s.channelBlocks());
             const int lanes = int(std::min<int64_t>(s.block, s.channels - cb * s.block));
-            const float* src[64];
+            Plain* planes[64];
             for (int l = 0; l < lanes; ++l)
-                src[l] = plain + ((n * s.channels + cb * s.block + l) * s.height + y) * s.width;
-            float* dst = blocked + s.offset(n, cb, y, 0);
-            for (int64_t x = 0; x < s.width; ++x)
-                for (int l = 0; l < lanes; ++l) dst[x * s.block + l] = src[l][x];
+                planes[l] = plain + ((n * s.channels + cb * s.block + l) * s.height + y) * s.width;
+            copyRow(blocked + s.offset(n, cb, y, 0), planes, lanes);
         }
     });
 }
 
+void toBlocked(float* blocked, const float* plain, const BlockedShape& s) {
+    forEachBlockedRow(blocked, plain, s, [&](float* row, const float* const* planes, int lanes) {
+        for (int64_t x = 0; x < s.width; ++x)
+            for (int l = 0; l < lanes; ++l) row[x * s.block + l] = planes[l][x];
+    });
+}
+
 void fromBlocked(float* plain, const float* blocked, const BlockedShape& s) {
-    const int64_t rows = s.batch * s.channelBlocks() * s.height;
-    parallelFor(0, rows, 8, [&](int64_t first, int64_t last) {
-        for (int64_t r = first; r < last; ++r) {
-            const int64_t y = r % s.height, cb = (r / s.height) % s.channelBlocks(),
-                          n = r / (s.height * s.channelBlocks());
-            const int lanes = int(std::min<int64_t>(s.block, s.channels - cb * s.block));
-            float* dst[64];
-            for (int l = 0; l < lanes; ++l)
-                dst[l] = plain + ((n * s.channels + cb * s.block + l) * s.height + y) * s.width;
-            const float* src = blocked + s.offset(n, cb, y, 0);
-            for (int64_t x = 0; x < s.width; ++x)
-                for (int l = 0; l < lanes; ++l) dst[l][x] = src[x * s.block + l];
-        }
+    forEachBlockedRow(blocked, plain, s, [&](const float* row, float* const* planes, int lanes) {
+        for (int64_t x = 0; x < s.width; ++x)
+            for (int l = 0; l < lanes; ++l) planes[l][x] = row[x * s.block + l];
     });
 }
 

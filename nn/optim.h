@@ -31,6 +31,8 @@ class Optimizer {
     // Optimizer state, for checkpoints: first and second moments (or the momentum buffer) and the count.
     std::vector<float>& firstMoment() { return m_; }
     std::vector<float>& secondMoment() { return v_; }
+    const std::vector<float>& firstMoment() const { return m_; }
+    const std::vector<float>& secondMoment() const { return v_; }
     void setSteps(int64_t steps) { steps_ = steps; }
 
   private:

@@ -153,7 +153,7 @@ void saveCheckpoint(const std::string& path, const nn::Model& model, const nn::O
     json log = json::array();
     for (const LogRow& r : state.log) log.push_back(rowToJson(r));
     meta["log"] = log;
-    auto& m = const_cast<nn::Optimizer&>(optimizer);
+    const nn::Optimizer& m = optimizer;
     nn::writeSafetensors(path,
                          {{"parameters", {n}, model.parameterData()},
                           {"adam.m", {int64_t(m.firstMoment().size())}, m.firstMoment().data()},
