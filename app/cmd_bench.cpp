@@ -254,8 +254,7 @@ void registerBenchCommand(CLI::App& app) {
 
     auto quality = std::make_shared<bench::QualityBenchOptions>();
     quality->data = "out/dataset";
-    auto qualityModels =
-        std::make_shared<std::string>("models/dejag-fast.safetensors,models/seed2020-gray.safetensors");
+    auto qualityModels = std::make_shared<std::string>(bench::kShippedModels);
     auto qualityJson = std::make_shared<bool>(false);
     auto qualityRuntime = std::make_shared<RuntimeOptions>();
     CLI::App* qualityBench = bench->add_subcommand(
@@ -284,10 +283,7 @@ void registerBenchCommand(CLI::App& app) {
         applyRuntimeOptions(*qualityRuntime);
         quality->models = splitList(*qualityModels);
         const std::vector<nlohmann::json> rows = bench::benchQuality(*quality);
-        if (*qualityJson)
-            for (const nlohmann::json& r : rows) std::printf("%s\n", r.dump().c_str());
-        else
-            bench::printQualityTable(rows, true);
+        bench::printQualityRows(rows, *qualityJson, true);
         if (!*qualityJson) std::printf("report: %s/report.html\n", quality->out.c_str());
     });
 

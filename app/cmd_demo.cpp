@@ -16,8 +16,7 @@ void registerDemoCommand(CLI::App& app) {
     auto runtime = std::make_shared<RuntimeOptions>();
     auto size = std::make_shared<std::string>("640x360");
     auto scenes = std::make_shared<std::string>();
-    auto models =
-        std::make_shared<std::string>("models/dejag-fast.safetensors,models/seed2020-gray.safetensors");
+    auto models = std::make_shared<std::string>(bench::kShippedModels);
     auto json = std::make_shared<bool>(false);
     CLI::App* command = app.add_subcommand(
         "demo",
@@ -42,14 +41,9 @@ void registerDemoCommand(CLI::App& app) {
         options->width = s.width, options->height = s.height;
         options->scenes = splitList(*scenes);
         options->models = splitList(*models);
-        if (options->repeat < 1) throw Error("--repeat must be >= 1");
         const std::vector<nlohmann::json> rows = bench::runDemo(*options);
-        if (*json) {
-            for (const nlohmann::json& r : rows) std::printf("%s\n", r.dump().c_str());
-            return;
-        }
-        bench::printQualityTable(rows, false);
-        std::printf("report: %s/report.html\n", options->out.c_str());
+        bench::printQualityRows(rows, *json, false);
+        if (!*json) std::printf("report: %s/report.html\n", options->out.c_str());
     });
 }
 

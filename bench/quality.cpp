@@ -377,7 +377,11 @@ std::vector<json> writeQualityReport(const ReportOptions& options, const std::ve
     return rows;
 }
 
-void printQualityTable(const std::vector<json>& rows, bool meansOnly) {
+void printQualityRows(const std::vector<json>& rows, bool asJson, bool meansOnly) {
+    if (asJson) {
+        for (const json& r : rows) std::printf("%s\n", r.dump().c_str());
+        return;
+    }
     const bool fullHd =
         std::any_of(rows.begin(), rows.end(), [](const json& r) { return r.contains("ms_1080p"); });
     std::printf("%-14s %-24s %9s %8s %9s %9s %9s%s  %s\n", "scene", "method", "PSNR dB", "SSIM", "edge dB",

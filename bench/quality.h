@@ -73,8 +73,12 @@ struct ReportOptions {
 std::vector<nlohmann::json> writeQualityReport(const ReportOptions& options,
                                                const std::vector<QualityCase>& cases);
 
-// Prints rows as a table (the "mean" rows, or all rows).
-void printQualityTable(const std::vector<nlohmann::json>& rows, bool meansOnly);
+// The shipped models, as `dejag demo` and `dejag bench quality` look for them by default.
+inline constexpr const char* kShippedModels =
+    "models/dejag-fast.safetensors,models/seed2020-gray.safetensors";
+
+// Prints rows as JSON lines, or as a table (the "mean" rows only, or all rows).
+void printQualityRows(const std::vector<nlohmann::json>& rows, bool json, bool meansOnly);
 
 // `dejag bench quality`: the test split of a dataset (and/or a folder of pairs NAME_input.* +
 // NAME_truth.*), every single-frame method, timing at native size and at 1920x1080.

@@ -485,14 +485,17 @@ TEST(Cli, TrainBadInputIsOneLine) {
     EXPECT_FALSE(std::filesystem::exists(dir.file("m.safetensors")));
 }
 
+// A small randomly initialised RGB network of the fast family, saved as a model file.
+std::string writeTinyModel(const std::string& path, uint64_t seed) {
+    nn::Model m = nn::Model::builtin("fast", {4, 2, 3});
+    m.initialize(seed);
+    nn::saveModel(path, m);
+    return path;
+}
+
 TEST(Cli, DemoRunsEveryMethodAndWritesTheReport) {
     testing::TempDir dir;
-    const std::string model = dir.file("tiny.safetensors");
-    {
-        nn::Model m = nn::Model::builtin("fast", {4, 2, 3});
-        m.initialize(1);
-        nn::saveModel(model, m);
-    }
+    const std::string model = writeTinyModel(dir.file("tiny.safetensors"), 1);
     const std::string out = dir.file("demo");
     const RunResult r =
         run("demo --out '" + out +
@@ -529,12 +532,7 @@ TEST(Cli, DemoRunsEveryMethodAndWritesTheReport) {
 
 TEST(Cli, FilterRunsFoldersSequencesAndChainsKeepingBitDepthAndAlpha) {
     testing::TempDir dir;
-    const std::string model = dir.file("tiny.safetensors");
-    {
-        nn::Model m = nn::Model::builtin("fast", {4, 2, 3});
-        m.initialize(2);
-        nn::saveModel(model, m);
-    }
+    const std::string model = writeTinyModel(dir.file("tiny.safetensors"), 2);
     // Three 16-bit RGBA frames of a hard diagonal edge, numbered from 1.
     std::filesystem::create_directories(dir.file("in"));
     for (int i = 1; i <= 3; ++i) {
