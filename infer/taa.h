@@ -8,6 +8,7 @@
 // in those units (its code used n = 1, f = 10000 with the same normalisation).
 #pragma once
 
+#include <cstddef>
 #include <cstdint>
 #include <vector>
 
@@ -36,17 +37,20 @@ class Taa {
   public:
     explicit Taa(const TaaOptions& options = {});
     // Filters one frame into out (3 channels, sRGB-encoded) and keeps its history. The first frame, a
-    // size change or reset() starts a new history. Multithreaded, independent of the thread count.
+    // size change or reset() starts a new history. One pass over the inputs per frame, in row bands on
+    // the thread pool, SIMD across pixels (infer/taa_kernels.h); the result does not depend on the
+    // thread count. Allocates only when the frame size or the thread count changes.
     void apply(const TaaFrame& frame, float* out);
     void reset() { width_ = height_ = 0; }
 
   private:
     TaaOptions options_;
     int width_ = 0, height_ = 0;
-    std::vector<float> history_;                           // 3 channels, unsharpened
-    std::vector<float> sobel_, sobelHistory_, nextSobel_;  // 1 channel (T-TAA)
-    std::vector<float> blended_;                           // this frame before the sharpen
-    std::vector<float> albedoLuma_, colourLuma_;           // T-TAA's Sobel inputs
+    size_t stride_ = 0;                         // floats per row of the history planes
+    std::vector<float> history_, nextHistory_;  // 3 planes each, unsharpened
+    std::vector<float> sobel_, nextSobel_;      // T-TAA's stabilised Sobel, 1 plane each
+    std::vector<float> scratch_;                // one block of rows per band
+    int bands_ = 0;
 };
 
 }  // namespace dejag::infer

@@ -1,0 +1,212 @@
+// dejag/infer: per-pixel SIMD helpers for the post-process kernels (FXAA, TAA). Include only from kernel
+// sources built with dejag_add_simd_kernels(): one body, written with VFloat/VInt and the helpers below,
+// runs kFloatLanes pixels at a time on every level (one pixel on the scalar path).
+//
+// Masks are what a comparison returns: a vector of 0 / -1 ints, or a bool on the scalar path; select(),
+// any() and all() take either.
+#pragma once
+
+#include <cmath>
+#include <cstdint>
+#include <cstring>
+
+#include "base/simd_vector.h"
+
+namespace dejag::DEJAG_SIMD_NAMESPACE {
+
+#if defined(DEJAG_SIMD_LEVEL_scalar)
+using VInt = int32_t;
+using VMask = bool;
+#else
+typedef int32_t VInt __attribute__((vector_size(kFloatLanes * sizeof(int32_t))));
+using VMask = VInt;
+#endif
+
+template <class V>
+inline V select(VMask m, V a, V b) {
+    return m ? a : b;
+}
+inline VFloat vmin(VFloat a, VFloat b) {
+    return b < a ? b : a;  // std::min's order
+}
+inline VFloat vmax(VFloat a, VFloat b) {
+    return a < b ? b : a;  // std::max's order
+}
+inline VInt vmin(VInt a, VInt b) {
+    return b < a ? b : a;
+}
+inline VInt vmax(VInt a, VInt b) {
+    return a < b ? b : a;
+}
+inline VFloat clamp01(VFloat v) {
+    return vmin(vmax(v, splat<VFloat>(0.0f)), splat<VFloat>(1.0f));
+}
+inline VFloat vclamp(VFloat v, VFloat lo, VFloat hi) {
+    return vmin(vmax(v, lo), hi);
+}
+inline VInt vclamp(VInt v, VInt lo, VInt hi) {
+    return vmin(vmax(v, lo), hi);
+}
+inline VFloat mix(VFloat a, VFloat b, VFloat t) {
+    return a + (b - a) * t;
+}
+
+#if defined(DEJAG_SIMD_LEVEL_scalar)
+inline VInt splatInt(int32_t v) {
+    return v;
+}
+inline VFloat vabs(VFloat v) {
+    return std::fabs(v);
+}
+inline VFloat vsqrt(VFloat v) {
+    return std::sqrt(v);
+}
+inline VFloat toFloat(VInt v) {
+    return float(v);
+}
+inline VInt truncateToInt(VFloat v) {
+    return int32_t(v);
+}
+inline bool any(VMask m) {
+    return m;
+}
+inline bool all(VMask m) {
+    return m;
+}
+inline VInt laneIndex() {
+    return 0;
+}
+inline VFloat gather(const float* base, VInt index) {
+    return base[index];
+}
+#else
+inline VInt splatInt(int32_t v) {
+    VInt r;
+    for (int i = 0; i < kFloatLanes; ++i) r[i] = v;
+    return r;
+}
+inline VFloat vabs(VFloat v) {
+    return VFloat(VInt(v) & splatInt(0x7fffffff));
+}
+inline VFloat toFloat(VInt v) {
+    return __builtin_convertvector(v, VFloat);
+}
+inline VInt truncateToInt(VFloat v) {
+    return __builtin_convertvector(v, VInt);
+}
+inline VInt laneIndex() {
+    VInt r;
+    for (int i = 0; i < kFloatLanes; ++i) r[i] = i;
+    return r;
+}
+#if defined(DEJAG_SIMD_LEVEL_avx512)
+inline VFloat vsqrt(VFloat v) {
+    return VFloat(_mm512_maskz_sqrt_ps(0xffff, __m512(v)));  // (GCC 12 warns on the unmasked form)
+}
+inline bool any(VMask m) {
+    return _mm512_movepi32_mask(__m512i(m)) != 0;
+}
+inline bool all(VMask m) {
+    return _mm512_movepi32_mask(__m512i(m)) == 0xffff;
+}
+// The smallest and largest lane, by halving (GCC's generic shuffles: GCC 12 warns on the intrinsics').
+inline int32_t laneMin(VInt m) {
+    m = vmin(m, __builtin_shuffle(m, VInt{8, 9, 10, 11, 12, 13, 14, 15, 0, 1, 2, 3, 4, 5, 6, 7}));
+    m = vmin(m, __builtin_shuffle(m, VInt{4, 5, 6, 7, 0, 1, 2, 3, 12, 13, 14, 15, 8, 9, 10, 11}));
+    m = vmin(m, __builtin_shuffle(m, VInt{2, 3, 0, 1, 6, 7, 4, 5, 10, 11, 8, 9, 14, 15, 12, 13}));
+    m = vmin(m, __builtin_shuffle(m, VInt{1, 0, 3, 2, 5, 4, 7, 6, 9, 8, 11, 10, 13, 12, 15, 14}));
+    return m[0];
+}
+inline int32_t laneMax(VInt m) {
+    m = vmax(m, __builtin_shuffle(m, VInt{8, 9, 10, 11, 12, 13, 14, 15, 0, 1, 2, 3, 4, 5, 6, 7}));
+    m = vmax(m, __builtin_shuffle(m, VInt{4, 5, 6, 7, 0, 1, 2, 3, 12, 13, 14, 15, 8, 9, 10, 11}));
+    m = vmax(m, __builtin_shuffle(m, VInt{2, 3, 0, 1, 6, 7, 4, 5, 10, 11, 8, 9, 14, 15, 12, 13}));
+    m = vmax(m, __builtin_shuffle(m, VInt{1, 0, 3, 2, 5, 4, 7, 6, 9, 8, 11, 10, 13, 12, 15, 14}));
+    return m[0];
+}
+inline VFloat gather(const float* base, VInt index) {
+    return VFloat(_mm512_mask_i32gather_ps(_mm512_setzero_ps(), 0xffff, __m512i(index), base, 4));
+}
+#else
+inline VFloat vsqrt(VFloat v) {
+    return VFloat(_mm256_sqrt_ps(__m256(v)));
+}
+inline bool any(VMask m) {
+    return _mm256_movemask_ps(__m256(m)) != 0;
+}
+inline bool all(VMask m) {
+    return _mm256_movemask_ps(__m256(m)) == 0xff;
+}
+inline VFloat gather(const float* base, VInt index) {
+    return VFloat(_mm256_i32gather_ps(base, __m256i(index), 4));
+}
+#endif
+#endif
+
+// floor(v) as an int (v within the int range).
+inline VInt floorToInt(VFloat v) {
+    const VInt t = truncateToInt(v);
+#if defined(DEJAG_SIMD_LEVEL_scalar)
+    return float(t) > v ? t - 1 : t;
+#else
+    return t + (toFloat(t) > v);  // true is -1
+#endif
+}
+
+// Pixels x .. x + kFloatLanes - 1 of an interleaved RGB row, split into planes (and back).
+inline void loadRgb(const float* p, VFloat& r, VFloat& g, VFloat& b) {
+#if defined(DEJAG_SIMD_LEVEL_avx512)
+    const __m512 a0 = _mm512_loadu_ps(p), a1 = _mm512_loadu_ps(p + 16), a2 = _mm512_loadu_ps(p + 32);
+    // Step 1 takes the lanes whose stream position 3j + c lies in a0:a1, step 2 the rest from a2.
+    const __m512i first[3] = {_mm512_setr_epi32(0, 3, 6, 9, 12, 15, 18, 21, 24, 27, 30, 0, 0, 0, 0, 0),
+                              _mm512_setr_epi32(1, 4, 7, 10, 13, 16, 19, 22, 25, 28, 31, 0, 0, 0, 0, 0),
+                              _mm512_setr_epi32(2, 5, 8, 11, 14, 17, 20, 23, 26, 29, 0, 0, 0, 0, 0, 0)};
+    const __m512i second[3] = {_mm512_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 17, 20, 23, 26, 29),
+                               _mm512_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 18, 21, 24, 27, 30),
+                               _mm512_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 16, 19, 22, 25, 28, 31)};
+    r = VFloat(_mm512_permutex2var_ps(_mm512_permutex2var_ps(a0, first[0], a1), second[0], a2));
+    g = VFloat(_mm512_permutex2var_ps(_mm512_permutex2var_ps(a0, first[1], a1), second[1], a2));
+    b = VFloat(_mm512_permutex2var_ps(_mm512_permutex2var_ps(a0, first[2], a1), second[2], a2));
+#elif defined(DEJAG_SIMD_LEVEL_scalar)
+    r = p[0], g = p[1], b = p[2];
+#else
+    for (int i = 0; i < kFloatLanes; ++i) r[i] = p[3 * i], g[i] = p[3 * i + 1], b[i] = p[3 * i + 2];
+#endif
+}
+
+inline void storeRgb(float* p, VFloat r, VFloat g, VFloat b) {
+#if defined(DEJAG_SIMD_LEVEL_avx512)
+    // Output vector k holds stream positions 16k .. 16k + 15: pixel s / 3, channel s % 3.
+    const __m512i rg[3] = {_mm512_setr_epi32(0, 16, 0, 1, 17, 0, 2, 18, 0, 3, 19, 0, 4, 20, 0, 5),
+                           _mm512_setr_epi32(21, 0, 6, 22, 0, 7, 23, 0, 8, 24, 0, 9, 25, 0, 10, 26),
+                           _mm512_setr_epi32(0, 11, 27, 0, 12, 28, 0, 13, 29, 0, 14, 30, 0, 15, 31, 0)};
+    const __m512i withB[3] = {_mm512_setr_epi32(0, 1, 16, 3, 4, 17, 6, 7, 18, 9, 10, 19, 12, 13, 20, 15),
+                              _mm512_setr_epi32(0, 21, 2, 3, 22, 5, 6, 23, 8, 9, 24, 11, 12, 25, 14, 15),
+                              _mm512_setr_epi32(26, 1, 2, 27, 4, 5, 28, 7, 8, 29, 10, 11, 30, 13, 14, 31)};
+    for (int k = 0; k < 3; ++k)
+        _mm512_storeu_ps(
+            p + 16 * k,
+            _mm512_permutex2var_ps(_mm512_permutex2var_ps(__m512(r), rg[k], __m512(g)), withB[k], __m512(b)));
+#elif defined(DEJAG_SIMD_LEVEL_scalar)
+    p[0] = r, p[1] = g, p[2] = b;
+#else
+    for (int i = 0; i < kFloatLanes; ++i) p[3 * i] = r[i], p[3 * i + 1] = g[i], p[3 * i + 2] = b[i];
+#endif
+}
+
+// Pixels x .. x + kFloatLanes - 1 of an interleaved 2-channel row (motion vectors), split into planes.
+inline void loadPairs(const float* p, VFloat& a, VFloat& b) {
+#if defined(DEJAG_SIMD_LEVEL_avx512)
+    const __m512 a0 = _mm512_loadu_ps(p), a1 = _mm512_loadu_ps(p + 16);
+    a = VFloat(_mm512_permutex2var_ps(
+        a0, _mm512_setr_epi32(0, 2, 4, 6, 8, 10, 12, 14, 16, 18, 20, 22, 24, 26, 28, 30), a1));
+    b = VFloat(_mm512_permutex2var_ps(
+        a0, _mm512_setr_epi32(1, 3, 5, 7, 9, 11, 13, 15, 17, 19, 21, 23, 25, 27, 29, 31), a1));
+#elif defined(DEJAG_SIMD_LEVEL_scalar)
+    a = p[0], b = p[1];
+#else
+    for (int i = 0; i < kFloatLanes; ++i) a[i] = p[2 * i], b[i] = p[2 * i + 1];
+#endif
+}
+
+}  // namespace dejag::DEJAG_SIMD_NAMESPACE

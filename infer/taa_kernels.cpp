@@ -1,0 +1,420 @@
+// The TAA band kernel (infer/taa_kernels.h), compiled once per SIMD level: kFloatLanes pixels of a row
+// at a time, the formulas of spec/taa.md in the order infer/taa.h describes them.
+#include "infer/taa_kernels.h"
+
+#include <algorithm>
+#include <climits>
+
+#include "infer/pixel_simd.h"
+
+namespace dejag::infer::DEJAG_SIMD_NAMESPACE {
+
+using namespace ::dejag::DEJAG_SIMD_NAMESPACE;
+
+namespace {
+
+constexpr int L = kFloatLanes;
+
+// The last kTaaRingRows rows made of one kind (each `planes` planes of padded floats), by row index.
+struct Ring {
+    float* base = nullptr;
+    size_t rowFloats = 0;
+    int planes = 1;
+    int tags[kTaaRingRows];
+
+    void carve(float*& cursor, size_t floatsPerRow, int planeCount) {
+        base = cursor, rowFloats = floatsPerRow, planes = planeCount;
+        cursor += size_t(kTaaRingRows) * size_t(planes) * rowFloats;
+        std::fill(tags, tags + kTaaRingRows, INT_MIN);
+    }
+    // Pixel 0 of row y's first plane; plane k is k * rowFloats further.
+    float* slot(int y) {
+        return base + size_t(y & (kTaaRingRows - 1)) * size_t(planes) * rowFloats + kTaaRowPad;
+    }
+};
+
+// History weight from the luma difference of current and history (spec/taa.md).
+struct Feedback {
+    VFloat lo, span;
+    VFloat operator()(VFloat current, VFloat history) const {
+        const VFloat d = vabs(current - history) / vmax(vmax(current, history), splat<VFloat>(0.2f));
+        const VFloat w = (1.0f - d) * (1.0f - d);
+        return lo + span * clamp01(w);
+    }
+};
+
+VFloat luma601(VFloat r, VFloat g, VFloat b) {
+    return 0.299f * r + 0.587f * g + 0.114f * b;
+}
+
+VFloat sobelMagnitude(const float* const rows[3], int x) {
+    auto v = [&](int dx, int dy) { return loadu<VFloat>(rows[dy + 1] + x + dx); };
+    const VFloat gx = -v(-1, -1) + v(1, -1) - 2.0f * v(-1, 0) + 2.0f * v(1, 0) - v(-1, 1) + v(1, 1);
+    const VFloat gy = v(-1, -1) + 2.0f * v(0, -1) + v(1, -1) - v(-1, 1) - 2.0f * v(0, 1) - v(1, 1);
+    return vsqrt(gx * gx + gy * gy);
+}
+
+class Band {
+  public:
+    Band(const TaaBandInputs& in, int y0, int y1, float* scratch)
+        : in_(in),
+          W_(in.width),
+          H_(in.height),
+          y0_(y0),
+          y1_(y1),
+          feedback_{splat<VFloat>(in.feedbackMin), splat<VFloat>(in.feedbackMax - in.feedbackMin)} {
+        const size_t rowFloats = taaRowFloats(W_);
+        float* cursor = scratch;
+        colour_.carve(cursor, rowFloats, 3);
+        depth_.carve(cursor, rowFloats, 1);
+        motion_.carve(cursor, rowFloats, 2);
+        albedoLuma_.carve(cursor, rowFloats, 1);
+        colourLuma_.carve(cursor, rowFloats, 1);
+        sobel_.carve(cursor, rowFloats, 1);
+        stableSobel_.carve(cursor, rowFloats, 1);
+        ids_.carve(cursor, rowFloats, 1);
+        blended_.carve(cursor, rowFloats, 3);
+    }
+
+    void run() {
+        for (int y = y0_; y < y1_; ++y) sharpenRow(y);
+    }
+
+  private:
+    const TaaBandInputs& in_;
+    const int W_, H_, y0_, y1_;
+    const Feedback feedback_;
+    Ring colour_, depth_, motion_, albedoLuma_, colourLuma_, sobel_, stableSobel_, ids_, blended_;
+
+    bool inBand(int y) const { return y >= y0_ && y < y1_; }
+
+    // Row y (clamped to the frame) of a ring, made by fill(y, row) unless the ring holds it already;
+    // the pad pixels left and right of each plane repeat the border pixels (clamp-to-edge).
+    template <class Fill>
+    const float* row(Ring& ring, int y, Fill fill) {
+        y = std::clamp(y, 0, H_ - 1);
+        float* r = ring.slot(y);
+        int& tag = ring.tags[y & (kTaaRingRows - 1)];
+        if (tag != y) {
+            fill(y, r);
+            for (int k = 0; k < ring.planes; ++k) {
+                float* plane = r + size_t(k) * ring.rowFloats;
+                plane[-1] = plane[0], plane[W_] = plane[W_ - 1];
+            }
+            tag = y;
+        }
+        return r;
+    }
+
+    void copyRow(const float* src, int y, float* dst) const {
+        std::copy(src + size_t(y) * size_t(W_), src + size_t(y + 1) * size_t(W_), dst);
+    }
+
+    const float* colourRow(int y) {
+        return row(colour_, y, [&](int yy, float* r) {
+            const float* src = in_.colour + size_t(yy) * size_t(W_) * 3;
+            float *g = r + colour_.rowFloats, *b = g + colour_.rowFloats;
+            int x = 0;
+            for (; x + L <= W_; x += L) {
+                VFloat vr, vg, vb;
+                loadRgb(src + 3 * x, vr, vg, vb);
+                storeu(r + x, vr), storeu(g + x, vg), storeu(b + x, vb);
+            }
+            for (; x < W_; ++x) r[x] = src[3 * x], g[x] = src[3 * x + 1], b[x] = src[3 * x + 2];
+        });
+    }
+    const float* depthRow(int y) {
+        return row(depth_, y, [&](int yy, float* r) { copyRow(in_.depth, yy, r); });
+    }
+    const float* idRow(int y) {
+        return row(ids_, y, [&](int yy, float* r) { copyRow(in_.ids, yy, r); });
+    }
+    const float* motionRow(int y) {
+        return row(motion_, y, [&](int yy, float* r) {
+            const float* src = in_.motion + size_t(yy) * size_t(W_) * 2;
+            float* v = r + motion_.rowFloats;
+            int x = 0;
+            for (; x + L <= W_; x += L) {
+                VFloat vx, vy;
+                loadPairs(src + 2 * x, vx, vy);
+                storeu(r + x, vx), storeu(v + x, vy);
+            }
+            for (; x < W_; ++x) r[x] = src[2 * x], v[x] = src[2 * x + 1];
+        });
+    }
+    // Rec. 601 luma of an interleaved RGB row, for the Sobel of colours.
+    void lumaRow(const float* src, float* r) const {
+        int x = 0;
+        for (; x + L <= W_; x += L) {
+            VFloat vr, vg, vb;
+            loadRgb(src + 3 * x, vr, vg, vb);
+            storeu(r + x, luma601(vr, vg, vb));
+        }
+        for (; x < W_; ++x) r[x] = 0.299f * src[3 * x] + 0.587f * src[3 * x + 1] + 0.114f * src[3 * x + 2];
+    }
+    const float* albedoLumaRow(int y) {
+        return row(albedoLuma_, y,
+                   [&](int yy, float* r) { lumaRow(in_.albedo + size_t(yy) * size_t(W_) * 3, r); });
+    }
+    const float* colourLumaRow(int y) {
+        return row(colourLuma_, y,
+                   [&](int yy, float* r) { lumaRow(in_.colour + size_t(yy) * size_t(W_) * 3, r); });
+    }
+
+    // T-TAA's texture: g = clamp(0.3 Sobel(albedo luma) + 0.7 Sobel(luma) + Sobel(depth)),
+    // sobel = sqrt(g^2 (3 - 2g)).
+    const float* sobelRow(int y) {
+        return row(sobel_, y, [&](int yy, float* r) {
+            const float* a[3] = {albedoLumaRow(yy - 1), albedoLumaRow(yy), albedoLumaRow(yy + 1)};
+            const float* c[3] = {colourLumaRow(yy - 1), colourLumaRow(yy), colourLumaRow(yy + 1)};
+            const float* d[3] = {depthRow(yy - 1), depthRow(yy), depthRow(yy + 1)};
+            for (int x = 0; x < W_; x += L) {
+                const VFloat g =
+                    clamp01(0.3f * sobelMagnitude(a, x) + 0.7f * sobelMagnitude(c, x) + sobelMagnitude(d, x));
+                storeu(r + x, vsqrt(g * g * (3.0f - 2.0f * g)));
+            }
+        });
+    }
+
+    // Bilinear reads of `planes` history planes (planeFloats apart) at pixel coordinates (centres at
+    // +0.5), clamp to edge.
+    template <int planes>
+    void historyBilinear(const float* plane, VFloat px, VFloat py, VFloat* result) const {
+        const VFloat fx = px - 0.5f, fy = py - 0.5f;
+        const VInt x0 = floorToInt(fx), y0 = floorToInt(fy);
+        const VFloat tx = fx - toFloat(x0), ty = fy - toFloat(y0);
+        const VInt zero = splatInt(0), lastX = splatInt(W_ - 1), lastY = splatInt(H_ - 1);
+        const VInt xa = vclamp(x0, zero, lastX), xb = vclamp(x0 + 1, zero, lastX);
+        const VInt ya = vclamp(y0, zero, lastY), yb = vclamp(y0 + 1, zero, lastY);
+        VFloat a[planes], b[planes], c[planes], d[planes];
+#if defined(DEJAG_SIMD_LEVEL_avx512)
+        // Where the lanes read two rows and a span of at most 32 pixels (smooth motion: the usual case),
+        // two loads per row and a 32-entry permute replace each gather.
+        const int first = laneMin(xa), last = laneMax(xb);
+        const int rowA = ya[0], rowB = yb[0];
+        if (last - first < 32 && all(ya == splatInt(rowA)) && all(yb == splatInt(rowB))) {
+            const __m512i ia = __m512i(xa - first), ib = __m512i(xb - first);
+            for (int k = 0; k < planes; ++k) {
+                const float* pa = plane + size_t(k) * in_.planeFloats + size_t(rowA) * in_.stride + first;
+                const float* pb = plane + size_t(k) * in_.planeFloats + size_t(rowB) * in_.stride + first;
+                const __m512 a0 = _mm512_loadu_ps(pa), a1 = _mm512_loadu_ps(pa + 16);
+                const __m512 b0 = _mm512_loadu_ps(pb), b1 = _mm512_loadu_ps(pb + 16);
+                a[k] = VFloat(_mm512_permutex2var_ps(a0, ia, a1)),
+                b[k] = VFloat(_mm512_permutex2var_ps(a0, ib, a1));
+                c[k] = VFloat(_mm512_permutex2var_ps(b0, ia, b1)),
+                d[k] = VFloat(_mm512_permutex2var_ps(b0, ib, b1));
+            }
+        } else
+#endif
+        {
+            const VInt stride = splatInt(int32_t(in_.stride));
+            const VInt ra = ya * stride, rb = yb * stride;
+            for (int k = 0; k < planes; ++k) {
+                const float* p = plane + size_t(k) * in_.planeFloats;
+                a[k] = gather(p, ra + xa), b[k] = gather(p, ra + xb);
+                c[k] = gather(p, rb + xa), d[k] = gather(p, rb + xb);
+            }
+        }
+        for (int k = 0; k < planes; ++k) {
+            const VFloat top = a[k] + tx * (b[k] - a[k]), bottom = c[k] + tx * (d[k] - c[k]);
+            result[k] = top + ty * (bottom - top);
+        }
+    }
+
+    // The Sobel's own TAA: reprojected with the pixel's motion, clamped to the 3x3 box, no sharpen.
+    const float* stableSobelRow(int y) {
+        return row(stableSobel_, y, [&](int yy, float* r) {
+            const float* s[3] = {sobelRow(yy - 1), sobelRow(yy), sobelRow(yy + 1)};
+            float* history = inBand(yy) ? in_.nextSobelHistory + size_t(yy) * in_.stride : nullptr;
+            if (in_.fresh) {
+                std::copy(s[1], s[1] + W_, r);
+                if (history) std::copy(s[1], s[1] + W_, history);
+                return;
+            }
+            const float* m = motionRow(yy);
+            const float* mv = m + motion_.rowFloats;
+            const VFloat rowCentre = splat<VFloat>(float(yy) + 0.5f);
+            for (int x = 0; x < W_; x += L) {
+                VFloat lo = splat<VFloat>(1e30f), hi = splat<VFloat>(-1e30f);
+                for (int dy = 0; dy < 3; ++dy)
+                    for (int dx = -1; dx <= 1; ++dx) {
+                        const VFloat v = loadu<VFloat>(s[dy] + x + dx);
+                        lo = vmin(lo, v), hi = vmax(hi, v);
+                    }
+                const VFloat xs = toFloat(splatInt(x) + laneIndex());
+                VFloat previous;
+                historyBilinear<1>(in_.sobelHistory, xs + 0.5f - loadu<VFloat>(m + x),
+                                   rowCentre - loadu<VFloat>(mv + x), &previous);
+                previous = vclamp(previous, lo, hi);
+                const VFloat current = loadu<VFloat>(s[1] + x);
+                const VFloat k = feedback_(current, previous);
+                const VFloat stable = current + (previous - current) * k;
+                storeu(r + x, stable);
+                if (history) storeu(history + x, stable);
+            }
+        });
+    }
+
+    // Steps 1-5: neighbourhoods, velocity of the closest depth, reprojection, clip, blend.
+    const float* blendedRow(int y) {
+        return row(blended_, y, [&](int yy, float* out) { blend(yy, out); });
+    }
+
+    void blend(int y, float* out) {
+        const bool improved = in_.improved;
+        const float* t[3] = {};
+        const float* id[3] = {};
+        if (improved) {  // first: making these rows reads depth rows further down
+            for (int k = 0; k < 3; ++k) t[k] = stableSobelRow(y - 1 + k);
+            for (int k = 0; k < 3; ++k) id[k] = idRow(y - 1 + k);
+        }
+        const float* c[3][3];
+        const float* d[3];
+        const float* m[3][2];
+        for (int k = 0; k < 3; ++k) {
+            const float* colour = colourRow(y - 1 + k);
+            for (int ch = 0; ch < 3; ++ch) c[k][ch] = colour + size_t(ch) * colour_.rowFloats;
+            d[k] = depthRow(y - 1 + k);
+            const float* motion = motionRow(y - 1 + k);
+            m[k][0] = motion, m[k][1] = motion + motion_.rowFloats;
+        }
+        const size_t rowFloats = blended_.rowFloats;
+        float* history = inBand(y) ? in_.nextHistory + size_t(y) * in_.stride : nullptr;
+        const VFloat rowCentre = splat<VFloat>(float(y) + 0.5f);
+        const VInt lastX = splatInt(W_ - 1), lastY = splatInt(H_ - 1), zero = splatInt(0);
+
+        for (int x = 0; x < W_; x += L) {
+            VFloat current[3], min9[3], max9[3], minCross[3], maxCross[3];
+            for (int ch = 0; ch < 3; ++ch) {
+                current[ch] = loadu<VFloat>(c[1][ch] + x);
+                min9[ch] = max9[ch] = minCross[ch] = maxCross[ch] = current[ch];
+            }
+            VFloat closest = splat<VFloat>(1e30f);
+            VFloat vx = loadu<VFloat>(m[1][0] + x), vy = loadu<VFloat>(m[1][1] + x);
+            for (int dy = 0; dy < 3; ++dy)
+                for (int dx = -1; dx <= 1; ++dx) {
+                    const bool cross = dx == 0 || dy == 1;
+                    for (int ch = 0; ch < 3; ++ch) {
+                        const VFloat v = loadu<VFloat>(c[dy][ch] + x + dx);
+                        min9[ch] = vmin(min9[ch], v), max9[ch] = vmax(max9[ch], v);
+                        if (cross) minCross[ch] = vmin(minCross[ch], v), maxCross[ch] = vmax(maxCross[ch], v);
+                    }
+                    const VFloat depth = loadu<VFloat>(d[dy] + x + dx);
+                    const VMask nearer = depth < closest;
+                    closest = select(nearer, depth, closest);
+                    vx = select(nearer, loadu<VFloat>(m[dy][0] + x + dx), vx);
+                    vy = select(nearer, loadu<VFloat>(m[dy][1] + x + dx), vy);
+                }
+            const VFloat xs = toFloat(splatInt(x) + laneIndex());
+            const VFloat px = xs + 0.5f - vx, py = rowCentre - vy;
+            VFloat previous[3] = {current[0], current[1], current[2]};
+            if (!in_.fresh) historyBilinear<3>(in_.history, px, py, previous);
+            VFloat lo[3], hi[3];
+            if (!improved) {
+                for (int ch = 0; ch < 3; ++ch)
+                    lo[ch] = (min9[ch] + minCross[ch]) * 0.5f, hi[ch] = (max9[ch] + maxCross[ch]) * 0.5f;
+            } else {
+                // How aliased this pixel is: Sobel, model index, depth pseudo-variances.
+                const VFloat sobelCentre = loadu<VFloat>(t[1] + x), idCentre = loadu<VFloat>(id[1] + x);
+                VFloat sobel3x3 = splat<VFloat>(0.0f), sobelCross = splat<VFloat>(0.0f),
+                       different = splat<VFloat>(0.0f), dmin = splat<VFloat>(1e30f),
+                       dmax = splat<VFloat>(-1e30f), dsum = splat<VFloat>(0.0f);
+                for (int dy = 0; dy < 3; ++dy)
+                    for (int dx = -1; dx <= 1; ++dx) {
+                        const VFloat s = loadu<VFloat>(t[dy] + x + dx);
+                        sobel3x3 += s;
+                        if (dx == 0 || dy == 1) sobelCross += s;
+                        different += select(loadu<VFloat>(id[dy] + x + dx) != idCentre, splat<VFloat>(1.0f),
+                                            splat<VFloat>(0.0f));
+                        const VFloat depth = loadu<VFloat>(d[dy] + x + dx);
+                        dmin = vmin(dmin, depth), dmax = vmax(dmax, depth), dsum += depth;
+                    }
+                sobel3x3 /= 9.0f, sobelCross /= 5.0f;
+                const VFloat modelAverage = different / 9.0f;
+                const VFloat davg = dsum / 9.0f;
+                const VFloat maxDepthDistance = vmin(vabs(dmin - davg), vabs(dmax - davg));
+                VFloat depthPV = splat<VFloat>(0.0f), depthTPV = splat<VFloat>(0.0f);
+                const VMask varies = maxDepthDistance >= splat<VFloat>(in_.depthThreshold);
+                if (any(varies)) {
+                    const VFloat pv = vabs(loadu<VFloat>(d[1] + x) - davg) / maxDepthDistance;
+                    const VInt priorX = vclamp(floorToInt(px), zero, lastX);
+                    const VInt priorY = vclamp(floorToInt(py), zero, lastY);
+                    const VFloat prior = gather(in_.previousDepth, priorY * splatInt(W_) + priorX);
+                    const VFloat tpv = vabs(prior - davg) / maxDepthDistance;
+                    depthPV = select(varies, pv * pv, depthPV);
+                    depthTPV = select(varies, tpv * tpv * tpv * tpv, depthTPV);
+                }
+                const VFloat sobelAvgMixVal = clamp01(modelAverage + sobelCentre);
+                const VFloat sobelAvg = sobelCross + (sobel3x3 - sobelCross) * sobelAvgMixVal;
+                const VFloat aliased = clamp01(sobelAvg + depthPV + depthTPV + modelAverage);
+                for (int ch = 0; ch < 3; ++ch) {
+                    const VFloat colorMin = mix(minCross[ch], min9[ch], aliased),
+                                 colorMax = mix(maxCross[ch], max9[ch], aliased);
+                    lo[ch] = mix(current[ch], colorMin, aliased),
+                    hi[ch] = mix(current[ch], colorMax, aliased);
+                }
+            }
+            // 4. Clip towards the box centre (INSIDE's clip_aabb), 5. blend with the luminance feedback.
+            VFloat centre[3], offset[3];
+            VFloat unit = splat<VFloat>(0.0f);
+            for (int ch = 0; ch < 3; ++ch) {
+                centre[ch] = (lo[ch] + hi[ch]) * 0.5f;
+                const VFloat extent = (hi[ch] - lo[ch]) * 0.5f + 1e-6f;
+                offset[ch] = previous[ch] - centre[ch];
+                unit = vmax(unit, vabs(offset[ch] / extent));
+            }
+            const VMask outside = unit > splat<VFloat>(1.0f);
+            const VFloat shrink = 1.0f / unit;
+            VFloat clipped[3];
+            for (int ch = 0; ch < 3; ++ch)
+                clipped[ch] = select(outside, centre[ch] + offset[ch] * shrink, previous[ch]);
+            VFloat k = splat<VFloat>(0.0f);
+            if (!in_.fresh)
+                k = feedback_(0.25f * current[0] + 0.5f * current[1] + 0.25f * current[2],
+                              0.25f * clipped[0] + 0.5f * clipped[1] + 0.25f * clipped[2]);
+            for (int ch = 0; ch < 3; ++ch) {
+                const VFloat blended = mix(current[ch], clipped[ch], k);
+                storeu(out + size_t(ch) * rowFloats + x, blended);
+                if (history) storeu(history + size_t(ch) * in_.planeFloats + x, blended);
+            }
+        }
+    }
+
+    // 6. The output: the blended row sharpened (U-TAA 5 / -1, T-TAA 2 / -0.25), clamped to [0, 1].
+    void sharpenRow(int y) {
+        const float* rows[3] = {blendedRow(y - 1), blendedRow(y), blendedRow(y + 1)};
+        const size_t rowFloats = blended_.rowFloats;
+        const float centreWeight = in_.improved ? 2.0f : 5.0f, sideWeight = in_.improved ? -0.25f : -1.0f;
+        float* dst = in_.out + size_t(y) * size_t(W_) * 3;
+        for (int x = 0; x < W_; x += L) {
+            VFloat result[3];
+            for (int ch = 0; ch < 3; ++ch) {
+                const size_t plane = size_t(ch) * rowFloats;
+                const VFloat c = loadu<VFloat>(rows[1] + plane + x);
+                VFloat s = c;
+                if (in_.sharpen)
+                    s = c * centreWeight +
+                        (loadu<VFloat>(rows[1] + plane + x - 1) + loadu<VFloat>(rows[1] + plane + x + 1) +
+                         loadu<VFloat>(rows[0] + plane + x) + loadu<VFloat>(rows[2] + plane + x)) *
+                            sideWeight;
+                result[ch] = clamp01(s);
+            }
+            if (x + L <= W_) {
+                storeRgb(dst + 3 * x, result[0], result[1], result[2]);
+            } else {
+                float tail[3 * L];
+                storeRgb(tail, result[0], result[1], result[2]);
+                std::copy(tail, tail + 3 * (W_ - x), dst + 3 * x);
+            }
+        }
+    }
+};
+
+}  // namespace
+
+void taaBand(const TaaBandInputs& in, int y0, int y1, float* scratch) {
+    Band band(in, y0, y1, scratch);
+    band.run();
+}
+
+}  // namespace dejag::infer::DEJAG_SIMD_NAMESPACE
