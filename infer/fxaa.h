@@ -28,8 +28,9 @@ class Fxaa {
     // frame: (height, width, channels) interleaved, channels >= 3, the first three R G B in [0, 1]
     // (sRGB-encoded); other channels are left alone. Filters in place: every pixel reads the original
     // frame (changes are collected per band and written once all bands are done), so the result equals
-    // the out-of-place one and does not depend on the thread count. Allocates only when the frame or its
-    // number of edge pixels grows.
+    // the out-of-place one and does not depend on the thread count. SIMD across pixels (the contrast test
+    // along rows, the edge search over the list of pixels that passed it). Allocates only when the frame
+    // or its number of edge pixels grows.
     void applyInPlace(float* frame, int width, int height, int channels);
     // Out of place: copies in to out, then filters out.
     void apply(const float* in, float* out, int width, int height, int channels);
@@ -40,18 +41,15 @@ class Fxaa {
 
   private:
     FxaaOptions options_;
-    struct Change {
-        int64_t offset;  // of the pixel's first float
-        float rgb[3];
-    };
-    struct Band {
-        std::vector<Change> changes;
-        std::vector<uint8_t> edge;
-        int64_t processed = 0;
+    struct Band {  // the pixels of a band of rows that passed the contrast test, and their new colours
+        std::vector<int32_t> xs, ys;
+        std::vector<float> rgb;
+        std::vector<float> spare;  // the luma rows just above and below the band
+        int count = 0;
     };
     std::vector<float> steps_;  // the preset's search steps, P0..P(n-1)
     std::vector<Band> bands_;
-    std::vector<float> luma_;  // luma plane of the frame (+1 float of margin each side)
+    std::vector<float> luma_;  // luma plane, padded rows (infer/fxaa_kernels.h)
     double processedFraction_ = 0;
 };
 

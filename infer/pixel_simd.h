@@ -73,11 +73,20 @@ inline bool any(VMask m) {
 inline bool all(VMask m) {
     return m;
 }
+inline uint32_t maskBits(VMask m) {
+    return m ? 1u : 0u;
+}
+inline VMask maskNot(VMask m) {
+    return !m;
+}
 inline VInt laneIndex() {
     return 0;
 }
 inline VFloat gather(const float* base, VInt index) {
     return base[index];
+}
+inline void gatherPairs(const float* base, VInt index, VFloat& first, VFloat& second) {
+    first = base[index], second = base[index + 1];
 }
 #else
 inline VInt splatInt(int32_t v) {
@@ -94,6 +103,9 @@ inline VFloat toFloat(VInt v) {
 inline VInt truncateToInt(VFloat v) {
     return __builtin_convertvector(v, VInt);
 }
+inline VMask maskNot(VMask m) {
+    return ~m;
+}
 inline VInt laneIndex() {
     VInt r;
     for (int i = 0; i < kFloatLanes; ++i) r[i] = i;
@@ -108,6 +120,9 @@ inline bool any(VMask m) {
 }
 inline bool all(VMask m) {
     return _mm512_movepi32_mask(__m512i(m)) == 0xffff;
+}
+inline uint32_t maskBits(VMask m) {  // bit i: lane i
+    return _mm512_movepi32_mask(__m512i(m));
 }
 // The smallest and largest lane, by halving (GCC's generic shuffles: GCC 12 warns on the intrinsics').
 inline int32_t laneMin(VInt m) {
@@ -124,6 +139,20 @@ inline int32_t laneMax(VInt m) {
     m = vmax(m, __builtin_shuffle(m, VInt{1, 0, 3, 2, 5, 4, 7, 6, 9, 8, 11, 10, 13, 12, 15, 14}));
     return m[0];
 }
+// base[index] and base[index + 1] per lane: 64-bit gathers, half as many elements as two 32-bit ones.
+inline void gatherPairs(const float* base, VInt index, VFloat& first, VFloat& second) {
+    typedef int32_t VInt8 __attribute__((vector_size(32)));
+    const VInt8 low = __builtin_shufflevector(index, index, 0, 1, 2, 3, 4, 5, 6, 7);
+    const VInt8 high = __builtin_shufflevector(index, index, 8, 9, 10, 11, 12, 13, 14, 15);
+    const __m512 a =
+        _mm512_castsi512_ps(_mm512_mask_i32gather_epi64(_mm512_setzero_si512(), 0xff, __m256i(low), base, 4));
+    const __m512 b = _mm512_castsi512_ps(
+        _mm512_mask_i32gather_epi64(_mm512_setzero_si512(), 0xff, __m256i(high), base, 4));
+    first = VFloat(_mm512_permutex2var_ps(
+        a, _mm512_setr_epi32(0, 2, 4, 6, 8, 10, 12, 14, 16, 18, 20, 22, 24, 26, 28, 30), b));
+    second = VFloat(_mm512_permutex2var_ps(
+        a, _mm512_setr_epi32(1, 3, 5, 7, 9, 11, 13, 15, 17, 19, 21, 23, 25, 27, 29, 31), b));
+}
 inline VFloat gather(const float* base, VInt index) {
     return VFloat(_mm512_mask_i32gather_ps(_mm512_setzero_ps(), 0xffff, __m512i(index), base, 4));
 }
@@ -137,8 +166,14 @@ inline bool any(VMask m) {
 inline bool all(VMask m) {
     return _mm256_movemask_ps(__m256(m)) == 0xff;
 }
+inline uint32_t maskBits(VMask m) {  // bit i: lane i
+    return uint32_t(_mm256_movemask_ps(__m256(m)));
+}
 inline VFloat gather(const float* base, VInt index) {
     return VFloat(_mm256_i32gather_ps(base, __m256i(index), 4));
+}
+inline void gatherPairs(const float* base, VInt index, VFloat& first, VFloat& second) {
+    first = gather(base, index), second = gather(base + 1, index);
 }
 #endif
 #endif

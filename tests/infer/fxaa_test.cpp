@@ -8,11 +8,14 @@
 #include <cmath>
 
 #include "base/error.h"
+#include "base/random.h"
+#include "base/simd.h"
 #include "base/thread_pool.h"
 #include "data/frame_image.h"
 #include "data/image.h"
 #include "render/renderer.h"
 #include "tests/alloc_counter.h"
+#include "tests/infer/fxaa_reference.h"
 
 namespace dejag::infer {
 namespace {
@@ -119,6 +122,59 @@ TEST(Fxaa, SameResultForEveryThreadCountInPlaceOrNotAndOtherChannelsKept) {
     EXPECT_EQ(results[0], results[2]);
     for (size_t p = 0; p < size_t(80 * 80); ++p) ASSERT_EQ(results[0][p * 4 + 3], rgba[p * 4 + 3]);
     EXPECT_NE(results[0], rgba);
+}
+
+// The SIMD kernels against the scalar reference (the first implementation, kept in tests/) on a rendered
+// frame, noisy blocks and diagonal edges, every preset, RGB and RGBA, luma computed or green, on every
+// SIMD path: bit for bit (the kernels do the reference's arithmetic in its order, without contracted
+// multiply-adds, so no threshold decision can flip).
+TEST(Fxaa, EverySimdPathMatchesTheScalarReference) {
+    struct Case {
+        std::vector<float> image;
+        int width, height, channels;
+    };
+    std::vector<Case> cases;
+    {
+        const auto context = render::createOsMesaContext();
+        const render::Scene scene = render::buildScene("hard-edges");
+        render::Renderer renderer(*context, scene, 203, 141);
+        cases.push_back({frameChannels(renderer.render({}), 0, 3, true), 203, 141, 3});
+    }
+    {
+        std::vector<float> aliased, truth;
+        diagonalEdge(67, 0.37, 10.3, aliased, truth);
+        cases.push_back({aliased, 67, 67, 3});
+        uint64_t state = 7;
+        std::vector<float> blocks(size_t(45 * 38 * 4));
+        for (size_t i = 0; i < blocks.size(); ++i) {
+            const size_t p = i / 4;
+            const float block = float((p % 45) / 6 + (p / 45) / 4) * 0.13f;
+            blocks[i] = std::fmod(block, 1.0f) * 0.8f + 0.2f * float(unitInterval(state = splitMix64(state)));
+        }
+        cases.push_back({blocks, 45, 38, 4});
+    }
+    const SimdLevel original = activeSimdLevel();
+    for (int level = 0; level <= int(cpuSimdLevel()); ++level) {
+        setSimdLevel(SimdLevel(level));
+        for (const Case& c : cases)
+            for (const int preset : {12, 23, 39})
+                for (const bool green : {false, true}) {
+                    FxaaOptions options;
+                    options.preset = preset, options.greenAsLuma = green;
+                    Fxaa fxaa(options);
+                    reference::ReferenceFxaa oracle(options);
+                    std::vector<float> out(c.image.size()), expected(c.image.size());
+                    fxaa.apply(c.image.data(), out.data(), c.width, c.height, c.channels);
+                    oracle.apply(c.image.data(), expected.data(), c.width, c.height, c.channels);
+                    SCOPED_TRACE(std::string(simdLevelName(SimdLevel(level))) + " preset " +
+                                 std::to_string(preset) + (green ? " green" : "") + " " +
+                                 std::to_string(c.width) + "x" + std::to_string(c.height));
+                    EXPECT_GT(fxaa.processedFraction(), 0.01);
+                    EXPECT_EQ(fxaa.processedFraction(), oracle.processedFraction());
+                    EXPECT_EQ(out, expected);
+                }
+    }
+    setSimdLevel(original);
 }
 
 TEST(Fxaa, NoAllocationPerFrameAfterWarmUp) {
