@@ -26,8 +26,6 @@ std::vector<float> presetSteps(int preset) {
     }
 }
 
-constexpr int kBands = 64;
-
 }  // namespace
 
 Fxaa::Fxaa(const FxaaOptions& options) : options_(options), steps_(presetSteps(options.preset)) {
@@ -57,7 +55,8 @@ void Fxaa::applyInPlace(float* frame, int width, int height, int channels) {
     args.edgeThreshold = options_.edgeThreshold, args.edgeThresholdMin = options_.edgeThresholdMin;
     args.subpix = options_.subpix;
     args.steps = steps_.data(), args.stepCount = int(steps_.size());
-    const int bandCount = std::min(kBands, height);
+    // Eight bands per thread balance the load; each band makes two luma rows of its neighbours again.
+    const int bandCount = std::min(8 * threadCount(), height);
     if (int(bands_.size()) < bandCount) bands_.resize(size_t(bandCount));
     auto lumaRow = [&](int y) { return luma_.data() + size_t(y) * args.lumaStride + kFxaaLumaPad; };
 
@@ -96,15 +95,27 @@ void Fxaa::applyInPlace(float* frame, int width, int height, int channels) {
             if (band.rgb.size() < 3 * size_t(count)) band.rgb.resize(3 * size_t(count));
         }
     });
-    // 2. The search and the new colours (reads luma anywhere in the frame: after every band's step 1).
-    parallelFor(0, bandCount, 1, [&](int64_t firstBand, int64_t lastBand) {
-        for (int64_t b = firstBand; b < lastBand; ++b) {
-            Band& band = bands_[size_t(b)];
-            DEJAG_SIMD_CALL(fxaaResolve, args, band.xs.data(), band.ys.data(), band.count, band.rgb.data());
-        }
-    });
+    // 2. The search and the new colours (reads luma anywhere in the frame: after every band's step 1), in
+    // chunks of the bands' pixel lists laid end to end, so the threads share the work evenly however the
+    // edges are spread over the bands.
     int64_t processed = 0;
     for (int b = 0; b < bandCount; ++b) processed += bands_[size_t(b)].count;
+    constexpr int64_t kChunk = 256;
+    parallelFor(0, (processed + kChunk - 1) / kChunk, 1, [&](int64_t firstChunk, int64_t lastChunk) {
+        int64_t begin = firstChunk * kChunk, end = std::min(lastChunk * kChunk, processed);
+        int64_t bandStart = 0;  // global index of the band's first pixel
+        for (int b = 0; b < bandCount && begin < end; ++b) {
+            Band& band = bands_[size_t(b)];
+            const int64_t bandEnd = bandStart + band.count;
+            if (begin < bandEnd) {
+                const int64_t first = begin - bandStart, last = std::min(end, bandEnd) - bandStart;
+                DEJAG_SIMD_CALL(fxaaResolve, args, band.xs.data() + first, band.ys.data() + first,
+                                int(last - first), band.rgb.data() + 3 * first);
+                begin = bandStart + last;
+            }
+            bandStart = bandEnd;
+        }
+    });
     processedFraction_ = double(processed) / (double(width) * double(height));
     // 3. The new colours into the frame, once nothing reads it any more.
     parallelFor(0, bandCount, 1, [&](int64_t firstBand, int64_t lastBand) {

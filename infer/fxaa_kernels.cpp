@@ -4,6 +4,7 @@
 #include "infer/fxaa_kernels.h"
 
 #include <algorithm>
+#include <cmath>
 
 #include "infer/pixel_simd.h"
 
@@ -107,16 +108,60 @@ struct Sampler {
     }
 };
 
-// FXAA 3.11 for WL pixels.
-void resolveLanes(const FxaaKernelArgs& a, const Sampler& f, WInt x, WInt y, WFloat rgb[3]) {
-    const WInt one = wsi(1);
-    const WFloat lumaM = f.luma(x, y);
-    WFloat lumaS = f.luma(x, y + one), lumaE = f.luma(x + one, y), lumaN = f.luma(x, y - one),
-           lumaW = f.luma(x - one, y);
+// FXAA 3.11 in four steps over a block of pixels, kept in arrays between them: (1) the neighbourhood
+// decisions, kFloatLanes pixels at a time; (2) the search of the pixels whose edge runs vertically, a
+// vector of pixels at a time with gathers; (3) the search of those whose edge runs horizontally, one
+// pixel at a time with its search positions across the lanes: they lie on one row pair, so two loads
+// per row and a permute (AVX-512) replace the gathers; (4) the final offset and colour read, a vector
+// of pixels at a time. Every value is computed as the shader does, in its order.
+constexpr int kBlock = 256;
+
+struct Block {
+    // (1)'s results: the search start, the pair luma, the end threshold, the span direction (-1 / 0)
+    alignas(64) float bx[kBlock], by[kBlock], lumaNN[kBlock], gradientScaled[kBlock];
+    alignas(64) float lumaMM[kBlock], subpixF[kBlock], lengthSign[kBlock];
+    alignas(64) int32_t horz[kBlock];
+    // (2) and (3)'s results: where each search ended, and the luma there
+    alignas(64) float nx[kBlock], ny[kBlock], px[kBlock], py[kBlock], endN[kBlock], endP[kBlock];
+    int32_t vertical[kBlock], horizontal[kBlock];
+};
+
+// Lanes of `count` entries of `index` (a short group repeats its last entry) gathered from array.
+template <class T>
+void laneLoad(const T* array, const int32_t* index, int count, T* lanes) {
+    for (int k = 0; k < WL; ++k) lanes[k] = array[index[std::min(k, count - 1)]];
+}
+
+// The 3x3 luma around each lane's pixel: from three row windows when the lanes share a row and lie
+// within 30 pixels (AVX-512; pixels along an edge usually do), else gathers.
+void neighbourhood(const FxaaKernelArgs& a, const Sampler& f, WInt x, WInt y, WFloat n[3][3]) {
+#if defined(DEJAG_SIMD_LEVEL_avx512)
+    const int row = y[0], first = laneMin(x) - 1;
+    if (all(y == wsi(row)) && laneMax(x) + 1 - first < 32) {
+        for (int dy = 0; dy < 3; ++dy) {
+            const float* r = a.luma + size_t(std::clamp(row + dy - 1, 0, a.height - 1)) * a.lumaStride +
+                             kFxaaLumaPad + first;
+            const __m512 lo = _mm512_loadu_ps(r), hi = _mm512_loadu_ps(r + 16);
+            for (int dx = 0; dx < 3; ++dx)
+                n[dy][dx] = WFloat(_mm512_permutex2var_ps(lo, __m512i(x + (dx - 1 - first)), hi));
+        }
+        return;
+    }
+#else
+    (void)a;
+#endif
+    for (int dy = 0; dy < 3; ++dy)
+        for (int dx = 0; dx < 3; ++dx) n[dy][dx] = f.luma(x + wsi(dx - 1), y + wsi(dy - 1));
+}
+
+void setupLanes(const FxaaKernelArgs& a, const Sampler& f, WInt x, WInt y, Block& block, int at) {
+    WFloat n[3][3];
+    neighbourhood(a, f, x, y, n);
+    const WFloat lumaM = n[1][1];
+    WFloat lumaS = n[2][1], lumaE = n[1][2], lumaN = n[0][1], lumaW = n[1][0];
     const WFloat range = wmax(wmax(wmax(lumaS, lumaE), wmax(lumaN, lumaW)), lumaM) -
                          wmin(wmin(wmin(lumaS, lumaE), wmin(lumaN, lumaW)), lumaM);
-    const WFloat lumaNW = f.luma(x - one, y - one), lumaSE = f.luma(x + one, y + one),
-                 lumaNE = f.luma(x + one, y - one), lumaSW = f.luma(x - one, y + one);
+    const WFloat lumaNW = n[0][0], lumaSE = n[2][2], lumaNE = n[0][2], lumaSW = n[2][0];
     const WFloat lumaNS = lumaN + lumaS, lumaWE = lumaW + lumaE;
     const WFloat subpixRcpRange = 1.0f / range;
     const WFloat subpixNSWE = lumaNS + lumaWE;
@@ -140,40 +185,138 @@ void resolveLanes(const FxaaKernelArgs& a, const Sampler& f, WInt x, WInt y, WFl
     const WFloat gradient = wmax(wabs(gradientN), wabs(gradientS));
     const WFloat lengthSign = wsel(pairN, ws(-1.0f), ws(1.0f));
     const WFloat subpixC = wclamp(wabs(subpixB) * subpixRcpRange, ws(0.0f), ws(1.0f));
-
     // Start half a pixel across the edge, towards the side with the larger gradient.
     const WFloat centreX = wfloat(x) + 0.5f, centreY = wfloat(y) + 0.5f;
-    const WFloat bx = wsel(horzSpan, centreX, centreX + lengthSign * 0.5f);
-    const WFloat by = wsel(horzSpan, centreY + lengthSign * 0.5f, centreY);
-    const WFloat offX = wsel(horzSpan, ws(1.0f), ws(0.0f));
-    const WFloat offY = wsel(horzSpan, ws(0.0f), ws(1.0f));
-    const float* steps = a.steps;
-    WFloat nx = bx - offX * steps[0], ny = by - offY * steps[0];
-    WFloat px = bx + offX * steps[0], py = by + offY * steps[0];
     const WFloat subpixD = -2.0f * subpixC + 3.0f;
-    WFloat lumaEndN = f.lumaBilinear(nx, ny);
     const WFloat subpixE = subpixC * subpixC;
-    WFloat lumaEndP = f.lumaBilinear(px, py);
     lumaNN = wsel(pairN, lumaNN, lumaSS);
-    const WFloat gradientScaled = gradient * 0.25f;
-    const WFloat lumaMM = lumaM - lumaNN * 0.5f;
-    const WFloat subpixF = subpixD * subpixE;
-    const WMask lumaMLTZero = lumaMM < ws(0.0f);
-    lumaEndN -= lumaNN * 0.5f;
-    lumaEndP -= lumaNN * 0.5f;
+    storeu(block.bx + at, wsel(horzSpan, centreX, centreX + lengthSign * 0.5f));
+    storeu(block.by + at, wsel(horzSpan, centreY + lengthSign * 0.5f, centreY));
+    storeu(block.lumaNN + at, lumaNN);
+    storeu(block.gradientScaled + at, gradient * 0.25f);
+    storeu(block.lumaMM + at, lumaM - lumaNN * 0.5f);
+    storeu(block.subpixF + at, subpixD * subpixE);
+    storeu(block.lengthSign + at, lengthSign);
+    const WInt horz = wsel(horzSpan, wsi(-1), wsi(0));
+    std::memcpy(block.horz + at, &horz, sizeof horz);
+}
+
+// (2) Pixels whose edge runs vertically: the search moves along y.
+void searchVertical(const FxaaKernelArgs& a, const Sampler& f, Block& block, const int32_t* index,
+                    int count) {
+    float bxLanes[WL], byLanes[WL], nnLanes[WL], gsLanes[WL];
+    laneLoad(block.bx, index, count, bxLanes), laneLoad(block.by, index, count, byLanes);
+    laneLoad(block.lumaNN, index, count, nnLanes), laneLoad(block.gradientScaled, index, count, gsLanes);
+    const WFloat bx = loadu<WFloat>(bxLanes), by = loadu<WFloat>(byLanes);
+    const WFloat lumaNN = loadu<WFloat>(nnLanes), gradientScaled = loadu<WFloat>(gsLanes);
+    const float* steps = a.steps;
+    const WFloat nx = bx, px = bx;
+    WFloat ny = by - steps[0], py = by + steps[0];
+    WFloat lumaEndN = f.lumaBilinear(nx, ny) - lumaNN * 0.5f;
+    WFloat lumaEndP = f.lumaBilinear(px, py) - lumaNN * 0.5f;
     WMask doneN = wabs(lumaEndN) >= gradientScaled, doneP = wabs(lumaEndP) >= gradientScaled;
-    if (a.stepCount > 1) {
-        nx = wsel(doneN, nx, nx - offX * steps[1]), ny = wsel(doneN, ny, ny - offY * steps[1]);
-        px = wsel(doneP, px, px + offX * steps[1]), py = wsel(doneP, py, py + offY * steps[1]);
-    }
+    if (a.stepCount > 1) ny = wsel(doneN, ny, ny - steps[1]), py = wsel(doneP, py, py + steps[1]);
     for (int i = 2; i < a.stepCount && !wall(doneN & doneP); ++i) {
         lumaEndN = wsel(doneN, lumaEndN, f.lumaBilinear(nx, ny) - lumaNN * 0.5f);
         lumaEndP = wsel(doneP, lumaEndP, f.lumaBilinear(px, py) - lumaNN * 0.5f);
         doneN = wabs(lumaEndN) >= gradientScaled;
         doneP = wabs(lumaEndP) >= gradientScaled;
-        nx = wsel(doneN, nx, nx - offX * steps[i]), ny = wsel(doneN, ny, ny - offY * steps[i]);
-        px = wsel(doneP, px, px + offX * steps[i]), py = wsel(doneP, py, py + offY * steps[i]);
+        ny = wsel(doneN, ny, ny - steps[i]), py = wsel(doneP, py, py + steps[i]);
     }
+    float lanes[6][WL];
+    storeu(lanes[0], nx), storeu(lanes[1], ny), storeu(lanes[2], px), storeu(lanes[3], py);
+    storeu(lanes[4], lumaEndN), storeu(lanes[5], lumaEndP);
+    for (int k = 0; k < count; ++k) {
+        const int i = index[k];
+        block.nx[i] = lanes[0][k], block.ny[i] = lanes[1][k], block.px[i] = lanes[2][k];
+        block.py[i] = lanes[3][k], block.endN[i] = lanes[4][k], block.endP[i] = lanes[5][k];
+    }
+}
+
+// Luma bilinear at the positions (x, py) of the lanes, all on the row pair of py; the lanes that matter
+// read pixels first .. first + 31 of each row (AVX-512: two loads and a permute per row, no gathers).
+WFloat lumaAlongRow(const FxaaKernelArgs& a, const Sampler& f, WFloat x, float py, int first) {
+    const WFloat fx = x - 0.5f;
+    const float fy = py - 0.5f;
+    const WInt x0 = wfloor(fx);
+    const int y0 = int(std::floor(fy));
+    const WFloat tx = fx - wfloat(x0);
+    const float ty = fy - float(y0);
+    const WInt xa = wclamp(x0, f.zero, f.lastX), xb = wclamp(x0 + 1, f.zero, f.lastX);
+    const float* rowA = a.luma + size_t(std::clamp(y0, 0, a.height - 1)) * a.lumaStride + kFxaaLumaPad;
+    const float* rowB = a.luma + size_t(std::clamp(y0 + 1, 0, a.height - 1)) * a.lumaStride + kFxaaLumaPad;
+#if defined(DEJAG_SIMD_LEVEL_avx512)
+    const __m512i ia = __m512i(xa - first), ib = __m512i(xb - first);
+    const __m512 a0 = _mm512_loadu_ps(rowA + first), a1 = _mm512_loadu_ps(rowA + first + 16);
+    const __m512 b0 = _mm512_loadu_ps(rowB + first), b1 = _mm512_loadu_ps(rowB + first + 16);
+    const WFloat pa = WFloat(_mm512_permutex2var_ps(a0, ia, a1)),
+                 pb = WFloat(_mm512_permutex2var_ps(a0, ib, a1));
+    const WFloat pc = WFloat(_mm512_permutex2var_ps(b0, ia, b1)),
+                 pd = WFloat(_mm512_permutex2var_ps(b0, ib, b1));
+#else
+    (void)first;
+    const WFloat pa = wgather(rowA, xa), pb = wgather(rowA, xb), pc = wgather(rowB, xa),
+                 pd = wgather(rowB, xb);
+#endif
+    const WFloat top = pa + tx * (pb - pa), bottom = pc + tx * (pd - pc);
+    return top + ty * (bottom - top);
+}
+
+// The end of one direction's search from its lumas at the search positions: the first position where
+// the search stops, else one step past the last position read.
+void searchEnd(const float* reach, int k0, int samples, WFloat end, float gradientScaled, float bx,
+               float sign, bool& found, float& endX, float& endLuma) {
+    uint32_t done = maskBits(wabs(end) >= ws(gradientScaled));
+    if (samples - k0 < WL) done &= (1u << (samples - k0)) - 1u;
+    float lanes[WL];
+    storeu(lanes, end);
+    if (done) {
+        const int k = __builtin_ctz(done);
+        endX = bx + sign * reach[k0 + k], endLuma = lanes[k], found = true;
+    } else {
+        endLuma = lanes[std::min(WL, samples - k0) - 1];
+    }
+}
+
+// (3) One pixel whose edge runs horizontally: the luma at every search position of both directions at
+// once, then where each search would have stopped. reach[k] is the distance of search position k from
+// the start (positions 0 .. stepCount - 2 are read, padded with the last reach).
+void searchAlongRow(const FxaaKernelArgs& a, const Sampler& f, const float* reach, Block& block, int i) {
+    const float bx = block.bx[i], by = block.by[i], half = block.lumaNN[i] * 0.5f;
+    const float gradientScaled = block.gradientScaled[i];
+    const int samples = a.stepCount - 1;
+    // The window of each direction: from the farthest position read to the nearest (+1 for the pair).
+    const int lastX = a.width - 1;
+    const int firstN = std::clamp(int(std::floor(bx - reach[samples - 1] - 0.5f)), 0, lastX);
+    const int firstP = std::clamp(int(std::floor(bx + reach[0] - 0.5f)), 0, lastX);
+    bool foundN = false, foundP = false;
+    float nx = 0, px = 0;
+    for (int k0 = 0; k0 < samples && !(foundN && foundP); k0 += WL) {
+        const WFloat r = loadu<WFloat>(reach + k0);
+        const WFloat endN = lumaAlongRow(a, f, bx - r, by, firstN) - half;
+        const WFloat endP = lumaAlongRow(a, f, bx + r, by, firstP) - half;
+        if (!foundN)
+            searchEnd(reach, k0, samples, endN, gradientScaled, bx, -1.0f, foundN, nx, block.endN[i]);
+        if (!foundP) searchEnd(reach, k0, samples, endP, gradientScaled, bx, 1.0f, foundP, px, block.endP[i]);
+    }
+    block.nx[i] = foundN ? nx : bx - reach[samples];
+    block.px[i] = foundP ? px : bx + reach[samples];
+    block.ny[i] = block.py[i] = by;
+}
+
+// (4) The end of the span nearer to the pixel, the sub-pixel term, and the colour there.
+void finishLanes(const FxaaKernelArgs& a, const Sampler& f, WInt x, WInt y, const Block& block, int at,
+                 WFloat rgb[3]) {
+    WInt horzBits;
+    std::memcpy(&horzBits, block.horz + at, sizeof horzBits);
+    const WMask horzSpan = horzBits != wsi(0);
+    const WFloat centreX = wfloat(x) + 0.5f, centreY = wfloat(y) + 0.5f;
+    const WFloat nx = loadu<WFloat>(block.nx + at), ny = loadu<WFloat>(block.ny + at);
+    const WFloat px = loadu<WFloat>(block.px + at), py = loadu<WFloat>(block.py + at);
+    const WFloat lumaEndN = loadu<WFloat>(block.endN + at), lumaEndP = loadu<WFloat>(block.endP + at);
+    const WMask lumaMLTZero = loadu<WFloat>(block.lumaMM + at) < ws(0.0f);
+    const WFloat subpixF = loadu<WFloat>(block.subpixF + at),
+                 lengthSign = loadu<WFloat>(block.lengthSign + at);
     const WFloat dstN = wsel(horzSpan, centreX - nx, centreY - ny);
     const WFloat dstP = wsel(horzSpan, px - centreX, py - centreY);
     const WMask goodSpanN = (lumaEndN < ws(0.0f)) != lumaMLTZero;
@@ -190,6 +333,71 @@ void resolveLanes(const FxaaKernelArgs& a, const Sampler& f, WInt x, WInt y, WFl
     const WFloat sx = wsel(horzSpan, centreX, centreX + pixelOffsetSubpix * lengthSign);
     const WFloat sy = wsel(horzSpan, centreY + pixelOffsetSubpix * lengthSign, centreY);
     f.colourBilinear(sx, sy, rgb);
+}
+
+void resolveBlock(const FxaaKernelArgs& a, const Sampler& f, const int32_t* xs, const int32_t* ys, int count,
+                  float* rgb, Block& block) {
+    auto lanes = [&](int i, WInt& x, WInt& y) {  // a short last group repeats its last pixel
+        int32_t laneX[WL], laneY[WL];
+        for (int k = 0; k < WL; ++k) {
+            const int j = std::min(i + k, count - 1);
+            laneX[k] = xs[j], laneY[k] = ys[j];
+        }
+        std::memcpy(&x, laneX, sizeof x), std::memcpy(&y, laneY, sizeof y);
+    };
+    int verticals = 0, horizontals = 0;
+    for (int i = 0; i < count; i += WL) {
+        WInt x, y;
+        lanes(i, x, y);
+        if (count - i >= WL) {
+            setupLanes(a, f, x, y, block, i);
+        } else {  // the last group's lanes past count go to a spare slot
+            Block spare;
+            setupLanes(a, f, x, y, spare, 0);
+            for (int k = 0; k < count - i; ++k) {
+                block.bx[i + k] = spare.bx[k], block.by[i + k] = spare.by[k],
+                             block.lumaNN[i + k] = spare.lumaNN[k];
+                block.gradientScaled[i + k] = spare.gradientScaled[k], block.lumaMM[i + k] = spare.lumaMM[k];
+                block.subpixF[i + k] = spare.subpixF[k], block.lengthSign[i + k] = spare.lengthSign[k];
+                block.horz[i + k] = spare.horz[k];
+            }
+        }
+    }
+    for (int i = 0; i < count; ++i)
+        (block.horz[i] ? block.horizontal[horizontals++] : block.vertical[verticals++]) = i;
+    for (int i = 0; i < verticals; i += WL)
+        searchVertical(a, f, block, block.vertical + i, std::min(WL, verticals - i));
+    float reach[64];  // search position k's distance from the start: steps[0] + ... + steps[k]
+    reach[0] = a.steps[0];
+    for (int k = 1; k < a.stepCount; ++k) reach[k] = reach[k - 1] + a.steps[k];
+    for (int k = a.stepCount; k < 64; ++k) reach[k] = reach[a.stepCount - 1];
+    for (int h = 0; h < horizontals; ++h) searchAlongRow(a, f, reach, block, block.horizontal[h]);
+    for (int i = 0; i < count; i += WL) {
+        WInt x, y;
+        lanes(i, x, y);
+        const int n = std::min(WL, count - i);
+        WFloat result[3];
+        if (n == WL) {
+            finishLanes(a, f, x, y, block, i, result);
+        } else {
+            Block spare;  // the last group: its arrays padded with the last pixel
+            for (int k = 0; k < WL; ++k) {
+                const int j = i + std::min(k, n - 1);
+                spare.horz[k] = block.horz[j], spare.nx[k] = block.nx[j], spare.ny[k] = block.ny[j];
+                spare.px[k] = block.px[j], spare.py[k] = block.py[j], spare.endN[k] = block.endN[j];
+                spare.endP[k] = block.endP[j], spare.lumaMM[k] = block.lumaMM[j],
+                spare.subpixF[k] = block.subpixF[j];
+                spare.lengthSign[k] = block.lengthSign[j];
+            }
+            finishLanes(a, f, x, y, spare, 0, result);
+        }
+        float channel[3][WL];
+        for (int c = 0; c < 3; ++c) storeu(channel[c], result[c]);
+        for (int k = 0; k < n; ++k) {
+            float* out = rgb + 3 * size_t(i + k);
+            out[0] = channel[0][k], out[1] = channel[1][k], out[2] = channel[2][k];
+        }
+    }
 }
 
 }  // namespace
@@ -230,22 +438,9 @@ int fxaaEdgesInRow(const FxaaKernelArgs& a, const float* up, const float* mid, c
 
 void fxaaResolve(const FxaaKernelArgs& a, const int32_t* xs, const int32_t* ys, int count, float* rgb) {
     const Sampler sampler{a};
-    for (int i = 0; i < count; i += WL) {
-        const int n = std::min(WL, count - i);
-        int32_t laneX[WL], laneY[WL];  // a short last group repeats its last pixel
-        for (int k = 0; k < WL; ++k)
-            laneX[k] = xs[i + std::min(k, n - 1)], laneY[k] = ys[i + std::min(k, n - 1)];
-        WInt x, y;
-        std::memcpy(&x, laneX, sizeof x), std::memcpy(&y, laneY, sizeof y);
-        WFloat result[3];
-        resolveLanes(a, sampler, x, y, result);
-        float channel[3][WL];
-        for (int c = 0; c < 3; ++c) std::memcpy(channel[c], &result[c], sizeof result[c]);
-        for (int k = 0; k < n; ++k) {
-            float* out = rgb + 3 * size_t(i + k);
-            out[0] = channel[0][k], out[1] = channel[1][k], out[2] = channel[2][k];
-        }
-    }
+    Block block;
+    for (int i = 0; i < count; i += kBlock)
+        resolveBlock(a, sampler, xs + i, ys + i, std::min(kBlock, count - i), rgb + 3 * size_t(i), block);
 }
 
 }  // namespace dejag::infer::DEJAG_SIMD_NAMESPACE
