@@ -69,6 +69,7 @@ bench:
 	$(MAKE) build
 	$(BUILD_DIR)/dejag bench metrics
 	$(BUILD_DIR)/dejag bench nn
+	$(BUILD_DIR)/dejag bench filter
 
 # Regenerates the committed golden files from the Python references (needs Debian's python3-skimage).
 golden:

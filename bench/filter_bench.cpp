@@ -2,7 +2,9 @@
 
 #include <algorithm>
 #include <cmath>
+#include <map>
 
+#include "base/random.h"
 #include "base/thread_pool.h"
 #include "base/timer.h"
 #include "bench/bench.h"
@@ -13,7 +15,38 @@
 
 namespace dejag::bench {
 
+namespace {
+
+// Bytes each method must move per pixel at the least (every input read once, every output written
+// once, float32): FXAA reads RGB and writes and reads back its luma plane; U-TAA reads colour, depth,
+// motion and the RGB history and writes the history and the output; T-TAA also reads albedo, IDs, the
+// previous depth and its Sobel history and writes that.
+constexpr double kFxaaBytesPerPixel = 12 + 4 + 4;
+constexpr double kUTaaBytesPerPixel = 12 + 4 + 8 + 12 + 12 + 12;
+constexpr double kTTaaBytesPerPixel = kUTaaBytesPerPixel + 12 + 4 + 4 + 4 + 4;
+
+// Memory bandwidth in GB/s with `threads` threads (median of 5): a[i] = b[i] + s * c[i] over 3 x 64 MB,
+// counted as 3 x 64 MB moved (as STREAM counts its triad).
+double measureBandwidth(int threads) {
+    static std::vector<float> a(size_t(16) << 20, 1.0f), b(a.size(), 2.0f), c(a.size(), 3.0f);
+    setThreadCount(threads);
+    const double ms = medianMilliseconds(5, [&] {
+        parallelFor(0, int64_t(a.size()), 1 << 16, [&](int64_t first, int64_t last) {
+            for (int64_t i = first; i < last; ++i) a[size_t(i)] = b[size_t(i)] + 0.5f * c[size_t(i)];
+        });
+    });
+    return 3.0 * double(a.size()) * sizeof(float) / (ms * 1e6);
+}
+
+}  // namespace
+
 std::vector<nlohmann::json> benchFilters(const FilterBenchOptions& options) {
+    std::map<int, double> bandwidth;  // GB/s per thread count, measured in this run
+    for (const int threads : options.threads) bandwidth[threads] = measureBandwidth(threads);
+    const double pixels = double(options.width) * double(options.height);
+    auto floorMs = [&](double bytesPerPixel, int threads) {
+        return pixels * bytesPerPixel / (bandwidth[threads] * 1e6);
+    };
     // A frame with distant windows, a wall and a pipe: thin and long edges, large flat areas.
     const auto context = render::createOsMesaContext();
     const render::Scene scene = render::buildScene("hard-edges");
@@ -46,6 +79,7 @@ std::vector<nlohmann::json> benchFilters(const FilterBenchOptions& options) {
                             {"ms", ms},
                             {"target_ms", 2.0},
                             {"processed_fraction", fxaa.processedFraction()},
+                            {"floor_ms", floorMs(kFxaaBytesPerPixel, threads)},
                             {"psnr_before", floatPsnr(frame, truth)},
                             {"psnr_after", floatPsnr(out, truth)}});
         }
@@ -65,21 +99,40 @@ std::vector<nlohmann::json> benchFilters(const FilterBenchOptions& options) {
     frameBuffers.depth = depth.data();
     frameBuffers.motion = motion.data(), frameBuffers.ids = ids.data(),
     frameBuffers.previousDepth = previousDepth.data();
+    // Motion: the render's (a still camera: zero), a smooth zoom (what a moving camera gives: the history
+    // read takes the kernel's windowed path) and random per-pixel motion (its gather path, a worst case).
+    std::vector<float> zoom(motion.size()), random(motion.size());
+    uint64_t state = 1;
+    for (int y = 0; y < options.height; ++y)
+        for (int x = 0; x < options.width; ++x) {
+            const size_t i = 2 * (size_t(y) * size_t(options.width) + size_t(x));
+            zoom[i] = 0.004f * float(x - options.width / 2),
+            zoom[i + 1] = 0.004f * float(y - options.height / 2);
+            for (int k = 0; k < 2; ++k)
+                random[i + size_t(k)] = float(unitInterval(state = splitMix64(state), -2, 2));
+        }
+    const std::pair<const char*, const float*> motions[] = {
+        {"", motion.data()}, {" zoom", zoom.data()}, {" random motion", random.data()}};
     for (const bool improved : {false, true}) {
         infer::TaaOptions taaOptions;
         taaOptions.improved = improved;
-        infer::Taa taa(taaOptions);
-        for (const int threads : options.threads) {
-            setThreadCount(threads);
-            const double ms =
-                medianMilliseconds(options.repeat, [&] { taa.apply(frameBuffers, out.data()); });
-            rows.push_back({{"name", improved ? "t-taa" : "u-taa"},
-                            {"threads", threads},
-                            {"width", options.width},
-                            {"height", options.height},
-                            {"ms", ms},
-                            {"target_ms", improved ? 5.0 : 3.0},
-                            {"processed_fraction", 1.0}});
+        for (const auto& [label, field] : motions) {
+            infer::Taa taa(taaOptions);
+            frameBuffers.motion = field;
+            for (const int threads : options.threads) {
+                setThreadCount(threads);
+                const double ms =
+                    medianMilliseconds(options.repeat, [&] { taa.apply(frameBuffers, out.data()); });
+                rows.push_back(
+                    {{"name", std::string(improved ? "t-taa" : "u-taa") + label},
+                     {"threads", threads},
+                     {"width", options.width},
+                     {"height", options.height},
+                     {"ms", ms},
+                     {"target_ms", improved ? 5.0 : 3.0},
+                     {"processed_fraction", 1.0},
+                     {"floor_ms", floorMs(improved ? kTTaaBytesPerPixel : kUTaaBytesPerPixel, threads)}});
+            }
         }
     }
     setThreadCount(0);

@@ -382,10 +382,12 @@ TEST(Cli, BenchFilterPrintsEveryMethod) {
     while (std::getline(lines, line)) {
         const nlohmann::json j = nlohmann::json::parse(line);
         EXPECT_GT(j["ms"].get<double>(), 0.0);
+        EXPECT_GT(j["floor_ms"].get<double>(), 0.0);
         names.push_back(j["name"].get<std::string>());
     }
     EXPECT_EQ(names, (std::vector<std::string>{"fxaa preset 12", "fxaa preset 23", "fxaa preset 39", "u-taa",
-                                               "t-taa"}));
+                                               "u-taa zoom", "u-taa random motion", "t-taa", "t-taa zoom",
+                                               "t-taa random motion"}));
 }
 
 TEST(Cli, BenchTaaReproducesTheThesisProtocolsSmall) {
