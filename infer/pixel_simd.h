@@ -124,19 +124,19 @@ inline bool all(VMask m) {
 inline uint32_t maskBits(VMask m) {  // bit i: lane i
     return _mm512_movepi32_mask(__m512i(m));
 }
-// The smallest and largest lane, by halving (GCC's generic shuffles: GCC 12 warns on the intrinsics').
+// The smallest and largest lane, by halving (generic shuffles: GCC 12 warns on the intrinsics').
 inline int32_t laneMin(VInt m) {
-    m = vmin(m, __builtin_shuffle(m, VInt{8, 9, 10, 11, 12, 13, 14, 15, 0, 1, 2, 3, 4, 5, 6, 7}));
-    m = vmin(m, __builtin_shuffle(m, VInt{4, 5, 6, 7, 0, 1, 2, 3, 12, 13, 14, 15, 8, 9, 10, 11}));
-    m = vmin(m, __builtin_shuffle(m, VInt{2, 3, 0, 1, 6, 7, 4, 5, 10, 11, 8, 9, 14, 15, 12, 13}));
-    m = vmin(m, __builtin_shuffle(m, VInt{1, 0, 3, 2, 5, 4, 7, 6, 9, 8, 11, 10, 13, 12, 15, 14}));
+    m = vmin(m, __builtin_shufflevector(m, m, 8, 9, 10, 11, 12, 13, 14, 15, 0, 1, 2, 3, 4, 5, 6, 7));
+    m = vmin(m, __builtin_shufflevector(m, m, 4, 5, 6, 7, 0, 1, 2, 3, 12, 13, 14, 15, 8, 9, 10, 11));
+    m = vmin(m, __builtin_shufflevector(m, m, 2, 3, 0, 1, 6, 7, 4, 5, 10, 11, 8, 9, 14, 15, 12, 13));
+    m = vmin(m, __builtin_shufflevector(m, m, 1, 0, 3, 2, 5, 4, 7, 6, 9, 8, 11, 10, 13, 12, 15, 14));
     return m[0];
 }
 inline int32_t laneMax(VInt m) {
-    m = vmax(m, __builtin_shuffle(m, VInt{8, 9, 10, 11, 12, 13, 14, 15, 0, 1, 2, 3, 4, 5, 6, 7}));
-    m = vmax(m, __builtin_shuffle(m, VInt{4, 5, 6, 7, 0, 1, 2, 3, 12, 13, 14, 15, 8, 9, 10, 11}));
-    m = vmax(m, __builtin_shuffle(m, VInt{2, 3, 0, 1, 6, 7, 4, 5, 10, 11, 8, 9, 14, 15, 12, 13}));
-    m = vmax(m, __builtin_shuffle(m, VInt{1, 0, 3, 2, 5, 4, 7, 6, 9, 8, 11, 10, 13, 12, 15, 14}));
+    m = vmax(m, __builtin_shufflevector(m, m, 8, 9, 10, 11, 12, 13, 14, 15, 0, 1, 2, 3, 4, 5, 6, 7));
+    m = vmax(m, __builtin_shufflevector(m, m, 4, 5, 6, 7, 0, 1, 2, 3, 12, 13, 14, 15, 8, 9, 10, 11));
+    m = vmax(m, __builtin_shufflevector(m, m, 2, 3, 0, 1, 6, 7, 4, 5, 10, 11, 8, 9, 14, 15, 12, 13));
+    m = vmax(m, __builtin_shufflevector(m, m, 1, 0, 3, 2, 5, 4, 7, 6, 9, 8, 11, 10, 13, 12, 15, 14));
     return m[0];
 }
 // base[index] and base[index + 1] per lane: 64-bit gathers, half as many elements as two 32-bit ones.

@@ -236,8 +236,6 @@ void wideRowsFor(const ConvRowsArgs& a) {
 // reduction at the end of the tile sums the lanes of all TW x COUT accumulators at once.
 #if !defined(DEJAG_SIMD_LEVEL_scalar)
 
-typedef int32_t VIndex __attribute__((vector_size(kFloatLanes * sizeof(int32_t))));
-
 // Lane indices (into the concatenation a ++ b) that fold segments of S lanes in half: the `offset` half
 // (0: first, S/2: second) of every segment of a, then of b.
 template <int S>
@@ -251,13 +249,21 @@ constexpr std::array<int32_t, B> foldIndices(int offset) {
     return index;
 }
 
+// Lanes Index[0..B) of the concatenation a ++ b (a shuffle with constant indices, GCC and Clang alike).
+template <const auto& Index, size_t... I>
+inline VFloat shuffleTwo(VFloat a, VFloat b, std::index_sequence<I...>) {
+    return __builtin_shufflevector(a, b, Index[I]...);
+}
+
+template <int S>
+inline constexpr std::array<int32_t, B> kFoldLow = foldIndices<S>(0);
+template <int S>
+inline constexpr std::array<int32_t, B> kFoldHigh = foldIndices<S>(S / 2);
+
 template <int S>
 inline VFloat fold(VFloat a, VFloat b) {
-    static constexpr std::array<int32_t, B> low = foldIndices<S>(0), high = foldIndices<S>(S / 2);
-    VIndex lowIndex, highIndex;
-    std::memcpy(&lowIndex, low.data(), sizeof(lowIndex));
-    std::memcpy(&highIndex, high.data(), sizeof(highIndex));
-    return __builtin_shuffle(a, b, lowIndex) + __builtin_shuffle(a, b, highIndex);
+    return shuffleTwo<kFoldLow<S>>(a, b, std::make_index_sequence<B>()) +
+           shuffleTwo<kFoldHigh<S>>(a, b, std::make_index_sequence<B>());
 }
 
 // v holds S vectors; returns the vector whose lane k is the sum of the lanes of v[k] (fixed order).
@@ -272,17 +278,24 @@ inline VFloat reduceLanes(VFloat* v) {
     }
 }
 
-// Per pixel i of a tile, the lanes of the reduced sums holding its COUT outputs (index B: a zero).
+// For pixel i of a tile, the lanes of the reduced sums holding its COUT outputs (index B: a zero).
 template <int COUT>
-constexpr std::array<std::array<int32_t, B>, B / COUT> pixelLanes() {
-    std::array<std::array<int32_t, B>, B / COUT> lanes{};
-    for (int i = 0; i < B / COUT; ++i)
-        for (int lane = 0; lane < B; ++lane)
-            lanes[size_t(i)][size_t(lane)] = lane < COUT ? i * COUT + lane : B;
+constexpr std::array<int32_t, B> pixelLanes(int i) {
+    std::array<int32_t, B> lanes{};
+    for (int lane = 0; lane < B; ++lane) lanes[size_t(lane)] = lane < COUT ? i * COUT + lane : B;
     return lanes;
 }
-template <int COUT>
-constexpr std::array<std::array<int32_t, B>, B / COUT> kPixelLanes = pixelLanes<COUT>();
+template <int COUT, int I>
+inline constexpr std::array<int32_t, B> kPixelLanes = pixelLanes<COUT>(I);
+
+// Pixel I's COUT values (lanes 0..COUT-1, zeros elsewhere), activated, to its output.
+template <int COUT, int I>
+inline void storePixel(const RowContext& c, int64_t j, VFloat sums, VFloat zero,
+                       const ActivationDesc& activation) {
+    const VFloat v = applyActivation(
+        shuffleTwo<kPixelLanes<COUT, I>>(sums, zero, std::make_index_sequence<B>()), activation);
+    storeu(c.out + (j + I) * c.outPixelStep, v);
+}
 
 template <int TW, int COUT, bool UNIT>
 void narrowTile(const RowContext& c, int64_t j) {
@@ -311,14 +324,10 @@ void narrowTile(const RowContext& c, int64_t j) {
     const VFloat sums = reduceLanes<B>(acc) + c.narrowBias;
     const VFloat zero = splat<VFloat>(0.0f);
     const ActivationDesc activation = c.activation;
-#pragma GCC unroll 16
-    for (int i = 0; i < TW; ++i) {
-        // Pixel i's COUT values to lanes 0..COUT-1, zeros elsewhere (index B: lane 0 of `zero`).
-        VIndex index;
-        std::memcpy(&index, kPixelLanes<COUT>[size_t(i)].data(), sizeof(index));
-        const VFloat v = applyActivation(__builtin_shuffle(sums, zero, index), activation);
-        storeu(c.out + (j + i) * c.outPixelStep, v);
+    [&]<size_t... I>(std::index_sequence<I...>) {
+        (storePixel<COUT, int(I)>(c, j, sums, zero, activation), ...);
     }
+    (std::make_index_sequence<TW>());
 }
 
 template <int COUT, bool UNIT, size_t... I>
