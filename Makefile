@@ -15,7 +15,7 @@ ifneq ($(CI),)
 CMAKE_FLAGS += -DDEJAG_WERROR=ON
 endif
 
-.PHONY: all deps configure build demo test test-asan test-tsan bench dataset models golden format clean
+.PHONY: all deps configure build demo test test-asan test-tsan bench fuzz fuzz-seeds dataset models golden format clean
 
 all: build
 
@@ -70,6 +70,23 @@ bench:
 	$(BUILD_DIR)/dejag bench metrics
 	$(BUILD_DIR)/dejag bench nn
 	$(BUILD_DIR)/dejag bench filter
+
+# libFuzzer targets (fuzz/: model loader, dataset manifest, image loading, command-line numbers), built
+# with Clang, ASan and UBSan; each runs FUZZ_RUNS executions from its committed seed corpus.
+FUZZ_RUNS ?= 1000000
+FUZZ_TARGETS = fuzz_model fuzz_manifest fuzz_image fuzz_cli_numbers
+fuzz:
+	@scripts/install-deps --fuzz
+	cmake --preset fuzz
+	cmake --build --preset fuzz -j$(JOBS) --target $(FUZZ_TARGETS)
+	scripts/run-fuzzers $(FUZZ_RUNS)
+
+# Rewrites the seed corpora under fuzz/corpus (small valid inputs of each kind).
+fuzz-seeds:
+	@scripts/install-deps --fuzz
+	cmake --preset fuzz
+	cmake --build --preset fuzz -j$(JOBS) --target fuzz_make_seeds
+	build/fuzz/fuzz_make_seeds fuzz/corpus
 
 # Regenerates the committed golden files from the Python references (needs Debian's python3-skimage).
 golden:

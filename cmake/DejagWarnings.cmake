@@ -21,6 +21,14 @@ elseif(NOT DEJAG_SANITIZE STREQUAL "")
     message(FATAL_ERROR "DEJAG_SANITIZE must be '', 'address' or 'thread', not '${DEJAG_SANITIZE}'")
 endif()
 
+# Fuzzing: every library gets libFuzzer's coverage instrumentation (the targets link the fuzzer itself).
+if(DEJAG_FUZZ)
+    if(NOT CMAKE_CXX_COMPILER_ID STREQUAL "Clang")
+        message(FATAL_ERROR "DEJAG_FUZZ needs Clang (libFuzzer): configure with the fuzz preset")
+    endif()
+    add_compile_options(-fsanitize=fuzzer-no-link)
+endif()
+
 # Sanitizer builds: every executable gets base/sanitizer_defaults.cpp (default options, suppressions).
 function(dejag_add_sanitizer_defaults target)
     if(DEJAG_SANITIZE STREQUAL "address")

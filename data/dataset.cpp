@@ -6,6 +6,7 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <climits>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
@@ -123,6 +124,12 @@ DatasetSpec DatasetSpec::fromJson(const json& j) {
         s.validationFraction = j.at("validation_fraction").get<double>();
     } catch (const json::exception& e) {
         throw Error(std::string("dataset.json is not a dejag dataset description: ") + e.what());
+    }
+    // (Found by fuzz/fuzz_manifest.cpp: an empty family list divided by zero when items were planned.)
+    try {
+        s.validate();
+    } catch (const Error& e) {
+        throw Error(std::string("dataset.json: ") + e.what());
     }
     return s;
 }
@@ -303,18 +310,63 @@ json ItemRenderer::render(const DatasetSpec& spec, const ItemPlan& plan, const s
 
 // ---- Manifest, generation -------------------------------------------------------------------------------
 
+namespace {
+
+// What every reader of the manifest relies on (the record makeRecord() writes); empty if r has it all.
+std::string recordProblem(const json& r) {
+    if (!r.is_object()) return "not a JSON object";
+    auto has = [&](const json& o, const char* key, bool (json::*is)() const) {
+        const auto it = o.find(key);
+        return it != o.end() && ((*it).*is)();
+    };
+    if (!has(r, "index", &json::is_number_integer) || r["index"].get<int64_t>() < 0 ||
+        r["index"].get<int64_t>() > INT32_MAX)
+        return "'index' is not an item number";
+    for (const char* key : {"id", "family", "split"})
+        if (!has(r, key, &json::is_string)) return std::string("'") + key + "' is not a string";
+    for (const char* key : {"edge_fraction", "aliased_psnr"})
+        if (!has(r, key, &json::is_number)) return std::string("'") + key + "' is not a number";
+    if (!has(r, "size", &json::is_array) || r["size"].size() != 2 || !r["size"][0].is_number_integer() ||
+        !r["size"][1].is_number_integer() || r["size"][0].get<int64_t>() < 1 ||
+        r["size"][1].get<int64_t>() < 1 || r["size"][0].get<int64_t>() > 65536 ||
+        r["size"][1].get<int64_t>() > 65536)
+        return "'size' is not [width, height]";
+    if (!has(r, "files", &json::is_object)) return "'files' is not an object";
+    for (const char* which : {"input", "truth"}) {
+        if (!has(r["files"], which, &json::is_object)) return std::string("'files.") + which + "' is missing";
+        const json& f = r["files"][which];
+        if (!has(f, "path", &json::is_string) || !has(f, "bytes", &json::is_number_unsigned) ||
+            !has(f, "checksum", &json::is_string))
+            return std::string("'files.") + which + "' needs path, bytes and checksum";
+        const fs::path path(f["path"].get<std::string>());
+        if (path.empty() || path.is_absolute() ||
+            std::any_of(path.begin(), path.end(), [](const fs::path& part) { return part == ".."; }))
+            return std::string("'files.") + which + ".path' is not a path inside the dataset";
+    }
+    return {};
+}
+
+}  // namespace
+
 std::vector<json> readManifest(const std::string& folder) {
     std::vector<json> records;
     std::ifstream in(fs::path(folder) / "manifest.jsonl");
     std::string line;
-    while (std::getline(in, line)) {
+    for (int number = 1; std::getline(in, line); ++number) {
         if (line.empty()) continue;
+        json record;
         try {
-            records.push_back(json::parse(line));
+            record = json::parse(line);
         } catch (const json::exception&) {
             if (in.peek() == EOF) break;  // an interrupted last append
-            throw Error("manifest.jsonl in '" + folder + "' has a corrupt line: " + line.substr(0, 60));
+            throw Error("manifest.jsonl in '" + folder + "' has a corrupt line " + std::to_string(number) +
+                        ": " + line.substr(0, 60));
         }
+        const std::string problem = recordProblem(record);
+        if (!problem.empty())
+            throw Error("manifest.jsonl in '" + folder + "', line " + std::to_string(number) + ": " +
+                        problem);
+        records.push_back(std::move(record));
     }
     return records;
 }

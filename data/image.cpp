@@ -18,7 +18,6 @@ namespace {
 
 // Refuse headers that would need absurd memory: a corrupt file must not become a 100 GB allocation.
 constexpr int64_t kMaxSide = 65536;
-constexpr int64_t kMaxSamples = int64_t(1) << 31;
 
 // libpng and libjpeg print their own complaints to stderr, then OpenImageIO reports the same failure
 // through its error queue, which becomes dejag's one error line. While any codec runs, stderr points at
@@ -201,7 +200,7 @@ std::string Image::describe() const {
            (channels() == 1 ? " channel (" : " channels (") + names + "), " + pixelTypeName(storage);
 }
 
-Image readImage(const std::string& path) {
+Image readImage(const std::string& path, int64_t maxSamples) {
     requireReadableFile(path);
     QuietStderr quiet;
     OIIO::ImageSpec config;
@@ -214,7 +213,7 @@ Image readImage(const std::string& path) {
         throw Error("cannot read '" + path + "': implausible header (" + std::to_string(spec.width) + "x" +
                     std::to_string(spec.height) + ", " + std::to_string(spec.nchannels) + " channels)");
     if (spec.width > kMaxSide || spec.height > kMaxSide ||
-        int64_t(spec.width) * spec.height * spec.nchannels > kMaxSamples)
+        int64_t(spec.width) * spec.height * spec.nchannels > std::min(maxSamples, kMaxImageSamples))
         throw Error("cannot read '" + path + "': " + std::to_string(spec.width) + "x" +
                     std::to_string(spec.height) + "x" + std::to_string(spec.nchannels) +
                     " is larger than dejag accepts");
@@ -224,12 +223,33 @@ Image readImage(const std::string& path) {
     for (int c = 0; c < spec.nchannels; ++c)
         if (names[c].empty()) names[c] = numberedChannelName(c);
 
-    Image image(spec.width, spec.height, std::move(names), pixelTypeOf(spec.format));
+    Image image;
+    image.width = spec.width, image.height = spec.height, image.channelNames = std::move(names);
+    image.storage = pixelTypeOf(spec.format);
     // Per-channel formats (EXR with half colour and float depth): remember the widest.
     for (const OIIO::TypeDesc& channelFormat : spec.channelformats)
         if (pixelTypeOf(channelFormat) == PixelType::Float) image.storage = PixelType::Float;
-    if (!input->read_image(0, 0, 0, spec.nchannels, OIIO::TypeDesc::FLOAT, image.pixels.data()))
-        throw Error("cannot read '" + path + "': " + oneLine(input->geterror()));
+    // Address space for the whole image, but memory only for the rows actually read: a short corrupt
+    // file whose header claims a large image fails at its first missing rows instead of first clearing
+    // the whole buffer (found by fuzz/fuzz_image.cpp: 300 bytes cost 1 GiB and a second).
+    const size_t rowSamples = size_t(spec.width) * size_t(spec.nchannels);
+    image.pixels.reserve(rowSamples * size_t(spec.height));
+    if (spec.tile_width > 0) {
+        image.pixels.resize(rowSamples * size_t(spec.height));
+        if (!input->read_image(0, 0, 0, spec.nchannels, OIIO::TypeDesc::FLOAT, image.pixels.data()))
+            throw Error("cannot read '" + path + "': " + oneLine(input->geterror()));
+    } else {
+        constexpr int kRowsPerRead = 64;
+        for (int y = 0; y < spec.height; y += kRowsPerRead) {
+            const int last = std::min(spec.height, y + kRowsPerRead);
+            image.pixels.resize(rowSamples * size_t(last));
+            // (Some readers report a short file only through the error queue, and read on.)
+            if (!input->read_scanlines(0, 0, spec.y + y, spec.y + last, 0, 0, spec.nchannels,
+                                       OIIO::TypeDesc::FLOAT, image.pixels.data() + rowSamples * size_t(y)) ||
+                input->has_error())
+                throw Error("cannot read '" + path + "': " + oneLine(input->geterror()));
+        }
+    }
     // Some readers report a truncated file only through the error queue.
     if (input->has_error()) throw Error("cannot read '" + path + "': " + oneLine(input->geterror()));
     input->close();

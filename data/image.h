@@ -46,9 +46,14 @@ struct Image {
     std::string describe() const;
 };
 
+// The most samples (width x height x channels) readImage() accepts: 2^28, e.g. 8192 x 8192 RGBA, 1 GiB
+// of floats. A larger header is refused before any pixel is read.
+inline constexpr int64_t kMaxImageSamples = int64_t(1) << 28;
+
 // Reads the first subimage of a PNG, JPEG, TIFF or EXR (anything OpenImageIO reads) with all its
-// channels. Throws dejag::Error naming the file if it is missing, unreadable, truncated or implausible.
-Image readImage(const std::string& path);
+// channels. Throws dejag::Error naming the file if it is missing, unreadable, truncated or implausible,
+// or holds more than maxSamples samples.
+Image readImage(const std::string& path, int64_t maxSamples = kMaxImageSamples);
 
 struct WriteOptions {
     std::optional<PixelType> storage;  // default: image.storage, or the nearest type the format holds
