@@ -70,6 +70,7 @@ bench:
 	$(BUILD_DIR)/dejag bench metrics
 	$(BUILD_DIR)/dejag bench nn
 	$(BUILD_DIR)/dejag bench filter
+	$(BUILD_DIR)/dejag bench stability
 
 # libFuzzer targets (fuzz/: model loader, dataset manifest, image loading, command-line numbers), built
 # with Clang, ASan and UBSan; each runs FUZZ_RUNS executions from its committed seed corpus.

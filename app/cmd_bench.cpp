@@ -16,6 +16,7 @@
 #include "bench/filter_bench.h"
 #include "bench/quality.h"
 #include "bench/render_bench.h"
+#include "bench/stability.h"
 #include "bench/taa_bench.h"
 
 namespace dejag::cli {
@@ -197,6 +198,58 @@ void registerBenchCommand(CLI::App& app) {
             "frame: hard-edges, %s, sRGB-encoded float RGB; floor: the bytes each method must move "
             "at least, at the memory bandwidth measured in this run\n",
             filterArgs->size.c_str());
+    });
+
+    struct StabilityArguments {
+        int configurations = 1000;
+        uint64_t seed = 1;
+        bool json = false;
+    };
+    auto stabilityArgs = std::make_shared<StabilityArguments>();
+    CLI::App* stability = bench->add_subcommand(
+        "stability",
+        "gradient checks in double of every nn layer and loss on random configurations, and float32 "
+        "against double on the same cases (exit 1 if a check exceeds 1e-6)");
+    stability
+        ->add_option("--configs", stabilityArgs->configurations,
+                     "Random configurations, round-robin over the kinds")
+        ->check(CLI::Range(1, 1000000))
+        ->capture_default_str();
+    stability->add_option("--seed", stabilityArgs->seed, "Seed of the configurations")->capture_default_str();
+    stability->add_flag("--json", stabilityArgs->json, "One JSON object per kind");
+    stability->callback([stabilityArgs] {
+        bench::StabilityOptions options;
+        options.configurations = stabilityArgs->configurations, options.seed = stabilityArgs->seed;
+        const std::vector<bench::StabilityRow> rows = bench::benchStability(options);
+        int failing = 0;
+        for (const bench::StabilityRow& r : rows) failing += r.overTolerance;
+        if (stabilityArgs->json) {
+            for (const bench::StabilityRow& r : rows)
+                std::printf("%s\n", nlohmann::json{{"kind", r.kind},
+                                                   {"configurations", r.configurations},
+                                                   {"coordinates", r.coordinates},
+                                                   {"kinks_skipped", r.kinks},
+                                                   {"worst_gradient_error", r.worstGradient},
+                                                   {"median_gradient_error", r.medianGradient},
+                                                   {"over_tolerance", r.overTolerance},
+                                                   {"float32_vs_double", r.worstFloat}}
+                                        .dump()
+                                        .c_str());
+        } else {
+            std::printf("%-24s %7s %7s %6s %12s %12s %6s %14s\n", "kind", "configs", "coords", "kinks",
+                        "worst grad", "median grad", "> tol", "f32 vs f64");
+            for (const bench::StabilityRow& r : rows)
+                std::printf("%-24s %7d %7d %6d %12.2e %12.2e %6d %14.2e\n", r.kind.c_str(), r.configurations,
+                            r.coordinates, r.kinks, r.worstGradient, r.medianGradient, r.overTolerance,
+                            r.worstFloat);
+            std::printf(
+                "gradient errors: double backward against central differences (relative, per "
+                "coordinate; tolerance %.0e); f32 vs f64: normwise relative error of outputs and "
+                "gradients\n",
+                options.tolerance);
+        }
+        if (failing > 0)
+            throw Error(std::to_string(failing) + " configurations exceed the gradient tolerance");
     });
 
     struct TaaBenchArguments {

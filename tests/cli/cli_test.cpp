@@ -390,6 +390,24 @@ TEST(Cli, BenchFilterPrintsEveryMethod) {
                                                "t-taa random motion"}));
 }
 
+TEST(Cli, BenchStabilityChecksEveryKindWithinTolerance) {
+    testing::TempDir dir;
+    const RunResult r = run("bench stability --configs 90 --seed 3 --json", dir);
+    ASSERT_EQ(r.exitCode, 0) << r.err;
+    std::stringstream lines(r.out);
+    std::string line;
+    int kinds = 0;
+    while (std::getline(lines, line)) {
+        const nlohmann::json j = nlohmann::json::parse(line);
+        ++kinds;
+        EXPECT_EQ(j["configurations"], 10) << line;
+        EXPECT_GT(j["coordinates"].get<int>(), 0) << line;
+        EXPECT_LE(j["worst_gradient_error"].get<double>(), 1e-6) << line;
+        EXPECT_EQ(j["over_tolerance"], 0) << line;
+    }
+    EXPECT_EQ(kinds, 9);
+}
+
 TEST(Cli, BenchTaaReproducesTheThesisProtocolsSmall) {
     testing::TempDir dir;
     const RunResult r =

@@ -1,0 +1,308 @@
+#include "bench/stability.h"
+
+#include <algorithm>
+#include <cmath>
+#include <functional>
+#include <map>
+#include <random>
+
+#include "nn/layers.h"
+#include "nn/losses.h"
+
+namespace dejag::bench {
+
+namespace {
+
+using Vec = std::vector<double>;
+using Rng = std::mt19937_64;
+
+Vec randomVec(size_t n, Rng& rng, double low = -1.0, double high = 1.0) {
+    std::uniform_real_distribution<double> u(low, high);
+    Vec v(n);
+    for (double& x : v) x = u(rng);
+    return v;
+}
+
+double dot(const Vec& a, const Vec& b) {
+    double s = 0.0;
+    for (size_t i = 0; i < a.size(); ++i) s += a[i] * b[i];
+    return s;
+}
+
+std::vector<float> toFloat(const Vec& v) {
+    return std::vector<float>(v.begin(), v.end());
+}
+
+// Normwise relative error of a float result against the double one.
+double floatError(const std::vector<float>& f, const Vec& d) {
+    double diff = 0, norm = 0;
+    for (size_t i = 0; i < d.size(); ++i) {
+        diff = std::max(diff, std::abs(double(f[i]) - d[i]));
+        norm = std::max(norm, std::abs(d[i]));
+    }
+    return diff / std::max(norm, 1e-30);
+}
+
+struct Accumulator {
+    StabilityRow row;
+    std::vector<double> errors;  // per configuration: the worst checked coordinate
+};
+
+// Checks `analytic` (dL/dv) against central differences of scalar(v) at up to `samples` coordinates;
+// returns the worst relative error over the smooth ones.
+// `piecewise`: the function has kinks (max-pooling, ReLU-like activations, L1); a coordinate whose two
+// one-sided differences disagree there is skipped (and counted), as no difference quotient is defined.
+double checkGradient(Vec& v, const Vec& analytic, const std::function<double()>& scalar, Rng& rng, double h,
+                     Accumulator& acc, bool piecewise = false, int samples = 16) {
+    double worst = 0.0;
+    const size_t n = v.size();
+    const double base = scalar();
+    // Relative to the coordinate's own size, but not below a thousandth of the gradient's largest
+    // component: a component many orders smaller than the rest is measured against the rounding noise of
+    // the differences, about 1e-16 |L| / h, not against itself.
+    double largest = 0.0;
+    for (const double g : analytic) largest = std::max(largest, std::abs(g));
+    const double floor = std::max(1e-12, 1e-3 * largest);
+    for (int s = 0; s < samples && s < int(n); ++s) {
+        const size_t i = n <= size_t(samples) ? size_t(s) : size_t(rng() % n);
+        const double saved = v[i];
+        v[i] = saved + h;
+        const double plus = scalar();
+        v[i] = saved - h;
+        const double minus = scalar();
+        v[i] = saved;
+        const double forward = (plus - base) / h, backward = (base - minus) / h;
+        const double scale = std::max({std::abs(forward), std::abs(backward), 1e-6});
+        if (piecewise && std::abs(forward - backward) > 1e-3 * scale) {  // a kink in [saved - h, saved + h]
+            ++acc.row.kinks;
+            continue;
+        }
+        const double numeric = (plus - minus) / (2 * h);
+        const double error =
+            std::abs(numeric - analytic[i]) / std::max(floor, std::abs(numeric) + std::abs(analytic[i]));
+        worst = std::max(worst, error);
+        ++acc.row.coordinates;
+    }
+    return worst;
+}
+
+void conv2dCase(Rng& rng, Accumulator& acc) {
+    nn::Conv2dDesc d;
+    d.batch = 1 + rng() % 2, d.inChannels = 1 + rng() % 4, d.outChannels = 1 + rng() % 4;
+    d.kernelHeight = 1 + rng() % 5, d.kernelWidth = 1 + rng() % 5;
+    d.strideH = 1 + rng() % 3, d.strideW = 1 + rng() % 3;
+    d.dilationH = 1 + rng() % 2, d.dilationW = 1 + rng() % 2;
+    d.padTop = rng() % 3, d.padBottom = rng() % 3, d.padLeft = rng() % 3, d.padRight = rng() % 3;
+    d.inHeight = d.dilationH * (d.kernelHeight - 1) + 1 + rng() % 7;
+    d.inWidth = d.dilationW * (d.kernelWidth - 1) + 1 + rng() % 7;
+    d.bias = rng() % 2;
+    Vec x = randomVec(size_t(d.batch * d.inChannels * d.inHeight * d.inWidth), rng);
+    Vec w = randomVec(size_t(d.weightCount()), rng), b = randomVec(size_t(d.outChannels), rng);
+    const size_t outCount = size_t(d.batch * d.outChannels * d.outHeight() * d.outWidth());
+    const Vec r = randomVec(outCount, rng);
+    Vec y(outCount);
+    auto loss = [&] {
+        nn::conv2dForward(y.data(), x.data(), w.data(), d.bias ? b.data() : nullptr, d);
+        return dot(y, r);
+    };
+    loss();
+    const Vec yDouble = y;
+    Vec dx(x.size()), dw(w.size()), db(b.size());
+    nn::conv2dBackward(dx.data(), dw.data(), d.bias ? db.data() : nullptr, r.data(), x.data(), w.data(), d);
+    double worst =
+        std::max(checkGradient(x, dx, loss, rng, 1e-5, acc), checkGradient(w, dw, loss, rng, 1e-5, acc));
+    if (d.bias) worst = std::max(worst, checkGradient(b, db, loss, rng, 1e-5, acc));
+    acc.errors.push_back(worst);
+    // float32
+    const auto xf = toFloat(x), wf = toFloat(w), bf = toFloat(b), rf = toFloat(r);
+    std::vector<float> yf(outCount), dxf(x.size()), dwf(w.size()), dbf(b.size());
+    nn::conv2dForward(yf.data(), xf.data(), wf.data(), d.bias ? bf.data() : nullptr, d);
+    nn::conv2dBackward(dxf.data(), dwf.data(), d.bias ? dbf.data() : nullptr, rf.data(), xf.data(), wf.data(),
+                       d);
+    acc.row.worstFloat =
+        std::max({acc.row.worstFloat, floatError(yf, yDouble), floatError(dxf, dx), floatError(dwf, dw)});
+}
+
+void convTransposeCase(Rng& rng, Accumulator& acc) {
+    nn::ConvTranspose2dDesc d;
+    do {
+        d.batch = 1 + rng() % 2, d.inChannels = 1 + rng() % 4, d.outChannels = 1 + rng() % 4;
+        d.kernelHeight = 1 + rng() % 4, d.kernelWidth = 1 + rng() % 4;
+        d.strideH = 1 + rng() % 3, d.strideW = 1 + rng() % 3;
+        d.dilationH = 1 + rng() % 2, d.dilationW = 1 + rng() % 2;
+        d.padH = rng() % 2, d.padW = rng() % 2;
+        d.outputPaddingH = int(rng() % uint64_t(std::max(d.strideH, d.dilationH)));
+        d.outputPaddingW = int(rng() % uint64_t(std::max(d.strideW, d.dilationW)));
+        d.inHeight = 2 + rng() % 5, d.inWidth = 2 + rng() % 5;
+        d.bias = rng() % 2;
+    } while (d.outHeight() < 1 || d.outWidth() < 1);
+    Vec x = randomVec(size_t(d.batch * d.inChannels * d.inHeight * d.inWidth), rng);
+    Vec w = randomVec(size_t(d.weightCount()), rng), b = randomVec(size_t(d.outChannels), rng);
+    const size_t outCount = size_t(d.batch * d.outChannels * d.outHeight() * d.outWidth());
+    const Vec r = randomVec(outCount, rng);
+    Vec y(outCount);
+    auto loss = [&] {
+        nn::convTranspose2dForward(y.data(), x.data(), w.data(), d.bias ? b.data() : nullptr, d);
+        return dot(y, r);
+    };
+    loss();
+    const Vec yDouble = y;
+    Vec dx(x.size()), dw(w.size()), db(b.size());
+    nn::convTranspose2dBackward(dx.data(), dw.data(), d.bias ? db.data() : nullptr, r.data(), x.data(),
+                                w.data(), d);
+    double worst =
+        std::max(checkGradient(x, dx, loss, rng, 1e-5, acc), checkGradient(w, dw, loss, rng, 1e-5, acc));
+    if (d.bias) worst = std::max(worst, checkGradient(b, db, loss, rng, 1e-5, acc));
+    acc.errors.push_back(worst);
+    const auto xf = toFloat(x), wf = toFloat(w), bf = toFloat(b), rf = toFloat(r);
+    std::vector<float> yf(outCount), dxf(x.size()), dwf(w.size()), dbf(b.size());
+    nn::convTranspose2dForward(yf.data(), xf.data(), wf.data(), d.bias ? bf.data() : nullptr, d);
+    nn::convTranspose2dBackward(dxf.data(), dwf.data(), d.bias ? dbf.data() : nullptr, rf.data(), xf.data(),
+                                wf.data(), d);
+    acc.row.worstFloat =
+        std::max({acc.row.worstFloat, floatError(yf, yDouble), floatError(dxf, dx), floatError(dwf, dw)});
+}
+
+void maxPoolCase(Rng& rng, Accumulator& acc) {
+    nn::MaxPool2dDesc d;
+    d.batch = 1 + rng() % 2, d.channels = 1 + rng() % 3;
+    d.kernel = 1 + rng() % 3, d.stride = 1 + rng() % 3, d.padding = int(rng() % uint64_t(d.kernel / 2 + 1));
+    d.inHeight = d.kernel + rng() % 7, d.inWidth = d.kernel + rng() % 7;
+    Vec x = randomVec(size_t(d.batch * d.channels * d.inHeight * d.inWidth), rng);
+    const size_t outCount = size_t(d.batch * d.channels * d.outHeight() * d.outWidth());
+    const Vec r = randomVec(outCount, rng);
+    Vec y(outCount);
+    std::vector<int32_t> argmax(outCount);
+    auto loss = [&] {
+        nn::maxPool2dForward(y.data(), argmax.data(), x.data(), d);
+        return dot(y, r);
+    };
+    loss();
+    const Vec yDouble = y;
+    Vec dx(x.size());
+    nn::maxPool2dBackward(dx.data(), r.data(), argmax.data(), d);
+    acc.errors.push_back(checkGradient(x, dx, loss, rng, 1e-5, acc, true));
+    loss();  // argmax of the unperturbed input again
+    const auto xf = toFloat(x), rf = toFloat(r);
+    std::vector<float> yf(outCount), dxf(x.size());
+    std::vector<int32_t> argmaxF(outCount);
+    nn::maxPool2dForward(yf.data(), argmaxF.data(), xf.data(), d);
+    nn::maxPool2dBackward(dxf.data(), rf.data(), argmaxF.data(), d);
+    acc.row.worstFloat = std::max({acc.row.worstFloat, floatError(yf, yDouble), floatError(dxf, dx)});
+}
+
+void activationCase(Rng& rng, Accumulator& acc) {
+    nn::ActivationDesc d;
+    const nn::Activation kinds[] = {nn::Activation::ReLU, nn::Activation::LeakyReLU, nn::Activation::Sigmoid,
+                                    nn::Activation::Clamp};
+    d.kind = kinds[rng() % 4];
+    d.slope = float(0.01 + 0.3 * double(rng() % 1000) / 1000.0);
+    d.low = -0.5f, d.high = 0.7f;
+    const size_t n = 16 + rng() % 200;
+    Vec x = randomVec(n, rng, -4, 4), y(n);
+    const Vec r = randomVec(n, rng);
+    auto loss = [&] {
+        nn::activationForward(y.data(), x.data(), int64_t(n), d);
+        return dot(y, r);
+    };
+    loss();
+    const Vec yDouble = y;
+    Vec dx(n);
+    nn::activationBackward(dx.data(), r.data(), x.data(), y.data(), int64_t(n), d);
+    acc.errors.push_back(checkGradient(x, dx, loss, rng, 1e-5, acc, d.kind != nn::Activation::Sigmoid));
+    const auto xf = toFloat(x), rf = toFloat(r);
+    std::vector<float> yf(n), dxf(n);
+    nn::activationForward(yf.data(), xf.data(), int64_t(n), d);
+    nn::activationBackward(dxf.data(), rf.data(), xf.data(), yf.data(), int64_t(n), d);
+    acc.row.worstFloat = std::max({acc.row.worstFloat, floatError(yf, yDouble), floatError(dxf, dx)});
+}
+
+void resampleCase(Rng& rng, Accumulator& acc) {
+    nn::ResampleDesc d;
+    d.factor = 2 + int(rng() % 2);
+    const bool shuffle = rng() % 2 == 0;
+    d.batch = 1 + rng() % 2, d.inHeight = 1 + rng() % 6, d.inWidth = 1 + rng() % 6;
+    d.channels = shuffle ? int64_t(d.factor * d.factor) * int64_t(1 + rng() % 2) : int64_t(1 + rng() % 3);
+    const size_t in = size_t(d.batch * d.channels * d.inHeight * d.inWidth);
+    const size_t out = shuffle ? in : in * size_t(d.factor * d.factor);
+    Vec x = randomVec(in, rng), y(out);
+    const Vec r = randomVec(out, rng);
+    auto loss = [&] {
+        shuffle ? nn::pixelShuffleForward(y.data(), x.data(), d)
+                : nn::upsampleBilinearForward(y.data(), x.data(), d);
+        return dot(y, r);
+    };
+    loss();
+    const Vec yDouble = y;
+    Vec dx(in);
+    shuffle ? nn::pixelShuffleBackward(dx.data(), r.data(), d)
+            : nn::upsampleBilinearBackward(dx.data(), r.data(), d);
+    acc.errors.push_back(checkGradient(x, dx, loss, rng, 1e-5, acc));
+    const auto xf = toFloat(x), rf = toFloat(r);
+    std::vector<float> yf(out), dxf(in);
+    shuffle ? nn::pixelShuffleForward(yf.data(), xf.data(), d)
+            : nn::upsampleBilinearForward(yf.data(), xf.data(), d);
+    shuffle ? nn::pixelShuffleBackward(dxf.data(), rf.data(), d)
+            : nn::upsampleBilinearBackward(dxf.data(), rf.data(), d);
+    acc.row.worstFloat = std::max({acc.row.worstFloat, floatError(yf, yDouble), floatError(dxf, dx)});
+}
+
+void lossCase(Rng& rng, Accumulator& acc, const char* spec) {
+    nn::SsimLossDesc d;
+    d.batch = 1 + rng() % 2, d.channels = 1 + rng() % 3, d.height = 11 + rng() % 8, d.width = 11 + rng() % 8;
+    d.dataRange = rng() % 4 == 0 ? 10.0 : 1.0;
+    const size_t n = size_t(d.batch * d.channels * d.height * d.width);
+    Vec target = randomVec(n, rng, 0.0, d.dataRange), pred = randomVec(n, rng, 0.0, d.dataRange);
+    const nn::CompositeLoss loss = nn::CompositeLoss::parse(spec);
+    Vec dpred(n);
+    const double value = loss.evaluate(dpred.data(), pred.data(), target.data(), d);
+    auto scalar = [&] { return loss.evaluate<double>(nullptr, pred.data(), target.data(), d); };
+    const bool piecewise = std::string(spec).find("l1") != std::string::npos;
+    acc.errors.push_back(checkGradient(pred, dpred, scalar, rng, 1e-4 * d.dataRange, acc, piecewise));
+    const auto pf = toFloat(pred), tf = toFloat(target);
+    std::vector<float> dpf(n);
+    const double valueFloat = loss.evaluate(dpf.data(), pf.data(), tf.data(), d);
+    acc.row.worstFloat =
+        std::max({acc.row.worstFloat, std::abs(valueFloat - value) / std::max(std::abs(value), 1e-30),
+                  floatError(dpf, dpred)});
+}
+
+}  // namespace
+
+std::vector<StabilityRow> benchStability(const StabilityOptions& options) {
+    using Case = std::function<void(Rng&, Accumulator&)>;
+    const std::vector<std::pair<std::string, Case>> kinds = {
+        {"conv2d", conv2dCase},
+        {"conv_transpose2d", convTransposeCase},
+        {"max_pool2d", maxPoolCase},
+        {"activation", activationCase},
+        {"upsample/pixel_shuffle", resampleCase},
+        {"loss 1-ssim", [](Rng& r, Accumulator& a) { lossCase(r, a, "ssim"); }},
+        {"loss l1", [](Rng& r, Accumulator& a) { lossCase(r, a, "l1"); }},
+        {"loss mse", [](Rng& r, Accumulator& a) { lossCase(r, a, "mse"); }},
+        {"loss 0.84*ssim+0.16*l1", [](Rng& r, Accumulator& a) { lossCase(r, a, "0.84*ssim+0.16*l1"); }},
+    };
+    std::vector<Accumulator> accumulators(kinds.size());
+    Rng rng(options.seed);
+    for (int c = 0; c < options.configurations; ++c) {
+        const size_t k = size_t(c) % kinds.size();
+        kinds[k].second(rng, accumulators[k]);
+        ++accumulators[k].row.configurations;
+    }
+    std::vector<StabilityRow> rows;
+    for (size_t k = 0; k < kinds.size(); ++k) {
+        Accumulator& acc = accumulators[k];
+        acc.row.kind = kinds[k].first;
+        if (!acc.errors.empty()) {
+            std::sort(acc.errors.begin(), acc.errors.end());
+            acc.row.worstGradient = acc.errors.back();
+            acc.row.medianGradient = acc.errors[acc.errors.size() / 2];
+            acc.row.overTolerance = int(std::count_if(acc.errors.begin(), acc.errors.end(),
+                                                      [&](double e) { return e > options.tolerance; }));
+        }
+        rows.push_back(acc.row);
+    }
+    return rows;
+}
+
+}  // namespace dejag::bench
