@@ -6,6 +6,7 @@
 #include <map>
 #include <random>
 
+#include "nn/gradient_check.h"
 #include "nn/layers.h"
 #include "nn/losses.h"
 
@@ -15,19 +16,8 @@ namespace {
 
 using Vec = std::vector<double>;
 using Rng = std::mt19937_64;
-
-Vec randomVec(size_t n, Rng& rng, double low = -1.0, double high = 1.0) {
-    std::uniform_real_distribution<double> u(low, high);
-    Vec v(n);
-    for (double& x : v) x = u(rng);
-    return v;
-}
-
-double dot(const Vec& a, const Vec& b) {
-    double s = 0.0;
-    for (size_t i = 0; i < a.size(); ++i) s += a[i] * b[i];
-    return s;
-}
+using nn::dot;
+using nn::randomValues;
 
 std::vector<float> toFloat(const Vec& v) {
     return std::vector<float>(v.begin(), v.end());
@@ -48,42 +38,18 @@ struct Accumulator {
     std::vector<double> errors;  // per configuration: the worst checked coordinate
 };
 
-// Checks `analytic` (dL/dv) against central differences of scalar(v) at up to `samples` coordinates;
-// returns the worst relative error over the smooth ones.
-// `piecewise`: the function has kinks (max-pooling, ReLU-like activations, L1); a coordinate whose two
-// one-sided differences disagree there is skipped (and counted), as no difference quotient is defined.
+// The double gradient check of nn/gradient_check.h with this bench's settings: 16 coordinates, the
+// denominator at least a thousandth of the gradient's largest component (a component many orders
+// smaller than the rest is measured against the differences' rounding noise, about 1e-16 |L| / h, not
+// against itself), kinks skipped for the piecewise-linear kinds.
 double checkGradient(Vec& v, const Vec& analytic, const std::function<double()>& scalar, Rng& rng, double h,
-                     Accumulator& acc, bool piecewise = false, int samples = 16) {
-    double worst = 0.0;
-    const size_t n = v.size();
-    const double base = scalar();
-    // Relative to the coordinate's own size, but not below a thousandth of the gradient's largest
-    // component: a component many orders smaller than the rest is measured against the rounding noise of
-    // the differences, about 1e-16 |L| / h, not against itself.
-    double largest = 0.0;
-    for (const double g : analytic) largest = std::max(largest, std::abs(g));
-    const double floor = std::max(1e-12, 1e-3 * largest);
-    for (int s = 0; s < samples && s < int(n); ++s) {
-        const size_t i = n <= size_t(samples) ? size_t(s) : size_t(rng() % n);
-        const double saved = v[i];
-        v[i] = saved + h;
-        const double plus = scalar();
-        v[i] = saved - h;
-        const double minus = scalar();
-        v[i] = saved;
-        const double forward = (plus - base) / h, backward = (base - minus) / h;
-        const double scale = std::max({std::abs(forward), std::abs(backward), 1e-6});
-        if (piecewise && std::abs(forward - backward) > 1e-3 * scale) {  // a kink in [saved - h, saved + h]
-            ++acc.row.kinks;
-            continue;
-        }
-        const double numeric = (plus - minus) / (2 * h);
-        const double error =
-            std::abs(numeric - analytic[i]) / std::max(floor, std::abs(numeric) + std::abs(analytic[i]));
-        worst = std::max(worst, error);
-        ++acc.row.coordinates;
-    }
-    return worst;
+                     Accumulator& acc, bool piecewise = false) {
+    nn::GradientCheckOptions options;
+    options.samples = 16, options.step = h, options.floor = 1e-12, options.floorOfLargest = 1e-3;
+    options.piecewise = piecewise;
+    const nn::GradientCheckResult result = nn::checkGradient(v, analytic, scalar, rng, options);
+    acc.row.coordinates += result.checked, acc.row.kinks += result.kinks;
+    return result.worst;
 }
 
 void conv2dCase(Rng& rng, Accumulator& acc) {
@@ -96,10 +62,10 @@ void conv2dCase(Rng& rng, Accumulator& acc) {
     d.inHeight = d.dilationH * (d.kernelHeight - 1) + 1 + rng() % 7;
     d.inWidth = d.dilationW * (d.kernelWidth - 1) + 1 + rng() % 7;
     d.bias = rng() % 2;
-    Vec x = randomVec(size_t(d.batch * d.inChannels * d.inHeight * d.inWidth), rng);
-    Vec w = randomVec(size_t(d.weightCount()), rng), b = randomVec(size_t(d.outChannels), rng);
+    Vec x = randomValues(size_t(d.batch * d.inChannels * d.inHeight * d.inWidth), rng);
+    Vec w = randomValues(size_t(d.weightCount()), rng), b = randomValues(size_t(d.outChannels), rng);
     const size_t outCount = size_t(d.batch * d.outChannels * d.outHeight() * d.outWidth());
-    const Vec r = randomVec(outCount, rng);
+    const Vec r = randomValues(outCount, rng);
     Vec y(outCount);
     auto loss = [&] {
         nn::conv2dForward(y.data(), x.data(), w.data(), d.bias ? b.data() : nullptr, d);
@@ -136,10 +102,10 @@ void convTransposeCase(Rng& rng, Accumulator& acc) {
         d.inHeight = 2 + rng() % 5, d.inWidth = 2 + rng() % 5;
         d.bias = rng() % 2;
     } while (d.outHeight() < 1 || d.outWidth() < 1);
-    Vec x = randomVec(size_t(d.batch * d.inChannels * d.inHeight * d.inWidth), rng);
-    Vec w = randomVec(size_t(d.weightCount()), rng), b = randomVec(size_t(d.outChannels), rng);
+    Vec x = randomValues(size_t(d.batch * d.inChannels * d.inHeight * d.inWidth), rng);
+    Vec w = randomValues(size_t(d.weightCount()), rng), b = randomValues(size_t(d.outChannels), rng);
     const size_t outCount = size_t(d.batch * d.outChannels * d.outHeight() * d.outWidth());
-    const Vec r = randomVec(outCount, rng);
+    const Vec r = randomValues(outCount, rng);
     Vec y(outCount);
     auto loss = [&] {
         nn::convTranspose2dForward(y.data(), x.data(), w.data(), d.bias ? b.data() : nullptr, d);
@@ -168,9 +134,9 @@ void maxPoolCase(Rng& rng, Accumulator& acc) {
     d.batch = 1 + rng() % 2, d.channels = 1 + rng() % 3;
     d.kernel = 1 + rng() % 3, d.stride = 1 + rng() % 3, d.padding = int(rng() % uint64_t(d.kernel / 2 + 1));
     d.inHeight = d.kernel + rng() % 7, d.inWidth = d.kernel + rng() % 7;
-    Vec x = randomVec(size_t(d.batch * d.channels * d.inHeight * d.inWidth), rng);
+    Vec x = randomValues(size_t(d.batch * d.channels * d.inHeight * d.inWidth), rng);
     const size_t outCount = size_t(d.batch * d.channels * d.outHeight() * d.outWidth());
-    const Vec r = randomVec(outCount, rng);
+    const Vec r = randomValues(outCount, rng);
     Vec y(outCount);
     std::vector<int32_t> argmax(outCount);
     auto loss = [&] {
@@ -199,8 +165,8 @@ void activationCase(Rng& rng, Accumulator& acc) {
     d.slope = float(0.01 + 0.3 * double(rng() % 1000) / 1000.0);
     d.low = -0.5f, d.high = 0.7f;
     const size_t n = 16 + rng() % 200;
-    Vec x = randomVec(n, rng, -4, 4), y(n);
-    const Vec r = randomVec(n, rng);
+    Vec x = randomValues(n, rng, -4, 4), y(n);
+    const Vec r = randomValues(n, rng);
     auto loss = [&] {
         nn::activationForward(y.data(), x.data(), int64_t(n), d);
         return dot(y, r);
@@ -225,8 +191,8 @@ void resampleCase(Rng& rng, Accumulator& acc) {
     d.channels = shuffle ? int64_t(d.factor * d.factor) * int64_t(1 + rng() % 2) : int64_t(1 + rng() % 3);
     const size_t in = size_t(d.batch * d.channels * d.inHeight * d.inWidth);
     const size_t out = shuffle ? in : in * size_t(d.factor * d.factor);
-    Vec x = randomVec(in, rng), y(out);
-    const Vec r = randomVec(out, rng);
+    Vec x = randomValues(in, rng), y(out);
+    const Vec r = randomValues(out, rng);
     auto loss = [&] {
         shuffle ? nn::pixelShuffleForward(y.data(), x.data(), d)
                 : nn::upsampleBilinearForward(y.data(), x.data(), d);
@@ -252,7 +218,7 @@ void lossCase(Rng& rng, Accumulator& acc, const char* spec) {
     d.batch = 1 + rng() % 2, d.channels = 1 + rng() % 3, d.height = 11 + rng() % 8, d.width = 11 + rng() % 8;
     d.dataRange = rng() % 4 == 0 ? 10.0 : 1.0;
     const size_t n = size_t(d.batch * d.channels * d.height * d.width);
-    Vec target = randomVec(n, rng, 0.0, d.dataRange), pred = randomVec(n, rng, 0.0, d.dataRange);
+    Vec target = randomValues(n, rng, 0.0, d.dataRange), pred = randomValues(n, rng, 0.0, d.dataRange);
     const nn::CompositeLoss loss = nn::CompositeLoss::parse(spec);
     Vec dpred(n);
     const double value = loss.evaluate(dpred.data(), pred.data(), target.data(), d);

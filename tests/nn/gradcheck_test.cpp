@@ -9,6 +9,7 @@
 #include <random>
 #include <vector>
 
+#include "nn/gradient_check.h"
 #include "nn/layers.h"
 #include "nn/losses.h"
 
@@ -17,38 +18,15 @@ namespace {
 
 using Vec = std::vector<double>;
 
-Vec randomVec(size_t n, std::mt19937& rng, double low = -1.0, double high = 1.0) {
-    std::uniform_real_distribution<double> u(low, high);
-    Vec v(n);
-    for (double& x : v) x = u(rng);
-    return v;
-}
-
-double dot(const Vec& a, const Vec& b) {
-    double s = 0.0;
-    for (size_t i = 0; i < a.size(); ++i) s += a[i] * b[i];
-    return s;
-}
-
-// Compares `analytic` (dL/dv) against central differences of scalar(v) at up to `samples` coordinates.
+// nn::checkGradient (nn/gradient_check.h) at up to `samples` coordinates, step h; the relative error's
+// denominator is at least 1e-6 and a thousandth of the gradient's largest component (as in `dejag bench
+// stability`: a tiny component is measured against the differences' rounding noise, not itself).
 double checkGradient(Vec& v, const Vec& analytic, const std::function<double()>& scalar, std::mt19937& rng,
                      int samples = 40, double h = 1e-5) {
-    double worst = 0.0;
-    const size_t n = v.size();
-    for (int s = 0; s < samples && s < int(n); ++s) {
-        const size_t i = n <= size_t(samples) ? size_t(s) : size_t(rng() % n);
-        const double saved = v[i];
-        v[i] = saved + h;
-        const double plus = scalar();
-        v[i] = saved - h;
-        const double minus = scalar();
-        v[i] = saved;
-        const double numeric = (plus - minus) / (2 * h);
-        const double error =
-            std::abs(numeric - analytic[i]) / std::max(1e-6, std::abs(numeric) + std::abs(analytic[i]));
-        worst = std::max(worst, error);
-    }
-    return worst;
+    std::mt19937_64 coordinates(rng());
+    GradientCheckOptions options;
+    options.samples = samples, options.step = h, options.floorOfLargest = 1e-3;
+    return nn::checkGradient(v, analytic, scalar, coordinates, options).worst;
 }
 
 constexpr double kTolerance = 1e-6;
@@ -66,10 +44,10 @@ TEST(GradCheck, Conv2dRandomShapes) {
         d.inWidth = d.dilationW * (d.kernelWidth - 1) + 1 + rng() % 6;
         d.bias = rng() % 2;
         SCOPED_TRACE("trial " + std::to_string(trial));
-        Vec x = randomVec(size_t(d.batch * d.inChannels * d.inHeight * d.inWidth), rng);
-        Vec w = randomVec(size_t(d.weightCount()), rng), b = randomVec(size_t(d.outChannels), rng);
+        Vec x = randomValues(size_t(d.batch * d.inChannels * d.inHeight * d.inWidth), rng);
+        Vec w = randomValues(size_t(d.weightCount()), rng), b = randomValues(size_t(d.outChannels), rng);
         const size_t outCount = size_t(d.batch * d.outChannels * d.outHeight() * d.outWidth());
-        const Vec r = randomVec(outCount, rng);
+        const Vec r = randomValues(outCount, rng);
         Vec y(outCount);
         auto loss = [&] {
             conv2dForward(y.data(), x.data(), w.data(), d.bias ? b.data() : nullptr, d);
@@ -100,10 +78,10 @@ TEST(GradCheck, ConvTranspose2dRandomShapes) {
         d.bias = rng() % 2;
         if (d.outHeight() < 1 || d.outWidth() < 1) continue;
         SCOPED_TRACE("trial " + std::to_string(trial));
-        Vec x = randomVec(size_t(d.batch * d.inChannels * d.inHeight * d.inWidth), rng);
-        Vec w = randomVec(size_t(d.weightCount()), rng), b = randomVec(size_t(d.outChannels), rng);
+        Vec x = randomValues(size_t(d.batch * d.inChannels * d.inHeight * d.inWidth), rng);
+        Vec w = randomValues(size_t(d.weightCount()), rng), b = randomValues(size_t(d.outChannels), rng);
         const size_t outCount = size_t(d.batch * d.outChannels * d.outHeight() * d.outWidth());
-        const Vec r = randomVec(outCount, rng);
+        const Vec r = randomValues(outCount, rng);
         Vec y(outCount);
         auto loss = [&] {
             convTranspose2dForward(y.data(), x.data(), w.data(), d.bias ? b.data() : nullptr, d);
@@ -128,9 +106,9 @@ TEST(GradCheck, MaxPool2dRandomShapes) {
         d.kernel = 1 + rng() % 3, d.stride = 1 + rng() % 3, d.padding = rng() % (d.kernel / 2 + 1);
         d.inHeight = d.kernel + rng() % 6, d.inWidth = d.kernel + rng() % 6;
         SCOPED_TRACE("trial " + std::to_string(trial));
-        Vec x = randomVec(size_t(d.batch * d.channels * d.inHeight * d.inWidth), rng);
+        Vec x = randomValues(size_t(d.batch * d.channels * d.inHeight * d.inWidth), rng);
         const size_t outCount = size_t(d.batch * d.channels * d.outHeight() * d.outWidth());
-        const Vec r = randomVec(outCount, rng);
+        const Vec r = randomValues(outCount, rng);
         Vec y(outCount);
         std::vector<int32_t> argmax(outCount);
         auto loss = [&] {
@@ -152,8 +130,8 @@ TEST(GradCheck, Activations) {
         d.kind = kind;
         d.slope = 0.2f;
         d.low = -0.5f, d.high = 0.7f;
-        Vec x = randomVec(97, rng, -3, 3), y(97);
-        const Vec r = randomVec(97, rng);
+        Vec x = randomValues(97, rng, -3, 3), y(97);
+        const Vec r = randomValues(97, rng);
         auto loss = [&] {
             activationForward(y.data(), x.data(), 97, d);
             return dot(y, r);
@@ -167,8 +145,8 @@ TEST(GradCheck, Activations) {
 
 TEST(GradCheck, AddAndConcat) {
     std::mt19937 rng(5);
-    Vec a = randomVec(60, rng), b = randomVec(60, rng), y(60);
-    const Vec r = randomVec(60, rng);
+    Vec a = randomValues(60, rng), b = randomValues(60, rng), y(60);
+    const Vec r = randomValues(60, rng);
     auto addLoss = [&] {
         addForward(y.data(), a.data(), b.data(), 60);
         return dot(y, r);
@@ -179,8 +157,8 @@ TEST(GradCheck, AddAndConcat) {
     EXPECT_LE(checkGradient(b, db, addLoss, rng), kTolerance);
 
     // Concat of (2, 1, 3, 4) and (2, 3, 3, 4) along channels.
-    Vec p = randomVec(24, rng), q = randomVec(72, rng), z(96);
-    const Vec s = randomVec(96, rng);
+    Vec p = randomValues(24, rng), q = randomValues(72, rng), z(96);
+    const Vec s = randomValues(96, rng);
     auto concatLoss = [&] {
         concatForward<double>(z.data(), {p.data(), q.data()}, {1, 3}, 2, 12);
         return dot(z, s);
@@ -198,8 +176,8 @@ TEST(GradCheck, Resampling) {
         const size_t in = size_t(2 * 4 * 3 * 5), out = in * size_t(factor * factor);
         for (int kind = 0; kind < 3; ++kind) {
             if (kind == 2 && factor == 3) continue;  // pixel shuffle needs channels % factor^2 == 0
-            Vec x = randomVec(in, rng), y(kind == 2 ? in : out);
-            const Vec r = randomVec(y.size(), rng);
+            Vec x = randomValues(in, rng), y(kind == 2 ? in : out);
+            const Vec r = randomValues(y.size(), rng);
             auto loss = [&] {
                 if (kind == 0)
                     upsampleNearestForward(y.data(), x.data(), d);
@@ -229,7 +207,7 @@ TEST(GradCheck, LossesRandomShapes) {
         d.width = 11 + rng() % 9;
         d.dataRange = trial % 4 == 3 ? 10.0 : 1.0;
         const size_t n = size_t(d.batch * d.channels * d.height * d.width);
-        Vec target = randomVec(n, rng, 0.0, d.dataRange), pred = randomVec(n, rng, 0.0, d.dataRange);
+        Vec target = randomValues(n, rng, 0.0, d.dataRange), pred = randomValues(n, rng, 0.0, d.dataRange);
         SCOPED_TRACE("trial " + std::to_string(trial));
         for (const char* spec : {"ssim", "l1", "mse", "0.84*ssim+0.16*l1"}) {
             const CompositeLoss loss = CompositeLoss::parse(spec);
