@@ -4,6 +4,10 @@
 #include <unistd.h>
 
 #include <filesystem>
+#include <fstream>
+#include <map>
+#include <set>
+#include <sstream>
 #include <string>
 
 #include <gtest/gtest.h>
@@ -14,6 +18,38 @@
 #include "base/simd.h"
 
 namespace dejag::testing {
+
+// The bytes of a file ("" if it cannot be read).
+inline std::string slurp(const std::filesystem::path& path) {
+    std::ifstream in(path, std::ios::binary);
+    std::stringstream s;
+    s << in.rdbuf();
+    return s.str();
+}
+
+// Every file below a folder: relative path -> bytes.
+inline std::map<std::string, std::string> contents(const std::filesystem::path& folder) {
+    std::map<std::string, std::string> files;
+    for (const auto& entry : std::filesystem::recursive_directory_iterator(folder))
+        if (entry.is_regular_file())
+            files[std::filesystem::relative(entry.path(), folder).string()] = slurp(entry.path());
+    return files;
+}
+
+// Two folders hold the same file names and bytes (reported by name, not by dumping the bytes).
+inline void expectSameFiles(const std::filesystem::path& a, const std::filesystem::path& b) {
+    const auto left = contents(a), right = contents(b);
+    std::set<std::string> names;
+    for (const auto& [name, bytes] : left) names.insert(name);
+    for (const auto& [name, bytes] : right) names.insert(name);
+    for (const std::string& name : names) {
+        const bool inLeft = left.count(name) > 0, inRight = right.count(name) > 0;
+        EXPECT_TRUE(inLeft && inRight) << name << " is only in " << (inLeft ? a : b);
+        if (inLeft && inRight) {
+            EXPECT_TRUE(left.at(name) == right.at(name)) << name << " differs";
+        }
+    }
+}
 
 inline std::string sourcePath(const std::string& relative) {
     return std::string(DEJAG_SOURCE_DIR) + "/" + relative;

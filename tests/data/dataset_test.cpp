@@ -92,35 +92,9 @@ int run(const std::string& arguments, std::string* err = nullptr) {
     return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
 }
 
-std::string slurp(const fs::path& path) {
-    std::ifstream in(path, std::ios::binary);
-    std::stringstream s;
-    s << in.rdbuf();
-    return s.str();
-}
-
-// Every file of a dataset folder (relative path -> bytes).
-std::map<std::string, std::string> contents(const fs::path& folder) {
-    std::map<std::string, std::string> files;
-    for (const auto& entry : fs::recursive_directory_iterator(folder))
-        if (entry.is_regular_file()) files[fs::relative(entry.path(), folder).string()] = slurp(entry.path());
-    return files;
-}
-
-// Same file names and bytes (reported by name, not by dumping the bytes).
-void expectSameFiles(const fs::path& a, const fs::path& b) {
-    const auto left = contents(a), right = contents(b);
-    std::set<std::string> names;
-    for (const auto& [name, bytes] : left) names.insert(name);
-    for (const auto& [name, bytes] : right) names.insert(name);
-    for (const std::string& name : names) {
-        const bool inLeft = left.count(name) > 0, inRight = right.count(name) > 0;
-        EXPECT_TRUE(inLeft && inRight) << name << " is only in " << (inLeft ? a : b);
-        if (inLeft && inRight) {
-            EXPECT_TRUE(left.at(name) == right.at(name)) << name << " differs";
-        }
-    }
-}
+using testing::contents;
+using testing::expectSameFiles;
+using testing::slurp;
 
 const std::string kTiny =
     "data generate --families shapes,pipes,thin,foliage,random --test-families foliage "

@@ -107,19 +107,8 @@ int killTwentyTimesThenFinish(const std::string& arguments, int finalProgress, u
     return killed;
 }
 
-std::string slurp(const fs::path& path) {
-    std::ifstream in(path, std::ios::binary);
-    std::stringstream s;
-    s << in.rdbuf();
-    return s.str();
-}
-
-std::map<std::string, std::string> contents(const fs::path& folder) {
-    std::map<std::string, std::string> files;
-    for (const auto& entry : fs::recursive_directory_iterator(folder))
-        if (entry.is_regular_file()) files[fs::relative(entry.path(), folder).string()] = slurp(entry.path());
-    return files;
-}
+using testing::expectSameFiles;
+using testing::slurp;
 
 // log.csv without its second column (seconds since the start).
 std::string withoutSeconds(const std::string& csv) {
@@ -153,14 +142,7 @@ TEST(CrashSafety, DatasetGenerationKilledTwentyTimesEndsWithTheSameFiles) {
     const int killed =
         killTwentyTimesThenFinish(interrupted, records("whole"), 20261122, [&] { return records("killed"); });
     EXPECT_GE(killed, 15) << "most kills should land while the command runs";
-    const auto whole = contents(dir.file("whole")), again = contents(dir.file("killed"));
-    std::set<std::string> names;
-    for (const auto& [name, bytes] : whole) names.insert(name);
-    for (const auto& [name, bytes] : again) names.insert(name);
-    for (const std::string& name : names) {
-        ASSERT_TRUE(whole.count(name) && again.count(name)) << name << " is in one folder only";
-        EXPECT_TRUE(whole.at(name) == again.at(name)) << name << " differs";
-    }
+    expectSameFiles(dir.file("whole"), dir.file("killed"));
 }
 
 TEST(CrashSafety, TrainingKilledTwentyTimesEndsWithTheSameWeights) {
