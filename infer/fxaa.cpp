@@ -49,7 +49,9 @@ void Fxaa::applyInPlace(float* frame, int width, int height, int channels) {
     FxaaKernelArgs args;
     args.frame = frame, args.width = width, args.height = height, args.channels = channels;
     args.lumaStride = fxaaLumaStride(width);
-    if (luma_.size() < args.lumaStride * size_t(height)) luma_.resize(args.lumaStride * size_t(height));
+    // (+64: the kernels' windowed reads of a row may run up to 47 floats past the last row's pixels.)
+    const size_t lumaFloats = args.lumaStride * size_t(height) + 64;
+    if (luma_.size() < lumaFloats) luma_.resize(lumaFloats);
     args.luma = luma_.data();
     args.greenAsLuma = options_.greenAsLuma;
     args.edgeThreshold = options_.edgeThreshold, args.edgeThresholdMin = options_.edgeThresholdMin;

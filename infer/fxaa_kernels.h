@@ -20,7 +20,8 @@ inline size_t fxaaLumaStride(int width) {
 struct FxaaKernelArgs {
     const float* frame = nullptr;  // (height, width, channels) interleaved, R G B first
     int width = 0, height = 0, channels = 3;
-    float* luma = nullptr;  // pixel (x, y) at y * lumaStride + kFxaaLumaPad + x
+    float* luma = nullptr;  // pixel (x, y) at y * lumaStride + kFxaaLumaPad + x; 64 floats more after
+                            // the last row (windowed reads of 32 floats may start at its last pixel)
     size_t lumaStride = 0;
     bool greenAsLuma = false;
     float edgeThreshold = 0, edgeThresholdMin = 0, subpix = 0;
