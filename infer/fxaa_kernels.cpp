@@ -16,50 +16,6 @@ namespace {
 
 constexpr int L = kFloatLanes;
 
-// The resolve's vector: the level's own (a double-width generic vector, two independent search chains in
-// flight, measured slower with GCC 12: its lowering spills).
-constexpr int WL = kFloatLanes;
-using WFloat = VFloat;
-using WInt = VInt;
-using WMask = VMask;
-inline WFloat wgather(const float* base, WInt index) {
-    return gather(base, index);
-}
-inline bool wall(WMask m) {
-    return all(m);
-}
-inline WFloat wabs(WFloat v) {
-    return vabs(v);
-}
-inline WInt wfloor(WFloat v) {
-    return floorToInt(v);
-}
-inline WFloat wfloat(WInt v) {
-    return toFloat(v);
-}
-inline WFloat ws(float v) {
-    return splat<VFloat>(v);
-}
-inline WInt wsi(int32_t v) {
-    return splatInt(v);
-}
-template <class V>
-V wmin(V a, V b) {
-    return b < a ? b : a;  // std::min's order
-}
-template <class V>
-V wmax(V a, V b) {
-    return a < b ? b : a;  // std::max's order
-}
-template <class V>
-V wclamp(V v, V lo, V hi) {
-    return wmin(wmax(v, lo), hi);
-}
-template <class V>
-V wsel(WMask m, V a, V b) {
-    return m ? a : b;
-}
-
 float lumaOf(const FxaaKernelArgs& a, const float* p) {
     return a.greenAsLuma ? p[1] : 0.299f * p[0] + 0.587f * p[1] + 0.114f * p[2];
 }
@@ -68,41 +24,41 @@ float lumaOf(const FxaaKernelArgs& a, const float* p) {
 // pixel (i, j)'s centre at (i + 0.5, j + 0.5).
 struct Sampler {
     const FxaaKernelArgs& a;
-    WInt lastX = wsi(a.width - 1), lastY = wsi(a.height - 1), zero = wsi(0);
-    WInt lumaStride = wsi(int32_t(a.lumaStride)), width = wsi(a.width);
+    VInt lastX = splatInt(a.width - 1), lastY = splatInt(a.height - 1), zero = splatInt(0);
+    VInt lumaStride = splatInt(int32_t(a.lumaStride)), width = splatInt(a.width);
 
-    WFloat luma(WInt x, WInt y) const {  // x may be -1 or width (the pads)
-        return wgather(a.luma + kFxaaLumaPad, wclamp(y, zero, lastY) * lumaStride + x);
+    VFloat luma(VInt x, VInt y) const {  // x may be -1 or width (the pads)
+        return gather(a.luma + kFxaaLumaPad, vclamp(y, zero, lastY) * lumaStride + x);
     }
-    WFloat lumaBilinear(WFloat x, WFloat y) const {
-        const WFloat fx = x - 0.5f, fy = y - 0.5f;
-        const WInt x0 = wfloor(fx), y0 = wfloor(fy);
-        const WFloat tx = fx - wfloat(x0), ty = fy - wfloat(y0);
+    VFloat lumaBilinear(VFloat x, VFloat y) const {
+        const VFloat fx = x - 0.5f, fy = y - 0.5f;
+        const VInt x0 = floorToInt(fx), y0 = floorToInt(fy);
+        const VFloat tx = fx - toFloat(x0), ty = fy - toFloat(y0);
         // Pixels x0 and x0 + 1 clamped to the row: one pair from max(x0, -1) .. min(x0, width - 1) + 1,
         // the pads holding the border pixels.
-        const WInt pair = wclamp(x0, wsi(-1), lastX);
-        const WInt ra = wclamp(y0, zero, lastY) * lumaStride, rb = wclamp(y0 + 1, zero, lastY) * lumaStride;
+        const VInt pair = vclamp(x0, splatInt(-1), lastX);
+        const VInt ra = vclamp(y0, zero, lastY) * lumaStride, rb = vclamp(y0 + 1, zero, lastY) * lumaStride;
         const float* base = a.luma + kFxaaLumaPad;
-        WFloat pa, pb, pc, pd;
+        VFloat pa, pb, pc, pd;
         gatherPairs(base, ra + pair, pa, pb);
         gatherPairs(base, rb + pair, pc, pd);
-        const WFloat top = pa + tx * (pb - pa), bottom = pc + tx * (pd - pc);
+        const VFloat top = pa + tx * (pb - pa), bottom = pc + tx * (pd - pc);
         return top + ty * (bottom - top);
     }
-    void colourBilinear(WFloat x, WFloat y, WFloat rgb[3]) const {
-        const WFloat fx = x - 0.5f, fy = y - 0.5f;
-        const WInt x0 = wfloor(fx), y0 = wfloor(fy);
-        const WFloat tx = fx - wfloat(x0), ty = fy - wfloat(y0);
-        const WInt xa = wclamp(x0, zero, lastX), xb = wclamp(x0 + 1, zero, lastX);
-        const WInt ra = wclamp(y0, zero, lastY) * width, rb = wclamp(y0 + 1, zero, lastY) * width;
-        const WInt channels = wsi(a.channels);
-        const WInt ia = (ra + xa) * channels, ib = (ra + xb) * channels;
-        const WInt ic = (rb + xa) * channels, id = (rb + xb) * channels;
+    void colourBilinear(VFloat x, VFloat y, VFloat rgb[3]) const {
+        const VFloat fx = x - 0.5f, fy = y - 0.5f;
+        const VInt x0 = floorToInt(fx), y0 = floorToInt(fy);
+        const VFloat tx = fx - toFloat(x0), ty = fy - toFloat(y0);
+        const VInt xa = vclamp(x0, zero, lastX), xb = vclamp(x0 + 1, zero, lastX);
+        const VInt ra = vclamp(y0, zero, lastY) * width, rb = vclamp(y0 + 1, zero, lastY) * width;
+        const VInt channels = splatInt(a.channels);
+        const VInt ia = (ra + xa) * channels, ib = (ra + xb) * channels;
+        const VInt ic = (rb + xa) * channels, id = (rb + xb) * channels;
         for (int k = 0; k < 3; ++k) {
             const float* base = a.frame + k;
-            const WFloat pa = wgather(base, ia), pb = wgather(base, ib);
-            const WFloat pc = wgather(base, ic), pd = wgather(base, id);
-            const WFloat top = pa + tx * (pb - pa), bottom = pc + tx * (pd - pc);
+            const VFloat pa = gather(base, ia), pb = gather(base, ib);
+            const VFloat pc = gather(base, ic), pd = gather(base, id);
+            const VFloat top = pa + tx * (pb - pa), bottom = pc + tx * (pd - pc);
             rgb[k] = top + ty * (bottom - top);
         }
     }
@@ -129,21 +85,21 @@ struct Block {
 // Lanes of `count` entries of `index` (a short group repeats its last entry) gathered from array.
 template <class T>
 void laneLoad(const T* array, const int32_t* index, int count, T* lanes) {
-    for (int k = 0; k < WL; ++k) lanes[k] = array[index[std::min(k, count - 1)]];
+    for (int k = 0; k < L; ++k) lanes[k] = array[index[std::min(k, count - 1)]];
 }
 
 // The 3x3 luma around each lane's pixel: from three row windows when the lanes share a row and lie
 // within 30 pixels (AVX-512; pixels along an edge usually do), else gathers.
-void neighbourhood(const FxaaKernelArgs& a, const Sampler& f, WInt x, WInt y, WFloat n[3][3]) {
+void neighbourhood(const FxaaKernelArgs& a, const Sampler& f, VInt x, VInt y, VFloat n[3][3]) {
 #if defined(DEJAG_SIMD_LEVEL_avx512)
     const int row = y[0], first = laneMin(x) - 1;
-    if (all(y == wsi(row)) && laneMax(x) + 1 - first < 32) {
+    if (all(y == splatInt(row)) && laneMax(x) + 1 - first < 32) {
         for (int dy = 0; dy < 3; ++dy) {
             const float* r = a.luma + size_t(std::clamp(row + dy - 1, 0, a.height - 1)) * a.lumaStride +
                              kFxaaLumaPad + first;
             const __m512 lo = _mm512_loadu_ps(r), hi = _mm512_loadu_ps(r + 16);
             for (int dx = 0; dx < 3; ++dx)
-                n[dy][dx] = WFloat(_mm512_permutex2var_ps(lo, __m512i(x + (dx - 1 - first)), hi));
+                n[dy][dx] = VFloat(_mm512_permutex2var_ps(lo, __m512i(x + (dx - 1 - first)), hi));
         }
         return;
     }
@@ -151,79 +107,79 @@ void neighbourhood(const FxaaKernelArgs& a, const Sampler& f, WInt x, WInt y, WF
     (void)a;
 #endif
     for (int dy = 0; dy < 3; ++dy)
-        for (int dx = 0; dx < 3; ++dx) n[dy][dx] = f.luma(x + wsi(dx - 1), y + wsi(dy - 1));
+        for (int dx = 0; dx < 3; ++dx) n[dy][dx] = f.luma(x + splatInt(dx - 1), y + splatInt(dy - 1));
 }
 
-void setupLanes(const FxaaKernelArgs& a, const Sampler& f, WInt x, WInt y, Block& block, int at) {
-    WFloat n[3][3];
+void setupLanes(const FxaaKernelArgs& a, const Sampler& f, VInt x, VInt y, Block& block, int at) {
+    VFloat n[3][3];
     neighbourhood(a, f, x, y, n);
-    const WFloat lumaM = n[1][1];
-    WFloat lumaS = n[2][1], lumaE = n[1][2], lumaN = n[0][1], lumaW = n[1][0];
-    const WFloat range = wmax(wmax(wmax(lumaS, lumaE), wmax(lumaN, lumaW)), lumaM) -
-                         wmin(wmin(wmin(lumaS, lumaE), wmin(lumaN, lumaW)), lumaM);
-    const WFloat lumaNW = n[0][0], lumaSE = n[2][2], lumaNE = n[0][2], lumaSW = n[2][0];
-    const WFloat lumaNS = lumaN + lumaS, lumaWE = lumaW + lumaE;
-    const WFloat subpixRcpRange = 1.0f / range;
-    const WFloat subpixNSWE = lumaNS + lumaWE;
-    const WFloat edgeHorz1 = -2.0f * lumaM + lumaNS, edgeVert1 = -2.0f * lumaM + lumaWE;
-    const WFloat lumaNESE = lumaNE + lumaSE, lumaNWNE = lumaNW + lumaNE;
-    const WFloat edgeHorz2 = -2.0f * lumaE + lumaNESE, edgeVert2 = -2.0f * lumaN + lumaNWNE;
-    const WFloat lumaNWSW = lumaNW + lumaSW, lumaSWSE = lumaSW + lumaSE;
-    const WFloat edgeHorz4 = wabs(edgeHorz1) * 2.0f + wabs(edgeHorz2);
-    const WFloat edgeVert4 = wabs(edgeVert1) * 2.0f + wabs(edgeVert2);
-    const WFloat edgeHorz3 = -2.0f * lumaW + lumaNWSW, edgeVert3 = -2.0f * lumaS + lumaSWSE;
-    const WFloat edgeHorz = wabs(edgeHorz3) + edgeHorz4, edgeVert = wabs(edgeVert3) + edgeVert4;
-    const WFloat subpixNWSWNESE = lumaNWSW + lumaNESE;
-    const WMask horzSpan = edgeHorz >= edgeVert;  // the edge runs horizontally: search along x
-    const WFloat subpixA = subpixNSWE * 2.0f + subpixNWSWNESE;
-    lumaN = wsel(horzSpan, lumaN, lumaW), lumaS = wsel(horzSpan, lumaS, lumaE);
-    const WFloat subpixB = subpixA * (1.0f / 12.0f) - lumaM;
-    const WFloat gradientN = lumaN - lumaM, gradientS = lumaS - lumaM;
-    WFloat lumaNN = lumaN + lumaM;
-    const WFloat lumaSS = lumaS + lumaM;
-    const WMask pairN = wabs(gradientN) >= wabs(gradientS);
-    const WFloat gradient = wmax(wabs(gradientN), wabs(gradientS));
-    const WFloat lengthSign = wsel(pairN, ws(-1.0f), ws(1.0f));
-    const WFloat subpixC = wclamp(wabs(subpixB) * subpixRcpRange, ws(0.0f), ws(1.0f));
+    const VFloat lumaM = n[1][1];
+    VFloat lumaS = n[2][1], lumaE = n[1][2], lumaN = n[0][1], lumaW = n[1][0];
+    const VFloat range = vmax(vmax(vmax(lumaS, lumaE), vmax(lumaN, lumaW)), lumaM) -
+                         vmin(vmin(vmin(lumaS, lumaE), vmin(lumaN, lumaW)), lumaM);
+    const VFloat lumaNW = n[0][0], lumaSE = n[2][2], lumaNE = n[0][2], lumaSW = n[2][0];
+    const VFloat lumaNS = lumaN + lumaS, lumaWE = lumaW + lumaE;
+    const VFloat subpixRcpRange = 1.0f / range;
+    const VFloat subpixNSWE = lumaNS + lumaWE;
+    const VFloat edgeHorz1 = -2.0f * lumaM + lumaNS, edgeVert1 = -2.0f * lumaM + lumaWE;
+    const VFloat lumaNESE = lumaNE + lumaSE, lumaNWNE = lumaNW + lumaNE;
+    const VFloat edgeHorz2 = -2.0f * lumaE + lumaNESE, edgeVert2 = -2.0f * lumaN + lumaNWNE;
+    const VFloat lumaNWSW = lumaNW + lumaSW, lumaSWSE = lumaSW + lumaSE;
+    const VFloat edgeHorz4 = vabs(edgeHorz1) * 2.0f + vabs(edgeHorz2);
+    const VFloat edgeVert4 = vabs(edgeVert1) * 2.0f + vabs(edgeVert2);
+    const VFloat edgeHorz3 = -2.0f * lumaW + lumaNWSW, edgeVert3 = -2.0f * lumaS + lumaSWSE;
+    const VFloat edgeHorz = vabs(edgeHorz3) + edgeHorz4, edgeVert = vabs(edgeVert3) + edgeVert4;
+    const VFloat subpixNWSWNESE = lumaNWSW + lumaNESE;
+    const VMask horzSpan = edgeHorz >= edgeVert;  // the edge runs horizontally: search along x
+    const VFloat subpixA = subpixNSWE * 2.0f + subpixNWSWNESE;
+    lumaN = select(horzSpan, lumaN, lumaW), lumaS = select(horzSpan, lumaS, lumaE);
+    const VFloat subpixB = subpixA * (1.0f / 12.0f) - lumaM;
+    const VFloat gradientN = lumaN - lumaM, gradientS = lumaS - lumaM;
+    VFloat lumaNN = lumaN + lumaM;
+    const VFloat lumaSS = lumaS + lumaM;
+    const VMask pairN = vabs(gradientN) >= vabs(gradientS);
+    const VFloat gradient = vmax(vabs(gradientN), vabs(gradientS));
+    const VFloat lengthSign = select(pairN, splat<VFloat>(-1.0f), splat<VFloat>(1.0f));
+    const VFloat subpixC = vclamp(vabs(subpixB) * subpixRcpRange, splat<VFloat>(0.0f), splat<VFloat>(1.0f));
     // Start half a pixel across the edge, towards the side with the larger gradient.
-    const WFloat centreX = wfloat(x) + 0.5f, centreY = wfloat(y) + 0.5f;
-    const WFloat subpixD = -2.0f * subpixC + 3.0f;
-    const WFloat subpixE = subpixC * subpixC;
-    lumaNN = wsel(pairN, lumaNN, lumaSS);
-    storeu(block.bx + at, wsel(horzSpan, centreX, centreX + lengthSign * 0.5f));
-    storeu(block.by + at, wsel(horzSpan, centreY + lengthSign * 0.5f, centreY));
+    const VFloat centreX = toFloat(x) + 0.5f, centreY = toFloat(y) + 0.5f;
+    const VFloat subpixD = -2.0f * subpixC + 3.0f;
+    const VFloat subpixE = subpixC * subpixC;
+    lumaNN = select(pairN, lumaNN, lumaSS);
+    storeu(block.bx + at, select(horzSpan, centreX, centreX + lengthSign * 0.5f));
+    storeu(block.by + at, select(horzSpan, centreY + lengthSign * 0.5f, centreY));
     storeu(block.lumaNN + at, lumaNN);
     storeu(block.gradientScaled + at, gradient * 0.25f);
     storeu(block.lumaMM + at, lumaM - lumaNN * 0.5f);
     storeu(block.subpixF + at, subpixD * subpixE);
     storeu(block.lengthSign + at, lengthSign);
-    const WInt horz = wsel(horzSpan, wsi(-1), wsi(0));
+    const VInt horz = select(horzSpan, splatInt(-1), splatInt(0));
     std::memcpy(block.horz + at, &horz, sizeof horz);
 }
 
 // (2) Pixels whose edge runs vertically: the search moves along y.
 void searchVertical(const FxaaKernelArgs& a, const Sampler& f, Block& block, const int32_t* index,
                     int count) {
-    float bxLanes[WL], byLanes[WL], nnLanes[WL], gsLanes[WL];
+    float bxLanes[L], byLanes[L], nnLanes[L], gsLanes[L];
     laneLoad(block.bx, index, count, bxLanes), laneLoad(block.by, index, count, byLanes);
     laneLoad(block.lumaNN, index, count, nnLanes), laneLoad(block.gradientScaled, index, count, gsLanes);
-    const WFloat bx = loadu<WFloat>(bxLanes), by = loadu<WFloat>(byLanes);
-    const WFloat lumaNN = loadu<WFloat>(nnLanes), gradientScaled = loadu<WFloat>(gsLanes);
+    const VFloat bx = loadu<VFloat>(bxLanes), by = loadu<VFloat>(byLanes);
+    const VFloat lumaNN = loadu<VFloat>(nnLanes), gradientScaled = loadu<VFloat>(gsLanes);
     const float* steps = a.steps;
-    const WFloat nx = bx, px = bx;
-    WFloat ny = by - steps[0], py = by + steps[0];
-    WFloat lumaEndN = f.lumaBilinear(nx, ny) - lumaNN * 0.5f;
-    WFloat lumaEndP = f.lumaBilinear(px, py) - lumaNN * 0.5f;
-    WMask doneN = wabs(lumaEndN) >= gradientScaled, doneP = wabs(lumaEndP) >= gradientScaled;
-    if (a.stepCount > 1) ny = wsel(doneN, ny, ny - steps[1]), py = wsel(doneP, py, py + steps[1]);
-    for (int i = 2; i < a.stepCount && !wall(doneN & doneP); ++i) {
-        lumaEndN = wsel(doneN, lumaEndN, f.lumaBilinear(nx, ny) - lumaNN * 0.5f);
-        lumaEndP = wsel(doneP, lumaEndP, f.lumaBilinear(px, py) - lumaNN * 0.5f);
-        doneN = wabs(lumaEndN) >= gradientScaled;
-        doneP = wabs(lumaEndP) >= gradientScaled;
-        ny = wsel(doneN, ny, ny - steps[i]), py = wsel(doneP, py, py + steps[i]);
+    const VFloat nx = bx, px = bx;
+    VFloat ny = by - steps[0], py = by + steps[0];
+    VFloat lumaEndN = f.lumaBilinear(nx, ny) - lumaNN * 0.5f;
+    VFloat lumaEndP = f.lumaBilinear(px, py) - lumaNN * 0.5f;
+    VMask doneN = vabs(lumaEndN) >= gradientScaled, doneP = vabs(lumaEndP) >= gradientScaled;
+    if (a.stepCount > 1) ny = select(doneN, ny, ny - steps[1]), py = select(doneP, py, py + steps[1]);
+    for (int i = 2; i < a.stepCount && !all(doneN & doneP); ++i) {
+        lumaEndN = select(doneN, lumaEndN, f.lumaBilinear(nx, ny) - lumaNN * 0.5f);
+        lumaEndP = select(doneP, lumaEndP, f.lumaBilinear(px, py) - lumaNN * 0.5f);
+        doneN = vabs(lumaEndN) >= gradientScaled;
+        doneP = vabs(lumaEndP) >= gradientScaled;
+        ny = select(doneN, ny, ny - steps[i]), py = select(doneP, py, py + steps[i]);
     }
-    float lanes[6][WL];
+    float lanes[6][L];
     storeu(lanes[0], nx), storeu(lanes[1], ny), storeu(lanes[2], px), storeu(lanes[3], py);
     storeu(lanes[4], lumaEndN), storeu(lanes[5], lumaEndP);
     for (int k = 0; k < count; ++k) {
@@ -235,46 +191,45 @@ void searchVertical(const FxaaKernelArgs& a, const Sampler& f, Block& block, con
 
 // Luma bilinear at the positions (x, py) of the lanes, all on the row pair of py; the lanes that matter
 // read pixels first .. first + 31 of each row (AVX-512: two loads and a permute per row, no gathers).
-WFloat lumaAlongRow(const FxaaKernelArgs& a, const Sampler& f, WFloat x, float py, int first) {
-    const WFloat fx = x - 0.5f;
+VFloat lumaAlongRow(const FxaaKernelArgs& a, const Sampler& f, VFloat x, float py, int first) {
+    const VFloat fx = x - 0.5f;
     const float fy = py - 0.5f;
-    const WInt x0 = wfloor(fx);
+    const VInt x0 = floorToInt(fx);
     const int y0 = int(std::floor(fy));
-    const WFloat tx = fx - wfloat(x0);
+    const VFloat tx = fx - toFloat(x0);
     const float ty = fy - float(y0);
-    const WInt xa = wclamp(x0, f.zero, f.lastX), xb = wclamp(x0 + 1, f.zero, f.lastX);
+    const VInt xa = vclamp(x0, f.zero, f.lastX), xb = vclamp(x0 + 1, f.zero, f.lastX);
     const float* rowA = a.luma + size_t(std::clamp(y0, 0, a.height - 1)) * a.lumaStride + kFxaaLumaPad;
     const float* rowB = a.luma + size_t(std::clamp(y0 + 1, 0, a.height - 1)) * a.lumaStride + kFxaaLumaPad;
 #if defined(DEJAG_SIMD_LEVEL_avx512)
     const __m512i ia = __m512i(xa - first), ib = __m512i(xb - first);
     const __m512 a0 = _mm512_loadu_ps(rowA + first), a1 = _mm512_loadu_ps(rowA + first + 16);
     const __m512 b0 = _mm512_loadu_ps(rowB + first), b1 = _mm512_loadu_ps(rowB + first + 16);
-    const WFloat pa = WFloat(_mm512_permutex2var_ps(a0, ia, a1)),
-                 pb = WFloat(_mm512_permutex2var_ps(a0, ib, a1));
-    const WFloat pc = WFloat(_mm512_permutex2var_ps(b0, ia, b1)),
-                 pd = WFloat(_mm512_permutex2var_ps(b0, ib, b1));
+    const VFloat pa = VFloat(_mm512_permutex2var_ps(a0, ia, a1)),
+                 pb = VFloat(_mm512_permutex2var_ps(a0, ib, a1));
+    const VFloat pc = VFloat(_mm512_permutex2var_ps(b0, ia, b1)),
+                 pd = VFloat(_mm512_permutex2var_ps(b0, ib, b1));
 #else
     (void)first;
-    const WFloat pa = wgather(rowA, xa), pb = wgather(rowA, xb), pc = wgather(rowB, xa),
-                 pd = wgather(rowB, xb);
+    const VFloat pa = gather(rowA, xa), pb = gather(rowA, xb), pc = gather(rowB, xa), pd = gather(rowB, xb);
 #endif
-    const WFloat top = pa + tx * (pb - pa), bottom = pc + tx * (pd - pc);
+    const VFloat top = pa + tx * (pb - pa), bottom = pc + tx * (pd - pc);
     return top + ty * (bottom - top);
 }
 
 // The end of one direction's search from its lumas at the search positions: the first position where
 // the search stops, else one step past the last position read.
-void searchEnd(const float* reach, int k0, int samples, WFloat end, float gradientScaled, float bx,
+void searchEnd(const float* reach, int k0, int samples, VFloat end, float gradientScaled, float bx,
                float sign, bool& found, float& endX, float& endLuma) {
-    uint32_t done = maskBits(wabs(end) >= ws(gradientScaled));
-    if (samples - k0 < WL) done &= (1u << (samples - k0)) - 1u;
-    float lanes[WL];
+    uint32_t done = maskBits(vabs(end) >= splat<VFloat>(gradientScaled));
+    if (samples - k0 < L) done &= (1u << (samples - k0)) - 1u;
+    float lanes[L];
     storeu(lanes, end);
     if (done) {
         const int k = __builtin_ctz(done);
         endX = bx + sign * reach[k0 + k], endLuma = lanes[k], found = true;
     } else {
-        endLuma = lanes[std::min(WL, samples - k0) - 1];
+        endLuma = lanes[std::min(L, samples - k0) - 1];
     }
 }
 
@@ -291,10 +246,10 @@ void searchAlongRow(const FxaaKernelArgs& a, const Sampler& f, const float* reac
     const int firstP = std::clamp(int(std::floor(bx + reach[0] - 0.5f)), 0, lastX);
     bool foundN = false, foundP = false;
     float nx = 0, px = 0;
-    for (int k0 = 0; k0 < samples && !(foundN && foundP); k0 += WL) {
-        const WFloat r = loadu<WFloat>(reach + k0);
-        const WFloat endN = lumaAlongRow(a, f, bx - r, by, firstN) - half;
-        const WFloat endP = lumaAlongRow(a, f, bx + r, by, firstP) - half;
+    for (int k0 = 0; k0 < samples && !(foundN && foundP); k0 += L) {
+        const VFloat r = loadu<VFloat>(reach + k0);
+        const VFloat endN = lumaAlongRow(a, f, bx - r, by, firstN) - half;
+        const VFloat endP = lumaAlongRow(a, f, bx + r, by, firstP) - half;
         if (!foundN)
             searchEnd(reach, k0, samples, endN, gradientScaled, bx, -1.0f, foundN, nx, block.endN[i]);
         if (!foundP) searchEnd(reach, k0, samples, endP, gradientScaled, bx, 1.0f, foundP, px, block.endP[i]);
@@ -305,51 +260,51 @@ void searchAlongRow(const FxaaKernelArgs& a, const Sampler& f, const float* reac
 }
 
 // (4) The end of the span nearer to the pixel, the sub-pixel term, and the colour there.
-void finishLanes(const FxaaKernelArgs& a, const Sampler& f, WInt x, WInt y, const Block& block, int at,
-                 WFloat rgb[3]) {
-    WInt horzBits;
+void finishLanes(const FxaaKernelArgs& a, const Sampler& f, VInt x, VInt y, const Block& block, int at,
+                 VFloat rgb[3]) {
+    VInt horzBits;
     std::memcpy(&horzBits, block.horz + at, sizeof horzBits);
-    const WMask horzSpan = horzBits != wsi(0);
-    const WFloat centreX = wfloat(x) + 0.5f, centreY = wfloat(y) + 0.5f;
-    const WFloat nx = loadu<WFloat>(block.nx + at), ny = loadu<WFloat>(block.ny + at);
-    const WFloat px = loadu<WFloat>(block.px + at), py = loadu<WFloat>(block.py + at);
-    const WFloat lumaEndN = loadu<WFloat>(block.endN + at), lumaEndP = loadu<WFloat>(block.endP + at);
-    const WMask lumaMLTZero = loadu<WFloat>(block.lumaMM + at) < ws(0.0f);
-    const WFloat subpixF = loadu<WFloat>(block.subpixF + at),
-                 lengthSign = loadu<WFloat>(block.lengthSign + at);
-    const WFloat dstN = wsel(horzSpan, centreX - nx, centreY - ny);
-    const WFloat dstP = wsel(horzSpan, px - centreX, py - centreY);
-    const WMask goodSpanN = (lumaEndN < ws(0.0f)) != lumaMLTZero;
-    const WMask goodSpanP = (lumaEndP < ws(0.0f)) != lumaMLTZero;
-    const WFloat spanLength = dstP + dstN;
-    const WMask directionN = dstN < dstP;
-    const WFloat dst = wmin(dstN, dstP);
-    const WMask goodSpan = wsel(directionN, goodSpanN, goodSpanP);
-    const WFloat subpixG = subpixF * subpixF;
-    const WFloat pixelOffset = dst * (-1.0f / spanLength) + 0.5f;
-    const WFloat subpixH = subpixG * a.subpix;
-    const WFloat pixelOffsetGood = wsel(goodSpan, pixelOffset, ws(0.0f));
-    const WFloat pixelOffsetSubpix = wmax(pixelOffsetGood, subpixH);
-    const WFloat sx = wsel(horzSpan, centreX, centreX + pixelOffsetSubpix * lengthSign);
-    const WFloat sy = wsel(horzSpan, centreY + pixelOffsetSubpix * lengthSign, centreY);
+    const VMask horzSpan = horzBits != splatInt(0);
+    const VFloat centreX = toFloat(x) + 0.5f, centreY = toFloat(y) + 0.5f;
+    const VFloat nx = loadu<VFloat>(block.nx + at), ny = loadu<VFloat>(block.ny + at);
+    const VFloat px = loadu<VFloat>(block.px + at), py = loadu<VFloat>(block.py + at);
+    const VFloat lumaEndN = loadu<VFloat>(block.endN + at), lumaEndP = loadu<VFloat>(block.endP + at);
+    const VMask lumaMLTZero = loadu<VFloat>(block.lumaMM + at) < splat<VFloat>(0.0f);
+    const VFloat subpixF = loadu<VFloat>(block.subpixF + at),
+                 lengthSign = loadu<VFloat>(block.lengthSign + at);
+    const VFloat dstN = select(horzSpan, centreX - nx, centreY - ny);
+    const VFloat dstP = select(horzSpan, px - centreX, py - centreY);
+    const VMask goodSpanN = (lumaEndN < splat<VFloat>(0.0f)) != lumaMLTZero;
+    const VMask goodSpanP = (lumaEndP < splat<VFloat>(0.0f)) != lumaMLTZero;
+    const VFloat spanLength = dstP + dstN;
+    const VMask directionN = dstN < dstP;
+    const VFloat dst = vmin(dstN, dstP);
+    const VMask goodSpan = select(directionN, goodSpanN, goodSpanP);
+    const VFloat subpixG = subpixF * subpixF;
+    const VFloat pixelOffset = dst * (-1.0f / spanLength) + 0.5f;
+    const VFloat subpixH = subpixG * a.subpix;
+    const VFloat pixelOffsetGood = select(goodSpan, pixelOffset, splat<VFloat>(0.0f));
+    const VFloat pixelOffsetSubpix = vmax(pixelOffsetGood, subpixH);
+    const VFloat sx = select(horzSpan, centreX, centreX + pixelOffsetSubpix * lengthSign);
+    const VFloat sy = select(horzSpan, centreY + pixelOffsetSubpix * lengthSign, centreY);
     f.colourBilinear(sx, sy, rgb);
 }
 
 void resolveBlock(const FxaaKernelArgs& a, const Sampler& f, const int32_t* xs, const int32_t* ys, int count,
                   float* rgb, Block& block) {
-    auto lanes = [&](int i, WInt& x, WInt& y) {  // a short last group repeats its last pixel
-        int32_t laneX[WL], laneY[WL];
-        for (int k = 0; k < WL; ++k) {
+    auto lanes = [&](int i, VInt& x, VInt& y) {  // a short last group repeats its last pixel
+        int32_t laneX[L], laneY[L];
+        for (int k = 0; k < L; ++k) {
             const int j = std::min(i + k, count - 1);
             laneX[k] = xs[j], laneY[k] = ys[j];
         }
         std::memcpy(&x, laneX, sizeof x), std::memcpy(&y, laneY, sizeof y);
     };
     int verticals = 0, horizontals = 0;
-    for (int i = 0; i < count; i += WL) {
-        WInt x, y;
+    for (int i = 0; i < count; i += L) {
+        VInt x, y;
         lanes(i, x, y);
-        if (count - i >= WL) {
+        if (count - i >= L) {
             setupLanes(a, f, x, y, block, i);
         } else {  // the last group's lanes past count go to a spare slot
             Block spare;
@@ -365,23 +320,23 @@ void resolveBlock(const FxaaKernelArgs& a, const Sampler& f, const int32_t* xs, 
     }
     for (int i = 0; i < count; ++i)
         (block.horz[i] ? block.horizontal[horizontals++] : block.vertical[verticals++]) = i;
-    for (int i = 0; i < verticals; i += WL)
-        searchVertical(a, f, block, block.vertical + i, std::min(WL, verticals - i));
+    for (int i = 0; i < verticals; i += L)
+        searchVertical(a, f, block, block.vertical + i, std::min(L, verticals - i));
     float reach[64];  // search position k's distance from the start: steps[0] + ... + steps[k]
     reach[0] = a.steps[0];
     for (int k = 1; k < a.stepCount; ++k) reach[k] = reach[k - 1] + a.steps[k];
     for (int k = a.stepCount; k < 64; ++k) reach[k] = reach[a.stepCount - 1];
     for (int h = 0; h < horizontals; ++h) searchAlongRow(a, f, reach, block, block.horizontal[h]);
-    for (int i = 0; i < count; i += WL) {
-        WInt x, y;
+    for (int i = 0; i < count; i += L) {
+        VInt x, y;
         lanes(i, x, y);
-        const int n = std::min(WL, count - i);
-        WFloat result[3];
-        if (n == WL) {
+        const int n = std::min(L, count - i);
+        VFloat result[3];
+        if (n == L) {
             finishLanes(a, f, x, y, block, i, result);
         } else {
             Block spare;  // the last group: its arrays padded with the last pixel
-            for (int k = 0; k < WL; ++k) {
+            for (int k = 0; k < L; ++k) {
                 const int j = i + std::min(k, n - 1);
                 spare.horz[k] = block.horz[j], spare.nx[k] = block.nx[j], spare.ny[k] = block.ny[j];
                 spare.px[k] = block.px[j], spare.py[k] = block.py[j], spare.endN[k] = block.endN[j];
@@ -391,7 +346,7 @@ void resolveBlock(const FxaaKernelArgs& a, const Sampler& f, const int32_t* xs, 
             }
             finishLanes(a, f, x, y, spare, 0, result);
         }
-        float channel[3][WL];
+        float channel[3][L];
         for (int c = 0; c < 3; ++c) storeu(channel[c], result[c]);
         for (int k = 0; k < n; ++k) {
             float* out = rgb + 3 * size_t(i + k);
