@@ -288,16 +288,30 @@ constexpr std::array<int32_t, B> pixelLanes(int i) {
 template <int COUT, int I>
 inline constexpr std::array<int32_t, B> kPixelLanes = pixelLanes<COUT>(I);
 
+// A store that bypasses the caches (p aligned to the vector). A narrow layer writes a whole vector per
+// pixel for its 1-4 channels; over a large frame those lines are not read again before they leave the
+// cache, and reading them first (write-allocate) would add half again to the layer's memory traffic.
+inline void streamStore(float* p, VFloat v) {
+#if defined(DEJAG_SIMD_LEVEL_avx512)
+    _mm512_stream_ps(p, __m512(v));
+#else
+    _mm256_stream_ps(p, __m256(v));
+#endif
+}
+
 // Pixel I's COUT values (lanes 0..COUT-1, zeros elsewhere), activated, to its output.
-template <int COUT, int I>
+template <int COUT, int I, bool STREAM>
 inline void storePixel(const RowContext& c, int64_t j, VFloat sums, VFloat zero,
                        const ActivationDesc& activation) {
     const VFloat v = applyActivation(
         shuffleTwo<kPixelLanes<COUT, I>>(sums, zero, std::make_index_sequence<B>()), activation);
-    storeu(c.out + (j + I) * c.outPixelStep, v);
+    if constexpr (STREAM)
+        streamStore(c.out + (j + I) * c.outPixelStep, v);
+    else
+        storeu(c.out + (j + I) * c.outPixelStep, v);
 }
 
-template <int TW, int COUT, bool UNIT>
+template <int TW, int COUT, bool UNIT, bool STREAM>
 void narrowTile(const RowContext& c, int64_t j) {
     static_assert(TW * COUT <= B);
     const int64_t step = UNIT ? B : c.inPixelStep;
@@ -325,7 +339,7 @@ void narrowTile(const RowContext& c, int64_t j) {
     const VFloat zero = splat<VFloat>(0.0f);
     const ActivationDesc activation = c.activation;
     [&]<size_t... I>(std::index_sequence<I...>) {
-        (storePixel<COUT, int(I)>(c, j, sums, zero, activation), ...);
+        (storePixel<COUT, int(I), STREAM>(c, j, sums, zero, activation), ...);
     }
     (std::make_index_sequence<TW>());
 }
@@ -333,32 +347,44 @@ void narrowTile(const RowContext& c, int64_t j) {
 template <int COUT, bool UNIT, size_t... I>
 constexpr auto makeNarrowTiles(std::index_sequence<I...>) {
     return std::array<void (*)(const RowContext&, int64_t), sizeof...(I)>{
-        &narrowTile<int(I) + 1, COUT, UNIT>...};
+        &narrowTile<int(I) + 1, COUT, UNIT, false>...};
 }
 
-template <int COUT, bool UNIT>
+template <int COUT, bool UNIT, bool STREAM>
 void narrowRows(const ConvRowsArgs& a) {
     constexpr int width = B / COUT;
     static constexpr auto tiles = makeNarrowTiles<COUT, UNIT>(std::make_index_sequence<width>());
     for (int64_t r = a.rowBegin; r < a.rowEnd; ++r) {
         const RowContext c = rowContext(a, r);
         int64_t j = 0;
-        for (; j + width <= a.pass.columns; j += width) narrowTile<width, COUT, UNIT>(c, j);
+        for (; j + width <= a.pass.columns; j += width) narrowTile<width, COUT, UNIT, STREAM>(c, j);
         if (j < a.pass.columns) tiles[size_t(a.pass.columns - j - 1)](c, j);
     }
+    if constexpr (STREAM) _mm_sfence();  // the streamed stores are visible before the work item ends
+}
+
+// Outputs larger than this are streamed past the caches (a 1080p frame's: 130 MB).
+constexpr int64_t kStreamOutputBytes = int64_t(8) << 20;
+
+template <int COUT, bool UNIT>
+void narrowRowsStreamedOrNot(const ConvRowsArgs& a) {
+    const bool stream =
+        a.outShape.batch * a.outShape.imageStride() * int64_t(sizeof(float)) > kStreamOutputBytes &&
+        reinterpret_cast<uintptr_t>(a.out) % sizeof(VFloat) == 0;
+    stream ? narrowRows<COUT, UNIT, true>(a) : narrowRows<COUT, UNIT, false>(a);
 }
 
 template <bool UNIT>
 void narrowRowsFor(const ConvRowsArgs& a) {
     switch (a.outShape.channels) {
         case 1:
-            return narrowRows<1, UNIT>(a);
+            return narrowRowsStreamedOrNot<1, UNIT>(a);
         case 2:
-            return narrowRows<2, UNIT>(a);
+            return narrowRowsStreamedOrNot<2, UNIT>(a);
         case 3:
-            return narrowRows<3, UNIT>(a);
+            return narrowRowsStreamedOrNot<3, UNIT>(a);
         default:
-            return narrowRows<4, UNIT>(a);
+            return narrowRowsStreamedOrNot<4, UNIT>(a);
     }
 }
 #endif

@@ -104,6 +104,26 @@ TEST_P(FastConv, Conv2dMatchesTheReferenceOnRandomShapes) {
     }
 }
 
+// A layer with a few outputs over a large frame streams its stores past the caches (above 8 MB of
+// output); that path, its row remainders and its border must match the reference like the cached one.
+TEST_P(FastConv, NarrowLayerOverALargeFrameMatchesTheReference) {
+    Rng rng(78);
+    Conv2dDesc d;
+    d.inChannels = 16, d.outChannels = 3;
+    d.inHeight = 181, d.inWidth = 1467;  // 8-float blocks (AVX2) x 183 x 1469 padded pixels: 8.6 MB
+    d.padTop = d.padBottom = d.padLeft = d.padRight = 1;
+    const auto input = randomValues(size_t(d.inChannels * d.inHeight * d.inWidth), rng);
+    const auto weight = randomValues(size_t(d.weightCount()), rng, 0.3f);
+    const auto bias = randomValues(size_t(d.outChannels), rng);
+    const int64_t outCount = d.outChannels * d.outHeight() * d.outWidth();
+    std::vector<float> want(static_cast<size_t>(outCount));
+    conv2dForward(want.data(), input.data(), weight.data(), bias.data(), d);
+    ActivationDesc relu{Activation::ReLU};
+    activationForward(want.data(), want.data(), outCount, relu);
+    const BlockedConv conv(d, weight.data(), bias.data(), relu);
+    expectClose(runBlocked(conv, input, outCount), want);
+}
+
 TEST_P(FastConv, ConvTranspose2dMatchesTheReferenceOnRandomShapes) {
     Rng rng(78);
     for (int trial = 0; trial < 40; ++trial) {
