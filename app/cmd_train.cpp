@@ -90,6 +90,11 @@ void registerTrainCommand(CLI::App& app) {
     trainCommand->add_flag("--quiet", config->quiet, "no progress bar");
     trainCommand->add_option("--poison-steps", *poison, "testing: put a NaN into these steps' batches")
         ->group("");
+    trainCommand
+        ->add_option("--adversarial", config->adversarialFraction,
+                     "stress testing: replace this fraction of the batches with constant, noise, HDR-spike "
+                     "and NaN-poisoned ones (default 0)")
+        ->check(CLI::Range(0.0, 1.0));
     addRuntimeOptions(trainCommand, *runtime);
     trainCommand->footer(
         "Writes RUN/run.json, checkpoint.safetensors (atomically, every --checkpoint-every steps), "
@@ -137,6 +142,12 @@ void registerTrainCommand(CLI::App& app) {
                                                {"seconds", r.seconds},
                                                {"best_step", r.bestStep},
                                                {"best_psnr", r.bestPsnr},
+                                               {"largest_loss", r.largestLoss},
+                                               {"adversarial",
+                                                {{"constant", r.adversarialSteps[1]},
+                                                 {"noise", r.adversarialSteps[2]},
+                                                 {"hdr_spikes", r.adversarialSteps[3]},
+                                                 {"poisoned", r.adversarialSteps[4]}}},
                                                {"stopped_early", r.stoppedEarly}}
                                     .dump()
                                     .c_str());

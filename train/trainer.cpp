@@ -18,6 +18,7 @@
 #include "data/patches.h"
 #include "data/plot.h"
 #include "nn/inference.h"
+#include "nn/init.h"
 #include "nn/losses.h"
 #include "nn/optim.h"
 #include "nn/safetensors.h"
@@ -69,6 +70,7 @@ json configToJson(const TrainConfig& c) {
             {"validation_images", c.validationImages},
             {"patience", c.patience},
             {"families", c.families},
+            {"adversarial", c.adversarialFraction},
             {"threads", threadCount()}};
 }
 
@@ -77,6 +79,13 @@ void requireSameRun(const json& saved, const json& now) {
     for (const char* key :
          {"arch", "loss", "batch", "patch", "lr", "warmup_steps", "clip_norm", "seed", "families"}) {
         const json before = saved.contains(key) ? saved.at(key) : json::array();  // runs before --families
+        if (before != now.at(key))
+            throw Error(std::string("--resume: '") + key + "' was " + before.dump() + " in this run, now " +
+                        now.at(key).dump() + "; resume with the same settings or start a new --out");
+    }
+    {
+        const char* key = "adversarial";
+        const json before = saved.contains(key) ? saved.at(key) : json(0.0);  // runs before --adversarial
         if (before != now.at(key))
             throw Error(std::string("--resume: '") + key + "' was " + before.dump() + " in this run, now " +
                         now.at(key).dump() + "; resume with the same settings or start a new --out");
@@ -126,6 +135,8 @@ LogRow rowFromJson(const json& j) {
 struct TrainState {
     int64_t step = 0;  // steps done (the next batch is batch `step`)
     int64_t skipped = 0, badInRow = 0;
+    double largestLoss = 0;
+    int64_t adversarial[5] = {};
     double learningRateScale = 1.0;
     double bestPsnr = -1e30;
     int64_t bestStep = -1;
@@ -145,6 +156,8 @@ void saveCheckpoint(const std::string& path, const nn::Model& model, const nn::O
                  {"skipped", state.skipped},
                  {"bad_in_row", state.badInRow},
                  {"lr_scale", state.learningRateScale},
+                 {"largest_loss", state.largestLoss},
+                 {"adversarial", state.adversarial},
                  {"best_psnr", state.bestPsnr},
                  {"best_step", state.bestStep},
                  {"evaluations_since_best", state.evaluationsSinceBest},
@@ -187,6 +200,9 @@ TrainState loadCheckpoint(const std::string& path, nn::Model& model, nn::Optimiz
     state.learningRateScale = s.at("lr_scale"), state.bestPsnr = s.at("best_psnr"),
     state.bestStep = s.at("best_step");
     state.evaluationsSinceBest = s.at("evaluations_since_best"), state.seconds = s.at("seconds");
+    state.largestLoss = s.value("largest_loss", 0.0);  // (absent from checkpoints before stress runs)
+    if (s.contains("adversarial"))
+        for (size_t k = 0; k < 5; ++k) state.adversarial[k] = s.at("adversarial").at(k);
     for (const json& r : s.at("log")) state.log.push_back(rowFromJson(r));
     *config = s.at("config");
     return state;
@@ -317,6 +333,75 @@ std::vector<MethodScores> scoreMethods(const std::vector<data::EvaluationItem>& 
 }
 
 // ---- Training -----------------------------------------------------------------------------------------
+
+// ---- Adversarial batches (stress testing) -------------------------------------------------------------
+
+const char* adversarialKindName(AdversarialKind kind) {
+    switch (kind) {
+        case AdversarialKind::Constant:
+            return "constant";
+        case AdversarialKind::Noise:
+            return "noise";
+        case AdversarialKind::HdrSpikes:
+            return "hdr-spikes";
+        case AdversarialKind::Poisoned:
+            return "poisoned";
+        default:
+            return "none";
+    }
+}
+
+namespace {
+// A generator for (seed, step) of its own stream, apart from the sampler's and the initialiser's.
+nn::Rng adversarialRng(uint64_t seed, int64_t step) {
+    return nn::Rng(seed * 0x9E3779B97F4A7C15ull + uint64_t(step), 0xAD5E);
+}
+}  // namespace
+
+AdversarialKind adversarialKindAt(uint64_t seed, int64_t step, double fraction) {
+    if (fraction <= 0) return AdversarialKind::None;
+    nn::Rng rng = adversarialRng(seed, step);
+    if (rng.uniform() >= fraction) return AdversarialKind::None;
+    return AdversarialKind(1 + rng.below(4));
+}
+
+void makeAdversarial(nn::Tensor& input, nn::Tensor& target, AdversarialKind kind, uint64_t seed,
+                     int64_t step) {
+    nn::Rng rng = adversarialRng(seed, step);
+    rng.uniform(), rng.below(4);  // the draws that chose the kind
+    const int64_t n = input.dim(0), c = input.dim(1), plane = input.dim(2) * input.dim(3);
+    float* in = input.data();
+    float* out = target.data();
+    switch (kind) {
+        case AdversarialKind::Constant:
+            for (int64_t i = 0; i < n; ++i) {
+                const float level = rng.uniform();
+                std::fill(in + i * c * plane, in + (i + 1) * c * plane, level);
+                std::fill(out + i * c * plane, out + (i + 1) * c * plane, level);
+            }
+            break;
+        case AdversarialKind::Noise:
+            for (int64_t i = 0; i < input.numel(); ++i) in[i] = out[i] = rng.uniform();
+            break;
+        case AdversarialKind::HdrSpikes:
+            for (int64_t i = 0; i < n; ++i)
+                for (int64_t p = 0; p < plane; ++p) {
+                    if (rng.uniform() >= 0.01f) continue;
+                    const float value = std::pow(10.0f, rng.uniform(0.0f, 4.0f));
+                    for (int64_t ch = 0; ch < c; ++ch)
+                        in[(i * c + ch) * plane + p] = out[(i * c + ch) * plane + p] = value;
+                }
+            break;
+        case AdversarialKind::Poisoned:
+            for (int k = 0; k < 8; ++k) {
+                const int64_t at = int64_t(rng.below(uint32_t(input.numel())));
+                in[at] = k % 2 ? INFINITY : NAN;
+            }
+            break;
+        default:
+            break;
+    }
+}
 
 TrainResult trainModel(const TrainConfig& config, const std::vector<Baseline>& baselines) {
     if (config.data.empty() || config.out.empty()) throw Error("--data and --out are required");
@@ -473,11 +558,19 @@ TrainResult trainModel(const TrainConfig& config, const std::vector<Baseline>& b
         if (std::find(config.poisonSteps.begin(), config.poisonSteps.end(), state.step) !=
             config.poisonSteps.end())
             batch.input.data()[batch.input.numel() / 2] = NAN;
+        const AdversarialKind adversarial =
+            adversarialKindAt(config.seed, state.step, config.adversarialFraction);
+        if (adversarial != AdversarialKind::None) {
+            makeAdversarial(batch.input, batch.target, adversarial, config.seed, state.step);
+            ++state.adversarial[int(adversarial)];
+        }
         const double rate = schedule.rateAt(state.step) * state.learningRateScale;
         std::string bad;
+        bool badData = false;
         double value = NAN;
         if (!allFinite(batch.input) || !allFinite(batch.target)) {
             bad = "the batch holds NaN or Inf";
+            badData = true;
         } else {
             const nn::Tensor& out = model.forward(batch.input);
             if (dout.shape() != out.shape()) dout = nn::Tensor(out.shape());
@@ -496,8 +589,10 @@ TrainResult trainModel(const TrainConfig& config, const std::vector<Baseline>& b
             }
         }
         if (!bad.empty()) {
+            // A diverging step lowers the learning rate; a broken batch says nothing about it (but
+            // counts towards giving up, so a broken data set stops the run).
             ++state.skipped, ++state.badInRow;
-            state.learningRateScale *= 0.5;
+            if (!badData) state.learningRateScale *= 0.5;
             if (config.json)
                 std::printf("%s\n", json{{"event", "skipped"},
                                          {"step", state.step},
@@ -506,8 +601,8 @@ TrainResult trainModel(const TrainConfig& config, const std::vector<Baseline>& b
                                         .dump()
                                         .c_str());
             else
-                std::printf("step %6lld  skipped: %s; learning rate scale now %.3g\n", (long long)state.step,
-                            bad.c_str(), state.learningRateScale);
+                std::printf("step %6lld  skipped: %s; learning rate scale %s %.3g\n", (long long)state.step,
+                            bad.c_str(), badData ? "stays" : "now", state.learningRateScale);
             std::fflush(stdout);
             if (state.badInRow >= config.maxBadSteps)
                 throw Error("training diverged: " + std::to_string(state.badInRow) +
@@ -516,6 +611,7 @@ TrainResult trainModel(const TrainConfig& config, const std::vector<Baseline>& b
         } else {
             optimizer.step(model.parameterData(), model.gradientData(), rate);
             state.badInRow = 0;
+            state.largestLoss = std::max(state.largestLoss, value);
             lossSum += value, ++lossCount, lastLoss = value;
         }
         ++state.step;
@@ -575,6 +671,8 @@ TrainResult trainModel(const TrainConfig& config, const std::vector<Baseline>& b
     }
     result.steps = state.step, result.skippedSteps = state.skipped, result.seconds = state.seconds;
     result.bestPsnr = state.bestPsnr, result.bestStep = state.bestStep;
+    result.largestLoss = state.largestLoss;
+    std::copy(std::begin(state.adversarial), std::end(state.adversarial), result.adversarialSteps);
     return result;
 }
 

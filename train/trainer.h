@@ -43,14 +43,30 @@ struct TrainConfig {
     int patience = 0;           // evaluations without a better validation PSNR before stopping (0: off)
     int maxBadSteps = 8;        // non-finite steps in a row before giving up
     bool resume = false;
-    bool quiet = false;                 // no progress bar
-    bool json = false;                  // log lines as JSON objects on stdout
-    std::vector<int64_t> poisonSteps;   // tests: steps whose batch gets a NaN (exercises the guard)
+    bool quiet = false;                // no progress bar
+    bool json = false;                 // log lines as JSON objects on stdout
+    std::vector<int64_t> poisonSteps;  // tests: steps whose batch gets a NaN (exercises the guard)
+    // Stress testing: this fraction of the batches, chosen by the seed and the step, is replaced by an
+    // adversarial one (see AdversarialKind): constant patches, pure noise, HDR spikes up to 1e4, or
+    // NaN/Inf-poisoned input that the guard must reject.
+    double adversarialFraction = 0;
     int64_t stopAfterSteps = 0;         // tests: end the session after this many steps, checkpointed,
                                         // as if killed then (0: run to the end)
     std::string commandLine;            // recorded in run.json and the model card
     std::vector<std::string> families;  // train and validate on these families only (empty: all but test)
 };
+
+// The batches `--adversarial` mixes in. Constant: every patch one grey level, input = target; noise:
+// uniform noise, input = target; HDR spikes: the step's batch with 1 % of its pixels set to 10^[0, 4] in
+// input and target; poisoned: the step's batch with NaN and Inf values in its input.
+enum class AdversarialKind { None, Constant, Noise, HdrSpikes, Poisoned };
+const char* adversarialKindName(AdversarialKind kind);
+// Which kind step `step` of a run with this seed gets (None for most steps); a pure function, so a
+// resumed run sees the same batches.
+AdversarialKind adversarialKindAt(uint64_t seed, int64_t step, double fraction);
+// Rewrites the batch (N, C, P, P) as that kind, deterministically from seed and step.
+void makeAdversarial(nn::Tensor& input, nn::Tensor& target, AdversarialKind kind, uint64_t seed,
+                     int64_t step);
 
 // A comparison method for validation (no AA and FXAA are wired in by the caller: train/ does not
 // depend on infer/). Takes and returns an sRGB RGB image.
@@ -65,7 +81,9 @@ struct TrainResult {
     double bestPsnr = 0;  // validation PSNR (whole images) of best.safetensors
     int64_t bestStep = 0;
     bool stoppedEarly = false;
-    bool interrupted = false;  // stopAfterSteps ended the session: resume to finish
+    bool interrupted = false;          // stopAfterSteps ended the session: resume to finish
+    double largestLoss = 0;            // of the steps taken (not skipped), over the whole run
+    int64_t adversarialSteps[5] = {};  // steps of each AdversarialKind, over the whole run
 };
 
 // Trains, writing the run folder as it goes. Throws dejag::Error on bad configuration or data, or when

@@ -133,11 +133,70 @@ TEST_F(Training, ANanBatchIsSkippedAndTheWeightsStayClean) {
     EXPECT_EQ(before, after) << "a skipped step must leave the weights as they were";
     const nlohmann::json state = nlohmann::json::parse(file.metadata.at("dejag.state"));
     EXPECT_EQ(state["skipped"], 1);
-    EXPECT_DOUBLE_EQ(state["lr_scale"].get<double>(), 0.5);
+    // A broken batch says nothing about the learning rate (only a diverging step lowers it).
+    EXPECT_DOUBLE_EQ(state["lr_scale"].get<double>(), 1.0);
     poisoned.resume = true, poisoned.stopAfterSteps = 0;
     const TrainResult r = trainModel(poisoned, baselines());
     EXPECT_EQ(r.skippedSteps, 1);
     for (float w : weightsOf(poisoned.out + "/final.safetensors")) ASSERT_TRUE(std::isfinite(w));
+}
+
+TEST(AdversarialBatches, AreAPureFunctionOfSeedAndStepAndEachKindIsWhatItSays) {
+    int counts[5] = {};
+    for (int64_t step = 0; step < 4000; ++step) {
+        const AdversarialKind kind = adversarialKindAt(3, step, 0.1);
+        EXPECT_EQ(kind, adversarialKindAt(3, step, 0.1));
+        ++counts[int(kind)];
+    }
+    EXPECT_NEAR(counts[0], 3600, 120);
+    for (int k = 1; k < 5; ++k) EXPECT_NEAR(counts[k], 100, 40) << adversarialKindName(AdversarialKind(k));
+    EXPECT_EQ(adversarialKindAt(3, 7, 0.0), AdversarialKind::None);
+
+    auto batch = [] {
+        nn::Tensor t({2, 3, 16, 16});
+        for (int64_t i = 0; i < t.numel(); ++i) t.data()[i] = float(i % 7) / 7.0f;
+        return t;
+    };
+    auto finiteCount = [](const nn::Tensor& t) {
+        int64_t n = 0;
+        for (int64_t i = 0; i < t.numel(); ++i) n += std::isfinite(t.data()[i]) ? 1 : 0;
+        return n;
+    };
+    nn::Tensor in = batch(), target = batch();
+    makeAdversarial(in, target, AdversarialKind::Constant, 3, 11);
+    EXPECT_EQ(in.data()[0], in.data()[3 * 256 - 1]);  // one level per patch
+    EXPECT_EQ(std::vector<float>(in.data(), in.data() + in.numel()),
+              std::vector<float>(target.data(), target.data() + target.numel()));
+
+    in = batch(), target = batch();
+    makeAdversarial(in, target, AdversarialKind::HdrSpikes, 3, 11);
+    const float largest = *std::max_element(in.data(), in.data() + in.numel());
+    EXPECT_GE(largest, 1.0f);
+    EXPECT_LE(largest, 1e4f);
+
+    in = batch(), target = batch();
+    makeAdversarial(in, target, AdversarialKind::Poisoned, 3, 11);
+    EXPECT_LT(finiteCount(in), in.numel());
+    EXPECT_EQ(finiteCount(target), target.numel());
+}
+
+// Adversarial batches mixed into a short run: the poisoned ones are skipped without touching the
+// learning rate, the others are trained on, and the weights stay finite.
+TEST_F(Training, AdversarialBatchesLeaveTheWeightsFinite) {
+    TrainConfig c = tinyConfig("adversarial");
+    c.steps = 40;
+    c.adversarialFraction = 0.5;
+    const TrainResult r = trainModel(c, baselines());
+    int64_t adversarial = 0;
+    for (int k = 1; k < 5; ++k) adversarial += r.adversarialSteps[k];
+    EXPECT_GT(adversarial, 10);
+    EXPECT_EQ(r.skippedSteps, r.adversarialSteps[int(AdversarialKind::Poisoned)]);
+    EXPECT_GT(r.largestLoss, 0.0);
+    EXPECT_TRUE(std::isfinite(r.largestLoss));
+    for (float w : weightsOf(c.out + "/final.safetensors")) ASSERT_TRUE(std::isfinite(w));
+    const nlohmann::json state = nlohmann::json::parse(
+        nn::readSafetensors(c.out + "/checkpoint.safetensors").metadata.at("dejag.state"));
+    EXPECT_DOUBLE_EQ(state["lr_scale"].get<double>(), 1.0);
 }
 
 TEST_F(Training, RepeatedBadStepsStopWithTheLastCheckpointIntact) {
