@@ -12,6 +12,7 @@
 #include "app/cli.h"
 #include "app/commands.h"
 #include "base/error.h"
+#include "bench/accuracy.h"
 #include "bench/bench.h"
 #include "bench/filter_bench.h"
 #include "bench/quality.h"
@@ -204,6 +205,9 @@ void registerBenchCommand(CLI::App& app) {
         int configurations = 1000;
         uint64_t seed = 1;
         bool json = false;
+        std::string model = "models/dejag-fast.safetensors", frame = "3840x2160", denormalFrame = "1920x1080";
+        int repeat = 7;
+        bool noModel = false;
     };
     auto stabilityArgs = std::make_shared<StabilityArguments>();
     CLI::App* stability = bench->add_subcommand(
@@ -217,6 +221,18 @@ void registerBenchCommand(CLI::App& app) {
         ->capture_default_str();
     stability->add_option("--seed", stabilityArgs->seed, "Seed of the configurations")->capture_default_str();
     stability->add_flag("--json", stabilityArgs->json, "One JSON object per kind");
+    stability->add_option("--model", stabilityArgs->model, "Model for the accumulation and denormal figures")
+        ->capture_default_str();
+    stability
+        ->add_option("--frame", stabilityArgs->frame,
+                     "Frame of the accumulation figure (float32 inference against double)")
+        ->capture_default_str();
+    stability->add_option("--denormal-frame", stabilityArgs->denormalFrame, "Frame of the denormal figure")
+        ->capture_default_str();
+    stability->add_option("--repeat", stabilityArgs->repeat, "Timed runs per denormal median")
+        ->check(CLI::Range(1, 1000))
+        ->capture_default_str();
+    stability->add_flag("--no-model", stabilityArgs->noModel, "Layer and loss checks only");
     stability->callback([stabilityArgs] {
         bench::StabilityOptions options;
         options.configurations = stabilityArgs->configurations, options.seed = stabilityArgs->seed;
@@ -250,6 +266,59 @@ void registerBenchCommand(CLI::App& app) {
         }
         if (failing > 0)
             throw Error(std::to_string(failing) + " configurations exceed the gradient tolerance");
+        if (stabilityArgs->noModel) return;
+
+        // A whole network: accumulation error on a large frame, and what denormal inputs cost.
+        constexpr double kAccumulationLimit = 1e-5, kDenormalLimit = 1.10;
+        const Size frame = parseSize(stabilityArgs->frame, "--frame");
+        const Size denormalFrame = parseSize(stabilityArgs->denormalFrame, "--denormal-frame");
+        const bench::AccumulationResult a =
+            bench::benchAccumulation(stabilityArgs->model, frame.width, frame.height);
+        const bench::DenormalResult d = bench::benchDenormals(stabilityArgs->model, denormalFrame.width,
+                                                              denormalFrame.height, stabilityArgs->repeat);
+        const double ratio = d.denormalMs / d.normalMs,
+                     ratioNoFlush = d.denormalMsNoFlush / d.normalMsNoFlush;
+        if (stabilityArgs->json) {
+            std::printf("%s\n", nlohmann::json{{"kind", "accumulation"},
+                                               {"model", a.model},
+                                               {"width", a.width},
+                                               {"height", a.height},
+                                               {"normwise_relative_error", a.normwise},
+                                               {"largest_relative_error", a.largest},
+                                               {"limit", kAccumulationLimit},
+                                               {"float32_ms", a.floatMs},
+                                               {"double_seconds", a.doubleSeconds}}
+                                    .dump()
+                                    .c_str());
+            std::printf("%s\n", nlohmann::json{{"kind", "denormals"},
+                                               {"model", a.model},
+                                               {"width", d.width},
+                                               {"height", d.height},
+                                               {"threads", d.threads},
+                                               {"normal_ms", d.normalMs},
+                                               {"denormal_ms", d.denormalMs},
+                                               {"ratio", ratio},
+                                               {"limit", kDenormalLimit},
+                                               {"no_flush_normal_ms", d.normalMsNoFlush},
+                                               {"no_flush_denormal_ms", d.denormalMsNoFlush},
+                                               {"no_flush_ratio", ratioNoFlush}}
+                                    .dump()
+                                    .c_str());
+        } else {
+            std::printf(
+                "\naccumulation: %s float32 inference on a %dx%d frame against its forward in double: "
+                "normwise relative error %.2e, largest %.2e (limit %.0e); float32 %.0f ms, double %.0f s\n",
+                a.model.c_str(), a.width, a.height, a.normwise, a.largest, kAccumulationLimit, a.floatMs,
+                a.doubleSeconds);
+            std::printf(
+                "denormals: %dx%d, %d threads, FTZ/DAZ on: %.1f ms normal, %.1f ms denormal input "
+                "(x%.3f, limit x%.2f: %s); 1 thread, FTZ/DAZ off: %.1f ms against %.1f ms (x%.2f)\n",
+                d.width, d.height, d.threads, d.normalMs, d.denormalMs, ratio, kDenormalLimit,
+                ratio <= kDenormalLimit ? "met" : "NOT met", d.denormalMsNoFlush, d.normalMsNoFlush,
+                ratioNoFlush);
+        }
+        if (!(a.normwise <= kAccumulationLimit))
+            throw Error("accumulation error " + std::to_string(a.normwise) + " exceeds 1e-5");
     });
 
     struct TaaBenchArguments {

@@ -765,4 +765,67 @@ Model loadModel(const std::string& path, std::map<std::string, std::string>* met
     return model;
 }
 
+std::vector<double> forwardInDouble(const Model& model, const std::vector<double>& input,
+                                    const Shape& inputShape) {
+    if (int64_t(input.size()) != shapeNumel(inputShape))
+        throw Error("forwardInDouble: the input does not have the shape given");
+    const std::vector<GraphNode> graph = model.graph();
+    const std::vector<Shape> shapes = model.nodeShapes(inputShape);
+    const std::vector<double> params(model.parameterData(), model.parameterData() + model.parameterCount());
+    std::vector<std::vector<double>> outputs(graph.size());
+    auto tensor = [&](int index) -> const std::vector<double>& {
+        return index < 0 ? input : outputs[size_t(index)];
+    };
+    auto shapeOf = [&](int index) -> const Shape& { return index < 0 ? inputShape : shapes[size_t(index)]; };
+    for (size_t k = 0; k < graph.size(); ++k) {
+        const GraphNode& n = graph[k];
+        const Shape& in = shapeOf(n.inputs[0]);
+        std::vector<double>& out = outputs[k];
+        out.assign(size_t(shapeNumel(shapes[k])), 0.0);
+        const double* x = tensor(n.inputs[0]).data();
+        const double* weight = n.weightOffset >= 0 ? params.data() + n.weightOffset : nullptr;
+        const double* bias = n.biasOffset >= 0 ? params.data() + n.biasOffset : nullptr;
+        switch (n.op) {
+            case GraphOp::Conv2d:
+                conv2dForward(out.data(), x, weight, bias, n.convDesc(in));
+                activationForward(out.data(), out.data(), int64_t(out.size()), n.activation);
+                break;
+            case GraphOp::ConvTranspose2d:
+                convTranspose2dForward(out.data(), x, weight, bias, n.convTransposeDesc(in));
+                activationForward(out.data(), out.data(), int64_t(out.size()), n.activation);
+                break;
+            case GraphOp::MaxPool2d: {
+                std::vector<int32_t> argmax(out.size());
+                maxPool2dForward(out.data(), argmax.data(), x, n.poolDesc(in));
+                break;
+            }
+            case GraphOp::Activation:
+                activationForward(out.data(), x, int64_t(out.size()), n.activation);
+                break;
+            case GraphOp::Add:
+                addForward(out.data(), x, tensor(n.inputs[1]).data(), int64_t(out.size()));
+                break;
+            case GraphOp::Concat: {
+                std::vector<const double*> sources;
+                std::vector<int64_t> channels;
+                for (int i : n.inputs) sources.push_back(tensor(i).data()), channels.push_back(shapeOf(i)[1]);
+                concatForward(out.data(), sources, channels, shapes[k][0], shapes[k][2] * shapes[k][3]);
+                break;
+            }
+            case GraphOp::Upsample:
+                if (n.bilinear)
+                    upsampleBilinearForward(out.data(), x, n.resampleDesc(in));
+                else
+                    upsampleNearestForward(out.data(), x, n.resampleDesc(in));
+                break;
+            case GraphOp::PixelShuffle:
+                pixelShuffleForward(out.data(), x, n.resampleDesc(in));
+                break;
+            default:
+                throw Error("forwardInDouble: node '" + n.name + "' has an op it does not know");
+        }
+    }
+    return outputs[size_t(model.outputNode())];
+}
+
 }  // namespace dejag::nn

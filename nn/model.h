@@ -150,4 +150,9 @@ void saveModel(const std::string& path, const Model& model,
 // and that every value is finite. Throws dejag::Error naming the file and the problem.
 Model loadModel(const std::string& path, std::map<std::string, std::string>* metadata = nullptr);
 
+// The model's forward pass in double precision on the reference kernels of nn/layers.h: the yardstick
+// the float32 paths are measured against (accumulation error on large frames). input: (N, Cin, H, W).
+std::vector<double> forwardInDouble(const Model& model, const std::vector<double>& input,
+                                    const Shape& inputShape);
+
 }  // namespace dejag::nn

@@ -392,13 +392,31 @@ TEST(Cli, BenchFilterPrintsEveryMethod) {
 
 TEST(Cli, BenchStabilityChecksEveryKindWithinTolerance) {
     testing::TempDir dir;
-    const RunResult r = run("bench stability --configs 90 --seed 3 --json", dir);
+    const RunResult r =
+        run("bench stability --configs 90 --seed 3 --json --frame 96x64 --denormal-frame 64x48 "
+            "--repeat 1 --model '" DEJAG_SOURCE_DIR "/models/dejag-fast.safetensors'",
+            dir);
     ASSERT_EQ(r.exitCode, 0) << r.err;
     std::stringstream lines(r.out);
     std::string line;
     int kinds = 0;
+    bool accumulation = false, denormals = false;
     while (std::getline(lines, line)) {
         const nlohmann::json j = nlohmann::json::parse(line);
+        if (j["kind"] == "accumulation") {
+            accumulation = true;
+            EXPECT_EQ(j["model"], "dejag-fast");
+            EXPECT_LE(j["normwise_relative_error"].get<double>(), 1e-5) << line;
+            EXPECT_GT(j["normwise_relative_error"].get<double>(), 0.0)
+                << "float32 cannot equal double" << line;
+            continue;
+        }
+        if (j["kind"] == "denormals") {
+            denormals = true;
+            EXPECT_GT(j["normal_ms"].get<double>(), 0.0) << line;
+            EXPECT_GT(j["denormal_ms"].get<double>(), 0.0) << line;
+            continue;
+        }
         ++kinds;
         EXPECT_EQ(j["configurations"], 10) << line;
         EXPECT_GT(j["coordinates"].get<int>(), 0) << line;
@@ -406,6 +424,8 @@ TEST(Cli, BenchStabilityChecksEveryKindWithinTolerance) {
         EXPECT_EQ(j["over_tolerance"], 0) << line;
     }
     EXPECT_EQ(kinds, 9);
+    EXPECT_TRUE(accumulation);
+    EXPECT_TRUE(denormals);
 }
 
 TEST(Cli, BenchTaaReproducesTheThesisProtocolsSmall) {

@@ -170,6 +170,30 @@ INSTANTIATE_TEST_SUITE_P(Kernels, Seed2020Golden, ::testing::Values(false, true)
                              return std::string(test.param ? "fast" : "reference");
                          });
 
+// The double-precision forward (the yardstick of the accumulation figure in `dejag bench stability`)
+// agrees with the float32 forward to float rounding, for both built-in families.
+TEST(Model, ForwardInDoubleAgreesWithTheFloatForward) {
+    for (const std::string name : {"seed2020", "fast"}) {
+        Model model = Model::builtin(name);
+        model.initialize(5);
+        const Shape shape = {2, model.inputChannels(), 40, 48};
+        Tensor x(shape);
+        Rng rng(9);
+        for (int64_t i = 0; i < x.numel(); ++i) x.data()[i] = rng.uniform();
+        const Tensor& y = model.forward(x);
+        const std::vector<double> reference =
+            forwardInDouble(model, std::vector<double>(x.data(), x.data() + x.numel()), shape);
+        ASSERT_EQ(int64_t(reference.size()), y.numel()) << name;
+        double difference = 0, norm = 0;
+        for (size_t i = 0; i < reference.size(); ++i) {
+            difference += (y.data()[i] - reference[i]) * (y.data()[i] - reference[i]);
+            norm += reference[i] * reference[i];
+        }
+        EXPECT_LE(std::sqrt(difference / norm), 1e-6) << name;
+        EXPECT_GT(norm, 0.0) << name;
+    }
+}
+
 TEST(Model, FastKernelsMatchTheReferenceKernelsInTheGraph) {
     Model seed = Model::builtin("seed2020");
     expectFastMatchesReference(seed, {2, 1, 24, 20});
