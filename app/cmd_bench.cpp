@@ -266,6 +266,36 @@ void registerBenchCommand(CLI::App& app) {
         }
         if (failing > 0)
             throw Error(std::to_string(failing) + " configurations exceed the gradient tolerance");
+
+        const std::vector<bench::SsimDegenerateRow> degenerate = bench::ssimDegenerateChecks();
+        if (!stabilityArgs->json)
+            std::printf("\n1 - SSIM on degenerate patches (double): %-34s %10s %7s %12s %12s %12s %s\n",
+                        "patch", "loss", "finite", "d/dt error", "slope h", "slope h/100", "");
+        int degenerateFailing = 0;
+        for (const bench::SsimDegenerateRow& r : degenerate) {
+            degenerateFailing += r.passed ? 0 : 1;
+            if (stabilityArgs->json)
+                std::printf("%s\n", nlohmann::json{{"kind", "ssim degenerate: " + r.patch},
+                                                   {"loss", r.loss},
+                                                   {"finite", r.finite},
+                                                   {"directional_derivative_error", r.directionalError},
+                                                   {"slope", r.slope},
+                                                   {"slope_fine", r.slopeFine},
+                                                   {"passed", r.passed}}
+                                        .dump()
+                                        .c_str());
+            else
+                std::printf("  %-34s %10.3e %7s %12.2e %12.3e %12.3e %s\n", r.patch.c_str(), r.loss,
+                            r.finite ? "yes" : "NO", r.directionalError, r.slope, r.slopeFine,
+                            r.passed ? "ok" : "FAILED");
+        }
+        if (!stabilityArgs->json)
+            std::printf(
+                "d/dt error: derivative along a random direction, analytic against central difference; "
+                "slopes: largest |dL|/dt over a sweep around the patch (a jump would grow it 100x at "
+                "h/100)\n");
+        if (degenerateFailing > 0)
+            throw Error(std::to_string(degenerateFailing) + " degenerate SSIM patches fail their checks");
         if (stabilityArgs->noModel) return;
 
         // A whole network: accumulation error on a large frame, and what denormal inputs cost.

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <functional>
+#include <limits>
 #include <map>
 #include <random>
 
@@ -267,6 +268,81 @@ std::vector<StabilityRow> benchStability(const StabilityOptions& options) {
                                                       [&](double e) { return e > options.tolerance; }));
         }
         rows.push_back(acc.row);
+    }
+    return rows;
+}
+
+std::vector<SsimDegenerateRow> ssimDegenerateChecks() {
+    constexpr int64_t kSide = 16, kCount = kSide * kSide;
+    const nn::SsimLossDesc desc{1, 1, kSide, kSide, 1.0};
+    struct Patch {
+        std::string name;
+        Vec pred, target;
+        double step;  // h, relative to the values' scale
+    };
+    std::vector<Patch> patches;
+    auto filled = [&](double v) { return Vec(kCount, v); };
+    patches.push_back({"constant, equal (zero variance)", filled(0.5), filled(0.5), 1e-4});
+    patches.push_back({"constant, different", filled(0.2), filled(0.9), 1e-4});
+    Vec spike = filled(0.0);
+    spike[kCount / 2 + kSide / 2] = 1.0;
+    patches.push_back({"single bright pixel", spike, filled(0.0), 1e-4});
+    Rng rng(17);
+    Vec hdr(kCount), hdrTarget(kCount), tiny(kCount), checker(kCount), inverted(kCount);
+    std::uniform_real_distribution<double> unit(0.0, 1.0);
+    for (int64_t i = 0; i < kCount; ++i) {
+        hdr[size_t(i)] = std::pow(10.0, 4.0 * unit(rng));  // 1 .. 1e4
+        hdrTarget[size_t(i)] = hdr[size_t(i)] * (1.0 + 0.01 * (unit(rng) - 0.5));
+        tiny[size_t(i)] = 1e-8 * unit(rng);
+        checker[size_t(i)] = double(((i % kSide) + (i / kSide)) % 2);
+        inverted[size_t(i)] = 1.0 - checker[size_t(i)];
+    }
+    patches.push_back({"HDR up to 1e4", hdr, hdrTarget, 1e-1});
+    // (A step near the values: smaller ones move the loss by less than its rounding, 1e-16.)
+    patches.push_back({"tiny values (1e-8)", tiny, filled(0.0), 1e-8});
+    patches.push_back({"checkerboard at Nyquist vs 0.5", checker, filled(0.5), 1e-4});
+    patches.push_back({"checkerboard vs its inverse", checker, inverted, 1e-4});
+
+    std::vector<SsimDegenerateRow> rows;
+    for (Patch& p : patches) {
+        SsimDegenerateRow row;
+        row.patch = p.name;
+        Vec direction = randomValues(size_t(kCount), rng);
+        const double norm = std::sqrt(dot(direction, direction));
+        for (double& d : direction) d /= norm;
+        auto lossAt = [&](double t) {
+            Vec x = p.pred;
+            for (size_t i = 0; i < x.size(); ++i) x[i] += t * direction[i];
+            return nn::ssimLoss(x.data(), p.target.data(), desc);
+        };
+        row.loss = lossAt(0.0);
+        Vec gradient(size_t(kCount), 0.0);
+        nn::ssimLossBackward(gradient.data(), p.pred.data(), p.target.data(), desc, 1.0);
+        row.finite = std::isfinite(row.loss) &&
+                     std::all_of(gradient.begin(), gradient.end(), [](double g) { return std::isfinite(g); });
+        const double h = p.step;
+        const double analytic = dot(gradient, direction), numeric = (lossAt(h) - lossAt(-h)) / (2.0 * h);
+        const double floor = 1e-6 * std::sqrt(dot(gradient, gradient)) + 1e-12;
+        row.directionalError =
+            std::abs(numeric - analytic) / std::max({std::abs(numeric), std::abs(analytic), floor});
+        auto largestSlope = [&](double dt) {
+            double slope = 0;
+            for (int k = 0; k <= 40; ++k) {
+                const double t = (k - 20) * h, a = lossAt(t), b = lossAt(t + dt);
+                slope = std::max(slope, std::abs(b - a) / dt);
+                row.finite = row.finite && std::isfinite(a) && std::isfinite(b);
+            }
+            return slope;
+        };
+        row.slope = largestSlope(h), row.slopeFine = largestSlope(h / 100.0);
+        // The loss is 1 - mean SSIM: near a perfect match (tiny values) it is known to ~1e-16 absolute,
+        // so differences of it carry that rounding over their step; the checks allow it, no more.
+        const double rounding = 64.0 * std::numeric_limits<double>::epsilon();
+        const bool derivativeOk =
+            std::abs(numeric - analytic) <=
+            1e-4 * std::max({std::abs(numeric), std::abs(analytic), floor}) + rounding / h;
+        row.passed = row.finite && derivativeOk && row.slopeFine <= 2.0 * row.slope + rounding / (h / 100.0);
+        rows.push_back(row);
     }
     return rows;
 }

@@ -31,4 +31,21 @@ struct StabilityRow {
 
 std::vector<StabilityRow> benchStability(const StabilityOptions& options);
 
+// The 1 - SSIM loss on degenerate patches (spec: finite and continuous): constant images (zero
+// variance), a single bright pixel, HDR values up to 1e4, tiny values (1e-8), a checkerboard at Nyquist.
+// For each, in double: the loss and gradient are finite; the gradient's derivative along a random
+// direction matches the central difference; and the loss is continuous there — the largest
+// |L(t + dt) - L(t)| / dt over a sweep of t around the patch, at dt = h and dt = h / 100, which a jump
+// would multiply by 100 (continuous: it stays bounded, ratio <= 2). Both checks allow the loss's own
+// rounding (64 ulps of 1 over the step): near a perfect match 1 - SSIM is known to ~1e-16, no better.
+struct SsimDegenerateRow {
+    std::string patch;
+    double loss = 0;
+    bool finite = false;
+    double directionalError = 0;      // |central difference - analytic| / max(|both|, floor)
+    double slope = 0, slopeFine = 0;  // largest |dL| / dt at dt = h and h / 100
+    bool passed = false;
+};
+std::vector<SsimDegenerateRow> ssimDegenerateChecks();
+
 }  // namespace dejag::bench
