@@ -206,7 +206,7 @@ void registerBenchCommand(CLI::App& app) {
         uint64_t seed = 1;
         bool json = false;
         std::string model = "models/dejag-fast.safetensors", frame = "3840x2160", denormalFrame = "1920x1080";
-        int repeat = 7;
+        int repeat = 7, trainingSteps = 20;
         bool noModel = false;
     };
     auto stabilityArgs = std::make_shared<StabilityArguments>();
@@ -231,6 +231,9 @@ void registerBenchCommand(CLI::App& app) {
         ->capture_default_str();
     stability->add_option("--repeat", stabilityArgs->repeat, "Timed runs per denormal median")
         ->check(CLI::Range(1, 1000))
+        ->capture_default_str();
+    stability->add_option("--training-steps", stabilityArgs->trainingSteps, "Steps of the determinism check")
+        ->check(CLI::Range(1, 100000))
         ->capture_default_str();
     stability->add_flag("--no-model", stabilityArgs->noModel, "Layer and loss checks only");
     stability->callback([stabilityArgs] {
@@ -347,6 +350,31 @@ void registerBenchCommand(CLI::App& app) {
                 ratio <= kDenormalLimit ? "met" : "NOT met", d.denormalMsNoFlush, d.normalMsNoFlush,
                 ratioNoFlush);
         }
+        const bench::DeterminismResult t = bench::benchDeterminism(
+            stabilityArgs->model, stabilityArgs->trainingSteps, denormalFrame.width, denormalFrame.height);
+        std::string threadList;
+        for (int n : t.threadCounts) threadList += (threadList.empty() ? "" : ",") + std::to_string(n);
+        if (stabilityArgs->json) {
+            std::printf("%s\n", nlohmann::json{{"kind", "determinism"},
+                                               {"training_steps", t.steps},
+                                               {"threads", t.threadCounts},
+                                               {"training_repeatable", t.trainingRepeatable},
+                                               {"inference_repeatable", t.inferenceRepeatable},
+                                               {"training_across_threads", t.trainingAcrossThreads},
+                                               {"inference_across_threads", t.inferenceAcrossThreads}}
+                                    .dump()
+                                    .c_str());
+        } else {
+            std::printf(
+                "determinism: threads %s; same seed and threads: %s weights after %d training steps, %s "
+                "inference outputs; across thread counts: weights differ by %.2e, outputs by %.2e "
+                "(largest, relative to the largest value)\n",
+                threadList.c_str(), t.trainingRepeatable ? "identical" : "DIFFERENT", t.steps,
+                t.inferenceRepeatable ? "identical" : "DIFFERENT", t.trainingAcrossThreads,
+                t.inferenceAcrossThreads);
+        }
+        if (!t.trainingRepeatable || !t.inferenceRepeatable)
+            throw Error("the same seed and thread count gave different results");
         if (!(a.normwise <= kAccumulationLimit))
             throw Error("accumulation error " + std::to_string(a.normwise) + " exceeds 1e-5");
     });

@@ -11,7 +11,9 @@
 #include "base/thread_pool.h"
 #include "base/timer.h"
 #include "nn/inference.h"
+#include "nn/losses.h"
 #include "nn/model.h"
+#include "nn/optim.h"
 
 namespace dejag::bench {
 
@@ -125,6 +127,96 @@ DenormalResult benchDenormals(const std::string& modelPath, int width, int heigh
     }
     _mm_setcsr(saved);
     setThreadCount(threads);
+    return r;
+}
+
+namespace {
+
+// Weights of the fast network after `steps` steps on batches cut from the test frame (target: a 3x3
+// box blur of the input, something to learn), at the current thread count.
+std::vector<float> trainBriefly(int steps) {
+    constexpr int kBatch = 4, kPatch = 64;
+    const std::vector<float> frame = accuracyTestFrame(640, 360);
+    nn::Model model = nn::Model::builtin("fast");
+    model.initialize(1);
+    nn::OptimizerConfig adam;
+    adam.learningRate = 2e-3;
+    nn::Optimizer optimizer(adam, model.parameterCount());
+    const nn::CompositeLoss loss = nn::CompositeLoss::parse("0.84*ssim+0.16*l1");
+    nn::Tensor input({kBatch, 3, kPatch, kPatch}), target({kBatch, 3, kPatch, kPatch}), dout;
+    for (int step = 0; step < steps; ++step) {
+        for (int b = 0; b < kBatch; ++b) {
+            const int x0 = (97 * (step * kBatch + b)) % (640 - kPatch - 2) + 1;
+            const int y0 = (61 * (step * kBatch + b)) % (360 - kPatch - 2) + 1;
+            for (int c = 0; c < 3; ++c)
+                for (int y = 0; y < kPatch; ++y)
+                    for (int x = 0; x < kPatch; ++x) {
+                        auto at = [&](int dy, int dx) {
+                            return frame[(size_t(c) * 360 + size_t(y0 + y + dy)) * 640 + size_t(x0 + x + dx)];
+                        };
+                        const size_t o =
+                            ((size_t(b) * 3 + size_t(c)) * kPatch + size_t(y)) * kPatch + size_t(x);
+                        input.data()[o] = at(0, 0);
+                        float sum = 0;
+                        for (int dy = -1; dy <= 1; ++dy)
+                            for (int dx = -1; dx <= 1; ++dx) sum += at(dy, dx);
+                        target.data()[o] = sum / 9.0f;
+                    }
+        }
+        const nn::Tensor& out = model.forward(input);
+        if (dout.shape() != out.shape()) dout = nn::Tensor(out.shape());
+        dout.zero();
+        loss.evaluate(dout.data(), out.data(), target.data(),
+                      nn::SsimLossDesc{out.dim(0), out.dim(1), out.dim(2), out.dim(3), 1.0});
+        model.backward(dout);
+        nn::clipGradientNorm(model.gradientData(), model.parameterCount(), 1.0);
+        optimizer.step(model.parameterData(), model.gradientData(), adam.learningRate);
+    }
+    return std::vector<float>(model.parameterData(), model.parameterData() + model.parameterCount());
+}
+
+double largestRelativeDifference(const std::vector<float>& a, const std::vector<float>& b) {
+    double difference = 0, largest = 0;
+    for (size_t i = 0; i < a.size(); ++i) {
+        difference = std::max(difference, std::abs(double(a[i]) - double(b[i])));
+        largest = std::max(largest, std::abs(double(a[i])));
+    }
+    return difference / std::max(largest, 1e-300);
+}
+
+}  // namespace
+
+DeterminismResult benchDeterminism(const std::string& modelPath, int steps, int width, int height) {
+    DeterminismResult r;
+    r.steps = steps;
+    const int saved = threadCount();
+    r.threadCounts = {1, std::max(2, hardwareThreadCount())};
+    const nn::Model model = nn::loadModel(modelPath);
+    const nn::Shape shape = {1, model.inputChannels(), height, width};
+    const std::vector<float> input = modelInput(model, width, height);
+    nn::Tensor x(shape);
+    std::copy(input.begin(), input.end(), x.data());
+    std::vector<std::vector<float>> weights, outputs;
+    for (int threads : r.threadCounts) {
+        setThreadCount(threads);
+        const std::vector<float> first = trainBriefly(steps), second = trainBriefly(steps);
+        r.trainingRepeatable = r.trainingRepeatable && first == second;
+        weights.push_back(first);
+        nn::InferencePlan plan(model, shape);
+        const nn::Tensor& y1 = plan.run(x);
+        const std::vector<float> a(y1.data(), y1.data() + y1.numel());
+        const nn::Tensor& y2 = plan.run(x);
+        const std::vector<float> b(y2.data(), y2.data() + y2.numel());
+        r.inferenceRepeatable = r.inferenceRepeatable && a == b;
+        outputs.push_back(a);
+    }
+    setThreadCount(saved);
+    for (size_t k = 1; k < weights.size(); ++k) {
+        r.trainingAcrossThreads =
+            std::max(r.trainingAcrossThreads, largestRelativeDifference(weights[0], weights[k]));
+        r.inferenceAcrossThreads =
+            std::max(r.inferenceAcrossThreads, largestRelativeDifference(outputs[0], outputs[k]));
+    }
     return r;
 }
 

@@ -32,4 +32,17 @@ struct DenormalResult {
 // Inference on the test frame and on the same frame scaled into the denormal range (x 1e-39).
 DenormalResult benchDenormals(const std::string& modelPath, int width, int height, int repeat);
 
+// Determinism: `steps` training steps of the built-in fast network (seed 1, Adam, 1 - SSIM + L1, batches
+// cut from the test frame) run twice at each thread count, and the inference of the model file on the
+// test frame at each thread count.
+struct DeterminismResult {
+    int steps = 0;
+    std::vector<int> threadCounts;
+    bool trainingRepeatable = true;     // same seed and threads: bit-identical weights, every thread count
+    bool inferenceRepeatable = true;    // same input and threads: bit-identical output
+    double trainingAcrossThreads = 0;   // largest |w_a - w_b| / max |w| between thread counts
+    double inferenceAcrossThreads = 0;  // largest |y_a - y_b| / max |y| between thread counts
+};
+DeterminismResult benchDeterminism(const std::string& modelPath, int steps, int width, int height);
+
 }  // namespace dejag::bench

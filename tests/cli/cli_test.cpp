@@ -394,13 +394,13 @@ TEST(Cli, BenchStabilityChecksEveryKindWithinTolerance) {
     testing::TempDir dir;
     const RunResult r =
         run("bench stability --configs 90 --seed 3 --json --frame 96x64 --denormal-frame 64x48 "
-            "--repeat 1 --model '" DEJAG_SOURCE_DIR "/models/dejag-fast.safetensors'",
+            "--repeat 1 --training-steps 3 --model '" DEJAG_SOURCE_DIR "/models/dejag-fast.safetensors'",
             dir);
     ASSERT_EQ(r.exitCode, 0) << r.err;
     std::stringstream lines(r.out);
     std::string line;
     int kinds = 0;
-    bool accumulation = false, denormals = false;
+    bool accumulation = false, denormals = false, determinism = false;
     int degenerate = 0;
     while (std::getline(lines, line)) {
         const nlohmann::json j = nlohmann::json::parse(line);
@@ -415,6 +415,14 @@ TEST(Cli, BenchStabilityChecksEveryKindWithinTolerance) {
         if (j["kind"].get<std::string>().rfind("ssim degenerate: ", 0) == 0) {
             ++degenerate;
             EXPECT_TRUE(j["passed"].get<bool>()) << line;
+            continue;
+        }
+        if (j["kind"] == "determinism") {
+            determinism = true;
+            EXPECT_TRUE(j["training_repeatable"].get<bool>()) << line;
+            EXPECT_TRUE(j["inference_repeatable"].get<bool>()) << line;
+            EXPECT_LE(j["inference_across_threads"].get<double>(), 1e-5) << line;
+            EXPECT_LE(j["training_across_threads"].get<double>(), 1e-3) << line;
             continue;
         }
         if (j["kind"] == "denormals") {
@@ -433,6 +441,7 @@ TEST(Cli, BenchStabilityChecksEveryKindWithinTolerance) {
     EXPECT_TRUE(accumulation);
     EXPECT_TRUE(denormals);
     EXPECT_EQ(degenerate, 7);
+    EXPECT_TRUE(determinism);
 }
 
 TEST(Cli, BenchTaaReproducesTheThesisProtocolsSmall) {
