@@ -95,6 +95,12 @@ void registerTrainCommand(CLI::App& app) {
                      "stress testing: replace this fraction of the batches with constant, noise, HDR-spike "
                      "and NaN-poisoned ones (default 0)")
         ->check(CLI::Range(0.0, 1.0));
+    trainCommand
+        ->add_option("--skip-outliers", config->outlierFactor,
+                     "skip a step whose loss exceeds this many times the running average of the recent "
+                     "losses (0: off)")
+        ->check(CLI::Range(0.0, 1e6))
+        ->capture_default_str();
     addRuntimeOptions(trainCommand, *runtime);
     trainCommand->footer(
         "Writes RUN/run.json, checkpoint.safetensors (atomically, every --checkpoint-every steps), "
@@ -143,6 +149,7 @@ void registerTrainCommand(CLI::App& app) {
                                                {"best_step", r.bestStep},
                                                {"best_psnr", r.bestPsnr},
                                                {"largest_loss", r.largestLoss},
+                                               {"outliers_skipped", r.outlierSteps},
                                                {"adversarial",
                                                 {{"constant", r.adversarialSteps[1]},
                                                  {"noise", r.adversarialSteps[2]},

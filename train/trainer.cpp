@@ -71,6 +71,7 @@ json configToJson(const TrainConfig& c) {
             {"patience", c.patience},
             {"families", c.families},
             {"adversarial", c.adversarialFraction},
+            {"outlier_factor", c.outlierFactor},
             {"threads", threadCount()}};
 }
 
@@ -83,9 +84,8 @@ void requireSameRun(const json& saved, const json& now) {
             throw Error(std::string("--resume: '") + key + "' was " + before.dump() + " in this run, now " +
                         now.at(key).dump() + "; resume with the same settings or start a new --out");
     }
-    {
-        const char* key = "adversarial";
-        const json before = saved.contains(key) ? saved.at(key) : json(0.0);  // runs before --adversarial
+    for (const char* key : {"adversarial", "outlier_factor"}) {
+        const json before = saved.contains(key) ? saved.at(key) : json(0.0);  // runs before these options
         if (before != now.at(key))
             throw Error(std::string("--resume: '") + key + "' was " + before.dump() + " in this run, now " +
                         now.at(key).dump() + "; resume with the same settings or start a new --out");
@@ -131,12 +131,19 @@ LogRow rowFromJson(const json& j) {
     return r;
 }
 
+// The outlier guard (TrainConfig::outlierFactor): the losses' running average, and how many steps it
+// needs before it judges.
+constexpr double kLossAverageRate = 0.02;
+constexpr int64_t kOutlierWarmupSteps = 100;
+
 // What a checkpoint holds besides the tensors.
 struct TrainState {
     int64_t step = 0;  // steps done (the next batch is batch `step`)
     int64_t skipped = 0, badInRow = 0;
     double largestLoss = 0;
     int64_t adversarial[5] = {};
+    double lossAverage = 0;  // running average of the finite losses (the outlier guard)
+    int64_t lossSteps = 0, outliers = 0;
     double learningRateScale = 1.0;
     double bestPsnr = -1e30;
     int64_t bestStep = -1;
@@ -158,6 +165,9 @@ void saveCheckpoint(const std::string& path, const nn::Model& model, const nn::O
                  {"lr_scale", state.learningRateScale},
                  {"largest_loss", state.largestLoss},
                  {"adversarial", state.adversarial},
+                 {"loss_average", state.lossAverage},
+                 {"loss_steps", state.lossSteps},
+                 {"outliers", state.outliers},
                  {"best_psnr", state.bestPsnr},
                  {"best_step", state.bestStep},
                  {"evaluations_since_best", state.evaluationsSinceBest},
@@ -201,6 +211,8 @@ TrainState loadCheckpoint(const std::string& path, nn::Model& model, nn::Optimiz
     state.bestStep = s.at("best_step");
     state.evaluationsSinceBest = s.at("evaluations_since_best"), state.seconds = s.at("seconds");
     state.largestLoss = s.value("largest_loss", 0.0);  // (absent from checkpoints before stress runs)
+    state.lossAverage = s.value("loss_average", 0.0), state.lossSteps = s.value("loss_steps", int64_t(0));
+    state.outliers = s.value("outliers", int64_t(0));
     if (s.contains("adversarial"))
         for (size_t k = 0; k < 5; ++k) state.adversarial[k] = s.at("adversarial").at(k);
     for (const json& r : s.at("log")) state.log.push_back(rowFromJson(r));
@@ -558,6 +570,9 @@ TrainResult trainModel(const TrainConfig& config, const std::vector<Baseline>& b
         if (std::find(config.poisonSteps.begin(), config.poisonSteps.end(), state.step) !=
             config.poisonSteps.end())
             batch.input.data()[batch.input.numel() / 2] = NAN;
+        if (std::find(config.spikeSteps.begin(), config.spikeSteps.end(), state.step) !=
+            config.spikeSteps.end())
+            for (int64_t i = 0; i < batch.input.numel(); ++i) batch.input.data()[i] *= 1000.0f;
         const AdversarialKind adversarial =
             adversarialKindAt(config.seed, state.step, config.adversarialFraction);
         if (adversarial != AdversarialKind::None) {
@@ -566,7 +581,7 @@ TrainResult trainModel(const TrainConfig& config, const std::vector<Baseline>& b
         }
         const double rate = schedule.rateAt(state.step) * state.learningRateScale;
         std::string bad;
-        bool badData = false;
+        bool badData = false, outlierStep = false;
         double value = NAN;
         if (!allFinite(batch.input) || !allFinite(batch.target)) {
             bad = "the batch holds NaN or Inf";
@@ -577,8 +592,29 @@ TrainResult trainModel(const TrainConfig& config, const std::vector<Baseline>& b
             dout.zero();
             const nn::SsimLossDesc desc{out.dim(0), out.dim(1), out.dim(2), out.dim(3), 1.0};
             value = loss.evaluate(dout.data(), out.data(), batch.target.data(), desc);
+            const bool outlier = config.outlierFactor > 0 && state.lossSteps >= kOutlierWarmupSteps &&
+                                 std::isfinite(value) && value > config.outlierFactor * state.lossAverage;
+            if (std::isfinite(value)) {
+                // The average follows every finite loss, outliers clipped: a lasting shift in the data
+                // raises it within a few hundred steps, a spike barely moves it.
+                const double clipped = config.outlierFactor > 0 && state.lossSteps >= kOutlierWarmupSteps
+                                           ? std::min(value, config.outlierFactor * state.lossAverage)
+                                           : value;
+                state.lossAverage =
+                    state.lossSteps == 0
+                        ? clipped
+                        : state.lossAverage + kLossAverageRate * (clipped - state.lossAverage);
+                ++state.lossSteps;
+            }
             if (!std::isfinite(value) || !allFinite(dout)) {
                 bad = "the loss or its gradient is not finite";
+            } else if (outlier) {
+                char reason[128];
+                std::snprintf(reason, sizeof reason,
+                              "the loss %.4g is an outlier (%.1f times its running average)", value,
+                              value / state.lossAverage);
+                bad = reason;
+                badData = outlierStep = true;
             } else {
                 model.backward(dout);
                 const double norm =
@@ -591,7 +627,12 @@ TrainResult trainModel(const TrainConfig& config, const std::vector<Baseline>& b
         if (!bad.empty()) {
             // A diverging step lowers the learning rate; a broken batch says nothing about it (but
             // counts towards giving up, so a broken data set stops the run).
-            ++state.skipped, ++state.badInRow;
+            // An outlier is neither: skipped, and not counted towards giving up.
+            ++state.skipped;
+            if (outlierStep)
+                ++state.outliers;
+            else
+                ++state.badInRow;
             if (!badData) state.learningRateScale *= 0.5;
             if (config.json)
                 std::printf("%s\n", json{{"event", "skipped"},
@@ -672,6 +713,7 @@ TrainResult trainModel(const TrainConfig& config, const std::vector<Baseline>& b
     result.steps = state.step, result.skippedSteps = state.skipped, result.seconds = state.seconds;
     result.bestPsnr = state.bestPsnr, result.bestStep = state.bestStep;
     result.largestLoss = state.largestLoss;
+    result.outlierSteps = state.outliers;
     std::copy(std::begin(state.adversarial), std::end(state.adversarial), result.adversarialSteps);
     return result;
 }

@@ -46,10 +46,14 @@ struct TrainConfig {
     bool quiet = false;                // no progress bar
     bool json = false;                 // log lines as JSON objects on stdout
     std::vector<int64_t> poisonSteps;  // tests: steps whose batch gets a NaN (exercises the guard)
+    std::vector<int64_t> spikeSteps;   // tests: steps whose input is multiplied by 1000 (a loss spike)
     // Stress testing: this fraction of the batches, chosen by the seed and the step, is replaced by an
     // adversarial one (see AdversarialKind): constant patches, pure noise, HDR spikes up to 1e4, or
     // NaN/Inf-poisoned input that the guard must reject.
     double adversarialFraction = 0;
+    // The outlier guard: a step whose loss exceeds this many times the running average of the recent
+    // losses is skipped (not counted as a failure, the learning rate kept). 0: off.
+    double outlierFactor = 0;
     int64_t stopAfterSteps = 0;         // tests: end the session after this many steps, checkpointed,
                                         // as if killed then (0: run to the end)
     std::string commandLine;            // recorded in run.json and the model card
@@ -83,6 +87,7 @@ struct TrainResult {
     bool stoppedEarly = false;
     bool interrupted = false;          // stopAfterSteps ended the session: resume to finish
     double largestLoss = 0;            // of the steps taken (not skipped), over the whole run
+    int64_t outlierSteps = 0;          // skipped by the outlier guard, over the whole run
     int64_t adversarialSteps[5] = {};  // steps of each AdversarialKind, over the whole run
 };
 

@@ -199,6 +199,28 @@ TEST_F(Training, AdversarialBatchesLeaveTheWeightsFinite) {
     EXPECT_DOUBLE_EQ(state["lr_scale"].get<double>(), 1.0);
 }
 
+// The outlier guard skips a loss spike like the NaN guard skips a broken batch: a run with a spike at
+// step 120 ends with the same weights as one with a NaN there, and neither lowers the learning rate.
+TEST_F(Training, TheOutlierGuardSkipsALossSpike) {
+    TrainConfig nan = tinyConfig("outlier-nan");
+    nan.steps = 130, nan.evalEvery = 130, nan.checkpointEvery = 130, nan.outlierFactor = 3;
+    nan.poisonSteps = {120};
+    TrainConfig spike = tinyConfig("outlier-spike");
+    spike.steps = 130, spike.evalEvery = 130, spike.checkpointEvery = 130, spike.outlierFactor = 3;
+    spike.spikeSteps = {120};
+    const TrainResult a = trainModel(nan, baselines()), b = trainModel(spike, baselines());
+    EXPECT_EQ(a.outlierSteps, 0);
+    EXPECT_EQ(b.outlierSteps, 1);
+    EXPECT_EQ(a.skippedSteps, 1);
+    EXPECT_EQ(b.skippedSteps, 1);
+    EXPECT_EQ(weightsOf(nan.out + "/final.safetensors"), weightsOf(spike.out + "/final.safetensors"));
+    // Without the guard the spike is trained on.
+    TrainConfig unguarded = tinyConfig("outlier-unguarded");
+    unguarded.steps = 130, unguarded.evalEvery = 130, unguarded.checkpointEvery = 130;
+    unguarded.spikeSteps = {120};
+    EXPECT_EQ(trainModel(unguarded, baselines()).skippedSteps, 0);
+}
+
 TEST_F(Training, RepeatedBadStepsStopWithTheLastCheckpointIntact) {
     TrainConfig c = tinyConfig("diverges");
     c.maxBadSteps = 3;
