@@ -462,7 +462,13 @@ TrainResult trainModel(const TrainConfig& config, const std::vector<Baseline>& b
 
     data::PatchOptions patches;
     patches.patchSize = config.patch, patches.batchSize = config.batch, patches.seed = config.seed;
-    patches.grayscale = grey, patches.firstBatch = uint64_t(state.step);
+    // Adversarial steps are inserted between the clean ones: the clean batches are the same, in the same
+    // order, as in a run without them.
+    int64_t cleanBatches = 0;  // clean batches taken before step state.step
+    for (int64_t s = 0; s < state.step; ++s)
+        cleanBatches +=
+            adversarialKindAt(config.seed, s, config.adversarialFraction) == AdversarialKind::None;
+    patches.grayscale = grey, patches.firstBatch = uint64_t(cleanBatches);
     patches.families = config.families;
     data::PatchSampler sampler(config.data, patches);
     int64_t totalSteps = config.steps;
@@ -566,15 +572,19 @@ TrainResult trainModel(const TrainConfig& config, const std::vector<Baseline>& b
     bool stop = config.patience > 0 && state.evaluationsSinceBest >= config.patience;  // finished early
     result.stoppedEarly = stop;
     while (state.step < totalSteps && !stop) {
-        data::Batch batch = sampler.next();
+        const AdversarialKind adversarial =
+            adversarialKindAt(config.seed, state.step, config.adversarialFraction);
+        // An adversarial step starts from a copy of the next clean batch (HDR spikes and poison are
+        // added to it) and leaves that batch to the next clean step.
+        data::Batch batch =
+            adversarial == AdversarialKind::None ? sampler.next() : sampler.assemble(uint64_t(cleanBatches));
+        if (adversarial == AdversarialKind::None) ++cleanBatches;
         if (std::find(config.poisonSteps.begin(), config.poisonSteps.end(), state.step) !=
             config.poisonSteps.end())
             batch.input.data()[batch.input.numel() / 2] = NAN;
         if (std::find(config.spikeSteps.begin(), config.spikeSteps.end(), state.step) !=
             config.spikeSteps.end())
             for (int64_t i = 0; i < batch.input.numel(); ++i) batch.input.data()[i] *= 1000.0f;
-        const AdversarialKind adversarial =
-            adversarialKindAt(config.seed, state.step, config.adversarialFraction);
         if (adversarial != AdversarialKind::None) {
             makeAdversarial(batch.input, batch.target, adversarial, config.seed, state.step);
             ++state.adversarial[int(adversarial)];

@@ -47,9 +47,10 @@ struct TrainConfig {
     bool json = false;                 // log lines as JSON objects on stdout
     std::vector<int64_t> poisonSteps;  // tests: steps whose batch gets a NaN (exercises the guard)
     std::vector<int64_t> spikeSteps;   // tests: steps whose input is multiplied by 1000 (a loss spike)
-    // Stress testing: this fraction of the batches, chosen by the seed and the step, is replaced by an
-    // adversarial one (see AdversarialKind): constant patches, pure noise, HDR spikes up to 1e4, or
-    // NaN/Inf-poisoned input that the guard must reject.
+    // Stress testing: this fraction of the steps, chosen by the seed and the step, trains on an
+    // adversarial batch (see AdversarialKind): constant patches, pure noise, HDR spikes up to 1e4, or
+    // NaN/Inf-poisoned input that the guard must reject. They are inserted between the clean batches,
+    // which stay the same batches in the same order.
     double adversarialFraction = 0;
     // The outlier guard: a step whose loss exceeds this many times the running average of the recent
     // losses is skipped (not counted as a failure, the learning rate kept). 0: off.

@@ -197,6 +197,14 @@ TEST_F(Training, AdversarialBatchesLeaveTheWeightsFinite) {
     const nlohmann::json state = nlohmann::json::parse(
         nn::readSafetensors(c.out + "/checkpoint.safetensors").metadata.at("dejag.state"));
     EXPECT_DOUBLE_EQ(state["lr_scale"].get<double>(), 1.0);
+
+    // Interrupted and resumed, the inserted batches and the clean ones between them are the same.
+    TrainConfig broken = tinyConfig("adversarial-resumed");
+    broken.steps = 40, broken.adversarialFraction = 0.5, broken.stopAfterSteps = 15;
+    EXPECT_TRUE(trainModel(broken, baselines()).interrupted);
+    broken.resume = true, broken.stopAfterSteps = 0;
+    trainModel(broken, baselines());
+    EXPECT_EQ(weightsOf(c.out + "/final.safetensors"), weightsOf(broken.out + "/final.safetensors"));
 }
 
 // The outlier guard skips a loss spike like the NaN guard skips a broken batch: a run with a spike at
