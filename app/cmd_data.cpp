@@ -51,6 +51,7 @@ void runGenerate(const GenerateArguments& args) {
     data::GenerateOptions options;
     options.workers = args.workers;
     options.quiet = args.quiet || args.json;
+    options.workerCommand = {"/proc/self/exe", "data", "worker"};
     const data::GenerateResult result = data::generateDataset(spec, args.out, options);
     if (args.json) {
         std::printf("%s\n", nlohmann::json{{"folder", args.out},
@@ -105,6 +106,21 @@ void registerDataCommand(CLI::App& app) {
 
     auto folder = std::make_shared<std::string>();
     auto json = std::make_shared<bool>(false);
+    // The worker processes of `data generate` (internal; see data::GenerateOptions::workerCommand).
+    auto workerFolder = std::make_shared<std::string>();
+    auto workerItems = std::make_shared<std::string>();
+    auto workerFd = std::make_shared<int>(-1);
+    CLI::App* worker = data->add_subcommand("worker", "internal: one worker process of data generate");
+    worker->group("");
+    worker->add_option("--folder", *workerFolder)->required();
+    worker->add_option("--items", *workerItems)->required();
+    worker->add_option("--result-fd", *workerFd)->required();
+    worker->callback([workerFolder, workerItems, workerFd] {
+        std::vector<int> items;
+        for (const std::string& item : splitList(*workerItems)) items.push_back(std::stoi(item));
+        data::runDatasetWorker(*workerFolder, items, *workerFd);
+    });
+
     CLI::App* verify =
         data->add_subcommand("verify", "check a dataset: checksums, missing or extra files, sizes");
     verify->add_option("folder", *folder, "dataset folder")->required();

@@ -473,13 +473,30 @@ GenerateResult generateDataset(const DatasetSpec& spec, const std::string& folde
             for (size_t i = size_t(k); i < pending.size(); i += size_t(workers)) share.push_back(pending[i]);
             int fds[2];
             if (::pipe(fds) != 0) throw Error("cannot create a pipe for a worker");
+            // The worker's command line, built before the fork: between fork and exec the child only
+            // closes descriptors and calls execv (what is safe in the child of a threaded process).
+            std::vector<std::string> argvStrings;
+            std::vector<char*> argv;
+            if (!options.workerCommand.empty()) {
+                std::string items;
+                for (int index : share) items += (items.empty() ? "" : ",") + std::to_string(index);
+                argvStrings = options.workerCommand;
+                argvStrings.insert(argvStrings.end(), {"--folder", folder, "--items", items, "--result-fd",
+                                                       std::to_string(fds[1])});
+                for (std::string& a : argvStrings) argv.push_back(a.data());
+                argv.push_back(nullptr);
+            }
             std::fflush(nullptr);
             const pid_t pid = ::fork();
             if (pid < 0) throw Error("cannot start a worker process");
             if (pid == 0) {
                 ::close(fds[0]);
                 for (int other : pipes) ::close(other);
-                runWorker(spec, folder, share, fds[1]);
+                if (argv.empty()) runWorker(spec, folder, share, fds[1]);
+                ::execv(argv[0], argv.data());
+                static const char kFailed[] = "error cannot start the dataset worker program\n";
+                [[maybe_unused]] const ssize_t written = ::write(fds[1], kFailed, sizeof kFailed - 1);
+                _exit(127);
             }
             ::close(fds[1]);
             children.push_back(pid);
@@ -540,6 +557,19 @@ GenerateResult generateDataset(const DatasetSpec& spec, const std::string& folde
     writeManifest(folder, records);
     result.seconds = clock.elapsedMs() / 1000.0;
     return result;
+}
+
+void runDatasetWorker(const std::string& folder, const std::vector<int>& items, int resultFd) {
+    DatasetSpec spec;
+    try {
+        std::ifstream in(fs::path(folder) / "dataset.json");
+        spec = DatasetSpec::fromJson(json::parse(in));
+    } catch (const std::exception& e) {
+        const std::string line = std::string("error dataset worker: ") + e.what() + "\n";
+        [[maybe_unused]] const ssize_t written = ::write(resultFd, line.data(), line.size());
+        _exit(1);
+    }
+    runWorker(spec, folder, items, resultFd);
 }
 
 // ---- Verify, stats --------------------------------------------------------------------------------------

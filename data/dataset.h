@@ -85,6 +85,12 @@ std::vector<nlohmann::json> readManifest(const std::string& folder);
 struct GenerateOptions {
     int workers = 1;     // processes, each with its own OpenGL context
     bool quiet = false;  // no progress bar
+    // The program each worker process runs (exec'd after the fork), followed by `--folder F --items
+    // i,j,k --result-fd N`; it must call runDatasetWorker. The `dejag` binary passes its own
+    // `data worker`. Empty: the forked child renders itself — only safe in a process with one thread,
+    // since a lock another thread held at the fork stays locked in the child (seen as a hang under
+    // ASan, whose allocator lock a pool thread can hold).
+    std::vector<std::string> workerCommand;
 };
 struct GenerateResult {
     int rendered = 0, skipped = 0;
@@ -95,6 +101,9 @@ struct GenerateResult {
 // dejag::Error if the folder holds a different dataset.
 GenerateResult generateDataset(const DatasetSpec& spec, const std::string& folder,
                                const GenerateOptions& options);
+// A worker of generateDataset (its workerCommand): renders the items of the dataset in `folder` and
+// reports each on file descriptor `resultFd`, then exits the process.
+[[noreturn]] void runDatasetWorker(const std::string& folder, const std::vector<int>& items, int resultFd);
 
 struct VerifyReport {
     int items = 0;
