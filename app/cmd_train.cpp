@@ -91,9 +91,10 @@ void registerTrainCommand(CLI::App& app) {
     trainCommand->add_option("--poison-steps", *poison, "testing: put a NaN into these steps' batches")
         ->group("");
     trainCommand
-        ->add_option("--adversarial", config->adversarialFraction,
-                     "stress testing: replace this fraction of the batches with constant, noise, HDR-spike "
-                     "and NaN-poisoned ones (default 0)")
+        ->add_option(
+            "--adversarial", config->adversarialFraction,
+            "stress testing: this fraction of the steps train on inserted constant, noise, HDR-spike "
+            "or NaN-poisoned batches (default 0)")
         ->check(CLI::Range(0.0, 1.0));
     trainCommand
         ->add_option("--skip-outliers", config->outlierFactor,
