@@ -64,8 +64,10 @@ test-asan:
 # ASan: the rendered scene catalogue, the TAA protocol bench, the crash-safety kill loops; measured
 # 2026-11-22: the whole suite 332 s, this subset about 170 s on 2 cores).
 ASAN_SLOW = Cli.BenchTaaReproducesTheThesisProtocolsSmall|Scenes.EveryCatalogueSceneBuildsWithUniqueIds|hairball|CrashSafety|TheOutlierGuardSkipsALossSpike
+# Warnings are errors in the release build only: under sanitizer instrumentation GCC 12 reports
+# maybe-uninitialized inside libstdc++'s own headers (std::function in std::regex).
 test-asan-fast:
-	$(MAKE) build PRESET=asan
+	$(MAKE) build PRESET=asan CMAKE_FLAGS=-DDEJAG_WERROR=OFF
 	cd build/asan && ctest --output-on-failure -j $(JOBS) -E '$(ASAN_SLOW)'
 
 test-tsan:
