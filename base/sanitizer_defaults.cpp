@@ -30,9 +30,12 @@ const char* __tsan_default_options() {
     return "halt_on_error=1:print_suppressions=0";
 }
 // OpenImageIO and OpenEXR run their own thread pools inside uninstrumented shared libraries (e.g. when
-// writing images); TSan cannot see their synchronisation and reports races between their own threads.
+// writing images), and so does Mesa's llvmpipe behind OSMesa (its rasteriser threads, whose mutexes it
+// destroys at context teardown); TSan cannot see their synchronisation and reports races between
+// their own threads.
 const char* __tsan_default_suppressions() {
-    return "race:libOpenImageIO.so\n"
+    return "race:libOSMesa.so\n"
+           "race:libOpenImageIO.so\n"
            "race:libOpenImageIO_Util.so\n"
            "race:libOpenEXR\n"
            "race:libIlmThread\n"
