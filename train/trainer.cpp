@@ -77,15 +77,20 @@ json configToJson(const TrainConfig& c) {
 
 // The settings that must not change when a run is resumed (they change the batches or the updates).
 void requireSameRun(const json& saved, const json& now) {
-    for (const char* key :
-         {"arch", "loss", "batch", "patch", "lr", "warmup_steps", "clip_norm", "seed", "families"}) {
-        const json before = saved.contains(key) ? saved.at(key) : json::array();  // runs before --families
-        if (before != now.at(key))
-            throw Error(std::string("--resume: '") + key + "' was " + before.dump() + " in this run, now " +
-                        now.at(key).dump() + "; resume with the same settings or start a new --out");
-    }
-    for (const char* key : {"adversarial", "outlier_factor"}) {
-        const json before = saved.contains(key) ? saved.at(key) : json(0.0);  // runs before these options
+    // A setting missing from an older run's record had the value it took before the option existed.
+    const std::pair<const char*, json> keys[] = {{"arch", nullptr},
+                                                 {"loss", nullptr},
+                                                 {"batch", nullptr},
+                                                 {"patch", nullptr},
+                                                 {"lr", nullptr},
+                                                 {"warmup_steps", nullptr},
+                                                 {"clip_norm", nullptr},
+                                                 {"seed", nullptr},
+                                                 {"families", json::array()},
+                                                 {"adversarial", json(0.0)},
+                                                 {"outlier_factor", json(0.0)}};
+    for (const auto& [key, absent] : keys) {
+        const json before = saved.contains(key) ? saved.at(key) : absent;
         if (before != now.at(key))
             throw Error(std::string("--resume: '") + key + "' was " + before.dump() + " in this run, now " +
                         now.at(key).dump() + "; resume with the same settings or start a new --out");
