@@ -4,6 +4,7 @@
 #include <sys/resource.h>
 
 #include <cmath>
+#include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <random>
@@ -158,6 +159,18 @@ TEST(ImageIo, NonImageFileIsAClearError) {
     expectReadError(dir.file("text.png"));
 }
 
+// Each file is read by the reader its extension names: an EXR named .png is "not a PNG", not an EXR
+// guessed by trying every reader (which also fed corrupt files to readers dejag never uses).
+TEST(ImageIo, AFileIsReadByItsExtensionsReaderOnly) {
+    testing::TempDir dir;
+    writeImage(dir.file("a.exr"), patternImage(8, 8, {"R", "G", "B"}, PixelType::Half));
+    std::filesystem::copy_file(dir.file("a.exr"), dir.file("a.png"));
+    std::filesystem::copy_file(dir.file("a.exr"), dir.file("a.img"));
+    EXPECT_EQ(readImage(dir.file("a.exr")).width, 8);
+    EXPECT_NE(expectReadError(dir.file("a.png")).find("Not a PNG file"), std::string::npos);
+    EXPECT_NE(expectReadError(dir.file("a.img")).find("could not find a format reader"), std::string::npos);
+}
+
 class TruncatedImage : public ::testing::TestWithParam<const char*> {};
 
 TEST_P(TruncatedImage, IsAClearError) {
@@ -191,6 +204,57 @@ TEST(ImageIo, ATruncatedFileClaimingALargeImageFailsWithoutItsMemory) {
     rusage after{};
     ::getrusage(RUSAGE_SELF, &after);
     EXPECT_LT(after.ru_maxrss - before.ru_maxrss, 256 * 1024) << "KB of peak resident memory added";
+}
+
+// Writes a valid EXR, then overwrites the 4 + `replacement.size()` bytes that follow the attribute
+// `name`'s name and type (its size, then its value) with `size` and `replacement`.
+std::string exrWithAttributeChanged(const testing::TempDir& dir, const std::string& name,
+                                    const std::string& type, int32_t size,
+                                    const std::vector<int32_t>& replacement = {}) {
+    const std::string path = dir.file(name + ".exr");
+    writeImage(path, patternImage(16, 16, {"R", "G", "B"}, PixelType::Half));
+    std::string bytes;
+    {
+        std::ifstream in(path, std::ios::binary);
+        bytes.assign(std::istreambuf_iterator<char>(in), {});
+    }
+    const std::string key = name + '\0' + type + '\0';
+    const size_t at = bytes.find(key);
+    EXPECT_NE(at, std::string::npos) << name << " not found";
+    std::vector<int32_t> words{size};
+    words.insert(words.end(), replacement.begin(), replacement.end());
+    std::memcpy(bytes.data() + at + key.size(), words.data(), words.size() * 4);  // little-endian host
+    std::ofstream(path, std::ios::binary) << bytes;
+    return path;
+}
+
+// Found by fuzz/fuzz_image.cpp: OpenEXR allocates and clears what an attribute's declared size says (a
+// few mutated bytes: hundreds of MB and a second per input). readImage checks the declared sizes first.
+TEST(ImageIo, AnExrAttributeLargerThanTheFileIsRefusedBeforeItIsAllocated) {
+    testing::TempDir dir;
+    const std::string path = exrWithAttributeChanged(dir, "channels", "chlist", 400'000'000);
+    rusage before{};
+    ::getrusage(RUSAGE_SELF, &before);
+    const std::string message = expectReadError(path);
+    rusage after{};
+    ::getrusage(RUSAGE_SELF, &after);
+    EXPECT_NE(message.find("corrupt EXR header (attribute 'channels' claims 400000000 bytes"),
+              std::string::npos)
+        << message;
+    EXPECT_LT(after.ru_maxrss - before.ru_maxrss, 64 * 1024) << "KB of peak resident memory added";
+    EXPECT_NE(expectReadError(exrWithAttributeChanged(dir, "channels", "chlist", -5)).find("claims -5 bytes"),
+              std::string::npos);
+}
+
+TEST(ImageIo, AnExrDataWindowBeyondTheSampleBudgetIsRefusedFromTheHeader) {
+    testing::TempDir dir;
+    const std::string huge = exrWithAttributeChanged(dir, "dataWindow", "box2i", 16, {0, 0, 60000, 60000});
+    EXPECT_NE(expectReadError(huge).find("60001x60001 is larger than dejag accepts"), std::string::npos);
+    const std::string inverted = exrWithAttributeChanged(dir, "dataWindow", "box2i", 16, {10, 10, 0, 0});
+    EXPECT_NE(expectReadError(inverted).find("corrupt EXR header (data window -9x-9)"), std::string::npos);
+    // The walk accepts what it does not change: the same file with its real window reads.
+    const std::string same = exrWithAttributeChanged(dir, "dataWindow", "box2i", 16, {0, 0, 15, 15});
+    EXPECT_EQ(readImage(same).width, 16);
 }
 
 TEST(ImageIo, WritingLeavesNoTemporaryFiles) {
