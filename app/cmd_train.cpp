@@ -93,9 +93,9 @@ void registerTrainCommand(CLI::App& app) {
     trainCommand
         ->add_option(
             "--adversarial", config->adversarialFraction,
-            "stress testing: this fraction of the steps train on inserted constant, noise, HDR-spike "
-            "or NaN-poisoned batches (default 0)")
-        ->check(CLI::Range(0.0, 1.0));
+            "stress testing: insert constant, noise, HDR-spike or NaN-poisoned batches as this fraction "
+            "of the steps, on top of the clean ones --steps counts (default 0)")
+        ->check(CLI::Range(0.0, 0.9));
     trainCommand
         ->add_option("--skip-outliers", config->outlierFactor,
                      "skip a step whose loss exceeds this many times the running average of the recent "

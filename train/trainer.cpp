@@ -428,6 +428,8 @@ TrainResult trainModel(const TrainConfig& config, const std::vector<Baseline>& b
         throw Error("--lr must be positive");
     if (config.steps < 0 || config.epochs < 0 || (config.steps == 0 && config.epochs == 0))
         throw Error("give --steps N or --epochs E (positive)");
+    if (!(config.adversarialFraction >= 0 && config.adversarialFraction <= 0.9))
+        throw Error("--adversarial must be between 0 and 0.9");
     if (config.evalEvery < 1 || config.checkpointEvery < 1)
         throw Error("evaluation and checkpoint intervals must be >= 1");
     const nn::CompositeLoss loss = nn::CompositeLoss::parse(config.loss);
@@ -487,11 +489,22 @@ TrainResult trainModel(const TrainConfig& config, const std::vector<Baseline>& b
             std::max<int64_t>(1, int64_t(std::ceil(config.epochs * pixels /
                                                    (double(config.batch) * config.patch * config.patch))));
     }
+    // --steps (or --epochs) counts clean batches; adversarial steps come on top of them, so a stress run
+    // and a clean run of the same length train on the same batches at the same learning rates.
+    const int64_t cleanSteps = totalSteps;
+    if (config.adversarialFraction > 0)
+        for (int64_t clean = 0, s = 0;; ++s) {
+            if (clean == cleanSteps) {
+                totalSteps = s;
+                break;
+            }
+            clean += adversarialKindAt(config.seed, s, config.adversarialFraction) == AdversarialKind::None;
+        }
     runConfig["total_steps"] = totalSteps;
     nn::LrSchedule schedule;
     schedule.kind = nn::LrSchedule::Kind::Cosine;
     schedule.baseRate = config.learningRate, schedule.minRate = 0.05 * config.learningRate;
-    schedule.warmupSteps = config.warmupSteps, schedule.totalSteps = totalSteps;
+    schedule.warmupSteps = config.warmupSteps, schedule.totalSteps = cleanSteps;
 
     // Validation: the baselines are scored once; the network at every evaluation.
     const std::vector<data::EvaluationItem> validation = data::loadEvaluationItems(
@@ -581,6 +594,8 @@ TrainResult trainModel(const TrainConfig& config, const std::vector<Baseline>& b
             adversarialKindAt(config.seed, state.step, config.adversarialFraction);
         // An adversarial step starts from a copy of the next clean batch (HDR spikes and poison are
         // added to it) and leaves that batch to the next clean step.
+        // The learning rate follows the clean batches (an adversarial step takes the next clean one's).
+        const int64_t schedulePosition = cleanBatches;
         data::Batch batch =
             adversarial == AdversarialKind::None ? sampler.next() : sampler.assemble(uint64_t(cleanBatches));
         if (adversarial == AdversarialKind::None) ++cleanBatches;
@@ -594,7 +609,7 @@ TrainResult trainModel(const TrainConfig& config, const std::vector<Baseline>& b
             makeAdversarial(batch.input, batch.target, adversarial, config.seed, state.step);
             ++state.adversarial[int(adversarial)];
         }
-        const double rate = schedule.rateAt(state.step) * state.learningRateScale;
+        const double rate = schedule.rateAt(schedulePosition) * state.learningRateScale;
         std::string bad;
         bool badData = false, outlierStep = false;
         double value = NAN;
@@ -669,6 +684,17 @@ TrainResult trainModel(const TrainConfig& config, const std::vector<Baseline>& b
             state.badInRow = 0;
             state.largestLoss = std::max(state.largestLoss, value);
             lossSum += value, ++lossCount, lastLoss = value;
+        }
+        if (adversarial != AdversarialKind::None && config.json) {
+            std::printf("%s\n", json{{"event", "adversarial"},
+                                     {"step", state.step},
+                                     {"kind", adversarialKindName(adversarial)},
+                                     {"loss", std::isfinite(value) ? json(value) : json(nullptr)},
+                                     {"loss_average", state.lossAverage},
+                                     {"taken", bad.empty()}}
+                                    .dump()
+                                    .c_str());
+            std::fflush(stdout);
         }
         ++state.step;
         const bool evaluationStep = state.step % config.evalEvery == 0 || state.step == totalSteps;

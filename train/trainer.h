@@ -30,7 +30,7 @@ struct TrainConfig {
     std::string arch = "fast";   // seed2020 | fast | FILE.json
     std::string out;             // run folder
     std::string loss = "ssim";   // nn::CompositeLoss::parse: ssim, ssim+l1, 0.84*ssim+0.16*l1, ...
-    int64_t steps = 0;           // total steps (0: from epochs)
+    int64_t steps = 0;           // clean steps (0: from epochs); adversarial ones come on top
     double epochs = 0;           // one epoch: as many patch pixels as the train split has pixels
     int batch = 16, patch = 96;  // patches per batch, patch side
     double learningRate = 1e-3;  // Adam; cosine decay to 5 % after a linear warm-up

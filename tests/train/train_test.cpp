@@ -190,6 +190,7 @@ TEST_F(Training, AdversarialBatchesLeaveTheWeightsFinite) {
     int64_t adversarial = 0;
     for (int k = 1; k < 5; ++k) adversarial += r.adversarialSteps[k];
     EXPECT_GT(adversarial, 10);
+    EXPECT_EQ(r.steps, c.steps + adversarial) << "--steps counts the clean batches";
     EXPECT_EQ(r.skippedSteps, r.adversarialSteps[int(AdversarialKind::Poisoned)]);
     EXPECT_GT(r.largestLoss, 0.0);
     EXPECT_TRUE(std::isfinite(r.largestLoss));
