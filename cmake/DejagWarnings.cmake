@@ -27,6 +27,8 @@ if(DEJAG_FUZZ)
         message(FATAL_ERROR "DEJAG_FUZZ needs Clang (libFuzzer): configure with the fuzz preset")
     endif()
     add_compile_options(-fsanitize=fuzzer-no-link)
+    # libFuzzer's own reports (out-of-memory, timeout) go to stderr: nothing may silence it.
+    add_compile_definitions(DEJAG_FUZZING=1)
 endif()
 
 # Sanitizer builds: every executable gets base/sanitizer_defaults.cpp (default options, suppressions).

@@ -28,6 +28,15 @@
 #if defined(DEJAG_LSAN)
 #include <sanitizer/lsan_interface.h>
 #endif
+#if defined(DEJAG_LSAN) || defined(__SANITIZE_THREAD__)
+#define DEJAG_SANITIZER_REPORTS 1
+#include <sanitizer/common_interface_defs.h>
+#elif defined(__has_feature)
+#if __has_feature(thread_sanitizer)
+#define DEJAG_SANITIZER_REPORTS 1
+#include <sanitizer/common_interface_defs.h>
+#endif
+#endif
 
 namespace dejag {
 namespace {
@@ -124,8 +133,11 @@ void checkExrHeaders(const std::string& path, int64_t maxSamples) {
     }
 }
 
+// A sanitizer's report from inside a codec goes to the real stderr (found fuzzing: an out-of-memory
+// report vanished into /dev/null). Fuzzing builds do not silence stderr at all: libFuzzer reports there.
 class QuietStderr {
   public:
+#if !defined(DEJAG_FUZZING)
     QuietStderr() {
         std::lock_guard<std::mutex> lock(mutex_);
         if (users_++ > 0) return;
@@ -134,17 +146,26 @@ class QuietStderr {
         const int devNull = ::open("/dev/null", O_WRONLY | O_CLOEXEC);
         if (saved_ >= 0 && devNull >= 0) ::dup2(devNull, STDERR_FILENO);
         if (devNull >= 0) ::close(devNull);
+#if defined(DEJAG_SANITIZER_REPORTS)
+        if (saved_ >= 0) __sanitizer_set_report_fd(reinterpret_cast<void*>(intptr_t(saved_)));
+#endif
     }
     ~QuietStderr() {
         std::lock_guard<std::mutex> lock(mutex_);
         if (--users_ > 0) return;
         std::fflush(stderr);
+#if defined(DEJAG_SANITIZER_REPORTS)
+        __sanitizer_set_report_fd(reinterpret_cast<void*>(intptr_t(STDERR_FILENO)));
+#endif
         if (saved_ >= 0) {
             ::dup2(saved_, STDERR_FILENO);
             ::close(saved_);
         }
         saved_ = -1;
     }
+#else
+    QuietStderr() = default;
+#endif
     QuietStderr(const QuietStderr&) = delete;
     QuietStderr& operator=(const QuietStderr&) = delete;
 
