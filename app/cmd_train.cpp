@@ -98,8 +98,8 @@ void registerTrainCommand(CLI::App& app) {
         ->check(CLI::Range(0.0, 0.9));
     trainCommand
         ->add_option("--skip-outliers", config->outlierFactor,
-                     "skip a step whose loss exceeds this many times the running average of the recent "
-                     "losses (0: off)")
+                     "skip a step whose loss exceeds K times its running average, or whose input's "
+                     "detail lies above K times or below 1/K^2 of its own (0: off; K > 1)")
         ->check(CLI::Range(0.0, 1e6))
         ->capture_default_str();
     addRuntimeOptions(trainCommand, *runtime);

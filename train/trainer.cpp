@@ -8,6 +8,7 @@
 #include <fstream>
 #include <map>
 #include <numeric>
+#include <optional>
 #include <sstream>
 
 #include "base/error.h"
@@ -144,14 +145,76 @@ LogRow rowFromJson(const json& j) {
 constexpr double kLossAverageRate = 0.02;
 constexpr int64_t kOutlierWarmupSteps = 10;
 
+// A running average that judges outliers against itself (the outlier guard keeps two: the loss, and the
+// detail of the input). It starts from the median of the first kOutlierWarmupSteps values (an
+// adversarial batch among them does not set it), then follows every value clipped to
+// [average / K, K × average]: a lasting shift in the data moves it within a few hundred steps, a spike
+// barely does.
+struct RunningAverage {
+    double average = 0;
+    int64_t count = 0;
+    std::vector<double> firstValues;  // until the warm-up ends
+
+    bool judging() const { return count >= kOutlierWarmupSteps; }
+    // How many times the average `value` is, when that is above `factor` or (`below`: low values are
+    // judged too) below 1 / `factor`²; nothing when `value` is not an outlier. Low values get the wider
+    // margin: a batch of flat patches is unusual, not wrong, while one with no detail at all says nothing.
+    std::optional<double> outlierRatio(double value, double factor, bool below) const {
+        if (factor <= 0 || !judging() || !(average > 0) || !std::isfinite(value)) return std::nullopt;
+        const double ratio = value / average;
+        if (ratio > factor || (below && ratio < 1 / (factor * factor))) return ratio;
+        return std::nullopt;
+    }
+    void add(double value, double factor) {
+        if (!std::isfinite(value)) return;
+        ++count;
+        if (count <= kOutlierWarmupSteps) {
+            firstValues.push_back(value);
+            std::vector<double> sorted = firstValues;
+            std::nth_element(sorted.begin(), sorted.begin() + ptrdiff_t(sorted.size() / 2), sorted.end());
+            average = sorted[sorted.size() / 2];
+            if (count == kOutlierWarmupSteps) firstValues.clear();
+            return;
+        }
+        if (factor > 0) value = std::clamp(value, average / factor, average * factor);
+        average += kLossAverageRate * (value - average);
+    }
+    json toJson() const { return {{"average", average}, {"count", count}, {"first_values", firstValues}}; }
+    static RunningAverage fromJson(const json& j) {
+        RunningAverage r;
+        r.average = j.at("average").get<double>(), r.count = j.at("count").get<int64_t>();
+        r.firstValues = j.at("first_values").get<std::vector<double>>();
+        return r;
+    }
+};
+
+// The detail of a batch's input: the mean absolute difference between horizontal and vertical
+// neighbours (every channel). Rendered frames, aliased or not, keep it within a small range; a constant
+// batch has none and pure noise about a third of the value range.
+double inputDetail(const nn::Tensor& input) {
+    const int64_t planes = input.dim(0) * input.dim(1), h = input.dim(2), w = input.dim(3);
+    double sum = 0;
+    for (int64_t p = 0; p < planes; ++p) {
+        const float* plane = input.data() + p * h * w;
+        for (int64_t y = 0; y < h; ++y)
+            for (int64_t x = 0; x < w; ++x) {
+                const float v = plane[y * w + x];
+                if (x + 1 < w) sum += std::abs(plane[y * w + x + 1] - v);
+                if (y + 1 < h) sum += std::abs(plane[(y + 1) * w + x] - v);
+            }
+    }
+    const double pairs = double(planes) * double(h * (w - 1) + (h - 1) * w);
+    return pairs > 0 ? sum / pairs : 0;
+}
+
 // What a checkpoint holds besides the tensors.
 struct TrainState {
     int64_t step = 0;  // steps done (the next batch is batch `step`)
     int64_t skipped = 0, badInRow = 0;
     double largestLoss = 0;
     int64_t adversarial[5] = {};
-    double lossAverage = 0;  // running average of the finite losses (the outlier guard)
-    int64_t lossSteps = 0, outliers = 0;
+    RunningAverage loss, detail;  // the outlier guard's: finite losses, and the inputs' detail
+    int64_t outliers = 0;
     double learningRateScale = 1.0;
     double bestPsnr = -1e30;
     int64_t bestStep = -1;
@@ -173,8 +236,8 @@ void saveCheckpoint(const std::string& path, const nn::Model& model, const nn::O
                  {"lr_scale", state.learningRateScale},
                  {"largest_loss", state.largestLoss},
                  {"adversarial", state.adversarial},
-                 {"loss_average", state.lossAverage},
-                 {"loss_steps", state.lossSteps},
+                 {"loss_average", state.loss.toJson()},
+                 {"detail_average", state.detail.toJson()},
                  {"outliers", state.outliers},
                  {"best_psnr", state.bestPsnr},
                  {"best_step", state.bestStep},
@@ -219,7 +282,10 @@ TrainState loadCheckpoint(const std::string& path, nn::Model& model, nn::Optimiz
     state.bestStep = s.at("best_step");
     state.evaluationsSinceBest = s.at("evaluations_since_best"), state.seconds = s.at("seconds");
     state.largestLoss = s.value("largest_loss", 0.0);  // (absent from checkpoints before stress runs)
-    state.lossAverage = s.value("loss_average", 0.0), state.lossSteps = s.value("loss_steps", int64_t(0));
+    // (Runs recorded before the guard kept its warm-up values, or the input's detail, start them afresh.)
+    if (s.contains("loss_average") && s["loss_average"].is_object())
+        state.loss = RunningAverage::fromJson(s["loss_average"]);
+    if (s.contains("detail_average")) state.detail = RunningAverage::fromJson(s["detail_average"]);
     state.outliers = s.value("outliers", int64_t(0));
     if (s.contains("adversarial"))
         for (size_t k = 0; k < 5; ++k) state.adversarial[k] = s.at("adversarial").at(k);
@@ -431,6 +497,8 @@ TrainResult trainModel(const TrainConfig& config, const std::vector<Baseline>& b
         throw Error("--lr must be positive");
     if (config.steps < 0 || config.epochs < 0 || (config.steps == 0 && config.epochs == 0))
         throw Error("give --steps N or --epochs E (positive)");
+    if (!(config.outlierFactor == 0 || (config.outlierFactor > 1 && std::isfinite(config.outlierFactor))))
+        throw Error("--skip-outliers must be 0 (off) or above 1");
     if (!(config.adversarialFraction >= 0 && config.adversarialFraction <= 0.9))
         throw Error("--adversarial must be between 0 and 0.9");
     if (config.evalEvery < 1 || config.checkpointEvery < 1)
@@ -607,7 +675,7 @@ TrainResult trainModel(const TrainConfig& config, const std::vector<Baseline>& b
             batch.input.data()[batch.input.numel() / 2] = NAN;
         if (std::find(config.spikeSteps.begin(), config.spikeSteps.end(), state.step) !=
             config.spikeSteps.end())
-            for (int64_t i = 0; i < batch.input.numel(); ++i) batch.input.data()[i] *= 1000.0f;
+            for (int64_t i = 0; i < batch.target.numel(); ++i) batch.target.data()[i] *= 1000.0f;
         if (adversarial != AdversarialKind::None) {
             makeAdversarial(batch.input, batch.target, adversarial, config.seed, state.step);
             ++state.adversarial[int(adversarial)];
@@ -616,37 +684,37 @@ TrainResult trainModel(const TrainConfig& config, const std::vector<Baseline>& b
         std::string bad;
         bool badData = false, outlierStep = false;
         double value = NAN;
-        if (!allFinite(batch.input) || !allFinite(batch.target)) {
+        const auto outlierReason = [](const char* what, double measured, double ratio) {
+            char reason[128];
+            std::snprintf(reason, sizeof reason, "%s %.4g is an outlier (%.2f times its running average)",
+                          what, measured, ratio);
+            return std::string(reason);
+        };
+        // The input's detail is judged before the forward pass: a batch unlike the data set's (no detail
+        // at all, or noise) teaches the network something the frames it will filter never ask for.
+        const bool finite = allFinite(batch.input) && allFinite(batch.target);
+        const double inputDetailValue = finite ? inputDetail(batch.input) : NAN;
+        const std::optional<double> detailRatio =
+            state.detail.outlierRatio(inputDetailValue, config.outlierFactor, true);
+        state.detail.add(inputDetailValue, config.outlierFactor);
+        if (!finite) {
             bad = "the batch holds NaN or Inf";
             badData = true;
+        } else if (detailRatio) {
+            bad = outlierReason("the input's detail", inputDetailValue, *detailRatio);
+            badData = outlierStep = true;
         } else {
             const nn::Tensor& out = model.forward(batch.input);
             if (dout.shape() != out.shape()) dout = nn::Tensor(out.shape());
             dout.zero();
             const nn::SsimLossDesc desc{out.dim(0), out.dim(1), out.dim(2), out.dim(3), 1.0};
             value = loss.evaluate(dout.data(), out.data(), batch.target.data(), desc);
-            const bool outlier = config.outlierFactor > 0 && state.lossSteps >= kOutlierWarmupSteps &&
-                                 std::isfinite(value) && value > config.outlierFactor * state.lossAverage;
-            if (std::isfinite(value)) {
-                // The average follows every finite loss, outliers clipped: a lasting shift in the data
-                // raises it within a few hundred steps, a spike barely moves it.
-                const double clipped = config.outlierFactor > 0 && state.lossSteps >= kOutlierWarmupSteps
-                                           ? std::min(value, config.outlierFactor * state.lossAverage)
-                                           : value;
-                state.lossAverage =
-                    state.lossSteps == 0
-                        ? clipped
-                        : state.lossAverage + kLossAverageRate * (clipped - state.lossAverage);
-                ++state.lossSteps;
-            }
+            const std::optional<double> ratio = state.loss.outlierRatio(value, config.outlierFactor, false);
+            state.loss.add(value, config.outlierFactor);
             if (!std::isfinite(value) || !allFinite(dout)) {
                 bad = "the loss or its gradient is not finite";
-            } else if (outlier) {
-                char reason[128];
-                std::snprintf(reason, sizeof reason,
-                              "the loss %.4g is an outlier (%.1f times its running average)", value,
-                              value / state.lossAverage);
-                bad = reason;
+            } else if (ratio) {
+                bad = outlierReason("the loss", value, *ratio);
                 badData = outlierStep = true;
             } else {
                 model.backward(dout);
@@ -693,7 +761,7 @@ TrainResult trainModel(const TrainConfig& config, const std::vector<Baseline>& b
                                      {"step", state.step},
                                      {"kind", adversarialKindName(adversarial)},
                                      {"loss", std::isfinite(value) ? json(value) : json(nullptr)},
-                                     {"loss_average", state.lossAverage},
+                                     {"loss_average", state.loss.average},
                                      {"taken", bad.empty()}}
                                     .dump()
                                     .c_str());

@@ -46,7 +46,7 @@ struct TrainConfig {
     bool quiet = false;                // no progress bar
     bool json = false;                 // log lines as JSON objects on stdout
     std::vector<int64_t> poisonSteps;  // tests: steps whose batch gets a NaN (exercises the guard)
-    std::vector<int64_t> spikeSteps;   // tests: steps whose input is multiplied by 1000 (a loss spike)
+    std::vector<int64_t> spikeSteps;   // tests: steps whose target is multiplied by 1000 (a loss spike)
     // Stress testing: this fraction of the steps, chosen by the seed and the step, trains on an
     // adversarial batch (see AdversarialKind): constant patches, pure noise, HDR spikes up to 1e4, or
     // NaN/Inf-poisoned input that the guard must reject. They are inserted between the clean batches,

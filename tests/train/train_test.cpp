@@ -10,6 +10,9 @@
 #include <cmath>
 #include <filesystem>
 #include <fstream>
+#include <map>
+#include <set>
+#include <sstream>
 
 #include "base/error.h"
 #include "data/image.h"
@@ -228,6 +231,41 @@ TEST_F(Training, TheOutlierGuardSkipsALossSpike) {
     unguarded.steps = 130, unguarded.evalEvery = 130, unguarded.checkpointEvery = 130;
     unguarded.spikeSteps = {120};
     EXPECT_EQ(trainModel(unguarded, baselines()).skippedSteps, 0);
+}
+
+// The other half of the outlier guard judges the input before the forward pass: constant batches (no
+// detail), noise and HDR spikes (far more) are skipped, and the clean batches between them are not.
+TEST_F(Training, TheOutlierGuardSkipsBatchesUnlikeTheDataSet) {
+    TrainConfig c = tinyConfig("outlier-detail");
+    c.steps = 100, c.evalEvery = 100, c.checkpointEvery = 100, c.outlierFactor = 3;
+    c.adversarialFraction = 0.3, c.json = true;
+    ::testing::internal::CaptureStdout();
+    const TrainResult r = trainModel(c, baselines());
+    const std::string log = ::testing::internal::GetCapturedStdout();
+    std::map<std::string, int> taken, skipped;
+    int cleanSkipped = 0;
+    std::set<int64_t> adversarialSteps;
+    std::istringstream lines(log);
+    for (std::string line; std::getline(lines, line);) {
+        const nlohmann::json event = nlohmann::json::parse(line);
+        if (event["event"] == "adversarial" && event["step"].get<int64_t>() >= 10) {
+            (event["taken"].get<bool>() ? taken : skipped)[event["kind"]]++;
+            adversarialSteps.insert(event["step"].get<int64_t>());
+        }
+    }
+    lines = std::istringstream(log);
+    for (std::string line; std::getline(lines, line);) {
+        const nlohmann::json event = nlohmann::json::parse(line);
+        if (event["event"] == "skipped" && !adversarialSteps.count(event["step"].get<int64_t>()) &&
+            event["step"].get<int64_t>() >= 10)
+            ++cleanSkipped;
+    }
+    for (const char* kind : {"constant", "noise", "hdr-spikes"}) {
+        EXPECT_GT(skipped[kind], 0) << kind;
+        EXPECT_EQ(taken[kind], 0) << kind;
+    }
+    EXPECT_EQ(cleanSkipped, 0) << log;
+    EXPECT_GT(r.outlierSteps, 0);
 }
 
 TEST_F(Training, RepeatedBadStepsStopWithTheLastCheckpointIntact) {
