@@ -370,11 +370,13 @@ Image readImage(const std::string& path, int64_t maxSamples) {
         if (!input->read_image(0, 0, 0, spec.nchannels, OIIO::TypeDesc::FLOAT, image.pixels.data()))
             throw Error("cannot read '" + path + "': " + oneLine(input->geterror()));
     } else {
-        // Whole strips per read: a TIFF reader decodes (and allocates) a whole strip for any of its rows
-        // (found fuzzing: a 250-byte TIFF of one 29,446-row strip read 64 rows at a time decoded it 460
-        // times, 11 s under ASan).
+        // Rows are read in chunks of about 16 MB of floats (at least 64 rows): OpenImageIO 2.4 allocates a
+        // 64 MB conversion buffer on every read_scanlines call whatever its size, which 64-row chunks
+        // paid 17 times per 1080p frame (found fuzzing: a 250-byte TIFF of 8 × 29,446 pixels took 460
+        // reads, > 10 s under ASan, whose allocator poisons each buffer's shadow).
+        const size_t rowBytes = rowSamples * sizeof(float);
         const int rowsPerRead =
-            std::min(std::max(64, spec.get_int_attribute("tiff:RowsPerStrip", 64)), spec.height);
+            int(std::min<size_t>(size_t(spec.height), std::max<size_t>(64, (size_t(16) << 20) / rowBytes)));
         for (int y = 0; y < spec.height; y += rowsPerRead) {
             const int last = std::min(spec.height, y + rowsPerRead);
             image.pixels.resize(rowSamples * size_t(last));
