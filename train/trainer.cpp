@@ -690,10 +690,10 @@ TrainResult trainModel(const TrainConfig& config, const std::vector<Baseline>& b
                           what, measured, ratio);
             return std::string(reason);
         };
-        // The input's detail is judged before the forward pass: a batch unlike the data set's (no detail
-        // at all, or noise) teaches the network something the frames it will filter never ask for.
+        // The input's detail is judged before the forward pass (measured only with the guard on): a batch
+        // unlike the data set's (no detail at all, or noise) teaches the network what no frame asks for.
         const bool finite = allFinite(batch.input) && allFinite(batch.target);
-        const double inputDetailValue = finite ? inputDetail(batch.input) : NAN;
+        const double inputDetailValue = finite && config.outlierFactor > 0 ? inputDetail(batch.input) : NAN;
         const std::optional<double> detailRatio =
             state.detail.outlierRatio(inputDetailValue, config.outlierFactor, true);
         state.detail.add(inputDetailValue, config.outlierFactor);
