@@ -54,7 +54,7 @@ void fromBlocked(float* plain, const float* blocked, const BlockedShape& s) {
 
 BlockedConv::BlockedConv(const Conv2dDesc& d, const float* weight, const float* bias,
                          const ActivationDesc& activation, int inputBlock)
-    : activation_(activation), block_(simdFloatLanes(activeSimdLevel())) {
+    : activation_(activation), block_(simdFloatLanes(activeSimdLevel())), outputBlock_(block_) {
     setInputBlock(inputBlock, d.inChannels);
     d.validate();
     batch_ = d.batch, inChannels_ = d.inChannels, inHeight_ = d.inHeight, inWidth_ = d.inWidth;
@@ -84,7 +84,7 @@ BlockedConv::BlockedConv(const Conv2dDesc& d, const float* weight, const float* 
 
 BlockedConv::BlockedConv(const ConvTranspose2dDesc& d, const float* weight, const float* bias,
                          const ActivationDesc& activation, int inputBlock)
-    : activation_(activation), block_(simdFloatLanes(activeSimdLevel())) {
+    : activation_(activation), block_(simdFloatLanes(activeSimdLevel())), outputBlock_(block_) {
     setInputBlock(inputBlock, d.inChannels);
     d.validate();
     batch_ = d.batch, inChannels_ = d.inChannels, inHeight_ = d.inHeight, inWidth_ = d.inWidth;
@@ -182,13 +182,30 @@ BlockedShape BlockedConv::inputShape(int border) const {
 }
 
 BlockedShape BlockedConv::outputShape(int border) const {
-    if (pool_) return {batch_, outChannels_, outHeight_ / 2, outWidth_ / 2, block_, border};
-    return {batch_, outChannels_, outHeight_, outWidth_, block_, border};
+    if (pool_) return {batch_, outChannels_, outHeight_ / 2, outWidth_ / 2, outputBlock_, border};
+    return {batch_, outChannels_, outHeight_, outWidth_, outputBlock_, border};
+}
+
+int BlockedConv::compactOutputBlock() const {
+    if (pool_ || passes_.empty() || passes_[0].narrowWeights.empty()) return 0;
+    for (const Pass& p : passes_)
+        if (p.outStepX != 1) return 0;
+    const int compact = outChannels_ == 1 ? 1 : outChannels_ == 2 ? 2 : 4;
+    return compact < block_ ? compact : 0;
+}
+
+void BlockedConv::useCompactOutput() {
+    const int compact = compactOutputBlock();
+    if (compact == 0)
+        throw Error("BlockedConv: no compact output for this layer (" + std::to_string(outChannels_) +
+                    " output channels)");
+    outputBlock_ = compact;
 }
 
 void BlockedConv::fuseMaxPool2x2() {
     if (transposed_ || passes_.size() != 1 || passes_[0].outStepX != 1 || passes_[0].outStepY != 1)
         throw Error("BlockedConv: max pooling fuses into a Conv2D only");
+    if (outputBlock_ != block_) throw Error("BlockedConv: max pooling does not fuse with a compact output");
     if (outHeight_ < 2 || outWidth_ < 2)
         throw Error("BlockedConv: a 2x2 pooling needs an output of at least 2x2 pixels");
     pool_ = true;
@@ -196,7 +213,7 @@ void BlockedConv::fuseMaxPool2x2() {
 
 void BlockedConv::forward(float* out, const BlockedShape& outShape, const float* in,
                           const BlockedShape& inShape) const {
-    if (inShape.block != inputBlock_ || outShape.block != block_ ||
+    if (inShape.block != inputBlock_ || outShape.block != outputBlock_ ||
         block_ != simdFloatLanes(activeSimdLevel()))
         throw Error("BlockedConv: blocked layout of " + std::to_string(inShape.block) +
                     " channels, the kernels use " + std::to_string(simdFloatLanes(activeSimdLevel())) +
@@ -209,7 +226,7 @@ void BlockedConv::forward(float* out, const BlockedShape& outShape, const float*
         inShape.width != inWidth_ || outShape.height != expected.height || outShape.width != expected.width ||
         inShape.batch != batch_ || outShape.batch != batch_)
         throw Error("BlockedConv: tensor shapes do not match the convolution");
-    const int64_t coutBlocks = outShape.channelBlocks(), blockGroups = (coutBlocks + 1) / 2;
+    const int64_t coutBlocks = outShape.channelBlocks(), blockGroups = (coutBlocks + 1) / 2;  // 1 if compact
     // Tap offsets for this input layout; on the stack (no allocation per call).
     std::array<std::array<int64_t, kMaxTaps>, 16> offsets{};
     if (passes_.size() > offsets.size()) throw Error("BlockedConv: too many passes");

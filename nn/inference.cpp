@@ -203,6 +203,17 @@ InferencePlan::InferencePlan(const Model& model, const Shape& inputShape) : impl
     m.inputBlocked = blockedOf(inputShape);
     if (planarInput) m.inputBlocked.block = 1;
     for (size_t i = 0; i < graph.size(); ++i) m.steps[i].shape = blockedOf(shapes[i]);
+    // A network's last layer with 1-4 outputs, read by nothing but the conversion to planes, writes them
+    // compactly (4 floats per pixel for 3 channels instead of a vector of 16).
+    if (Impl::Step& last = m.steps[size_t(m.outputStep)]; last.conv && last.conv->compactOutputBlock() > 0) {
+        bool consumed = false;
+        for (const GraphNode& n : graph)
+            for (int input : n.inputs) consumed = consumed || input == m.outputStep;
+        if (!consumed) {
+            last.conv->useCompactOutput();
+            last.shape.block = last.conv->outputShape(border).block;
+        }
+    }
 
     // Arena: a tensor lives from its producer to its last consumer; first-fit reuse of dead regions.
     const int count = int(graph.size());

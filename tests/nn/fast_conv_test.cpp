@@ -99,8 +99,15 @@ TEST_P(FastConv, Conv2dMatchesTheReferenceOnRandomShapes) {
         fusedActivation.kind = activation;
         // Few input channels: sometimes the planar (block 1) input layout.
         const int inputBlock = d.inChannels <= 8 && trial % 2 == 1 ? 1 : 0;
-        const BlockedConv conv(d, weight.data(), bias.data(), fusedActivation, inputBlock);
+        BlockedConv conv(d, weight.data(), bias.data(), fusedActivation, inputBlock);
         expectClose(runBlocked(conv, input, outCount), want);
+        // A narrow layer's compact output (1, 2 or 4 floats per pixel) holds the same values.
+        if (conv.compactOutputBlock() > 0) {
+            SCOPED_TRACE("compact output");
+            conv.useCompactOutput();
+            EXPECT_LT(conv.outputShape(0).block, conv.block());
+            expectClose(runBlocked(conv, input, outCount), want);
+        }
     }
 }
 
@@ -122,6 +129,34 @@ TEST_P(FastConv, NarrowLayerOverALargeFrameMatchesTheReference) {
     activationForward(want.data(), want.data(), outCount, relu);
     const BlockedConv conv(d, weight.data(), bias.data(), relu);
     expectClose(runBlocked(conv, input, outCount), want);
+}
+
+// The compact output (4 floats per pixel for 3 channels) streamed past the caches: above 8 MB of
+// output, rows that start anywhere within a vector (a partial tile up to the first whole vector, then
+// whole vectors, then a partial tail), and the same for every activation the kernel fuses.
+TEST_P(FastConv, NarrowLayerWithCompactOutputOverALargeFrameMatchesTheReference) {
+    Rng rng(79);
+    Conv2dDesc d;
+    d.inChannels = 16, d.outChannels = 3;
+    d.inHeight = 601, d.inWidth = 901;  // 4 floats x 603 x 903 padded pixels: 8.7 MB (> 8 MiB)
+    d.padTop = d.padBottom = d.padLeft = d.padRight = 1;
+    const auto input = randomValues(size_t(d.inChannels * d.inHeight * d.inWidth), rng);
+    const auto weight = randomValues(size_t(d.weightCount()), rng, 0.3f);
+    const auto bias = randomValues(size_t(d.outChannels), rng);
+    const int64_t outCount = d.outChannels * d.outHeight() * d.outWidth();
+    std::vector<float> linear(static_cast<size_t>(outCount));
+    conv2dForward(linear.data(), input.data(), weight.data(), bias.data(), d);
+    for (const Activation kind : kActivations) {
+        ActivationDesc activation{kind};
+        activation.low = 0.1f, activation.high = 0.5f;  // a clamp whose low end is not zero
+        std::vector<float> want(linear);
+        activationForward(want.data(), want.data(), outCount, activation);
+        BlockedConv conv(d, weight.data(), bias.data(), activation);
+        if (conv.compactOutputBlock() == 0) GTEST_SKIP() << "no narrow kernel on this SIMD path";
+        conv.useCompactOutput();
+        ASSERT_EQ(conv.outputShape(1).block, 4);
+        expectClose(runBlocked(conv, input, outCount), want);
+    }
 }
 
 TEST_P(FastConv, ConvTranspose2dMatchesTheReferenceOnRandomShapes) {
@@ -316,6 +351,17 @@ TEST(FastConvLimits, RefusesWhatItDoesNotSupport) {
     t.inChannels = 4, t.outChannels = 4, t.inHeight = 4, t.inWidth = 4, t.strideH = t.strideW = 2;
     BlockedConv transposed(t, w.data(), b.data(), ActivationDesc{Activation::None});
     EXPECT_THROW(transposed.fuseMaxPool2x2(), Error);
+    // Compact outputs: for a stride-1 lattice without pooling, and then only in the compact layout.
+    EXPECT_EQ(pooled.compactOutputBlock(), 0);
+    EXPECT_EQ(transposed.compactOutputBlock(), 0);
+    EXPECT_THROW(transposed.useCompactOutput(), Error);
+    BlockedConv compact(d, w.data(), b.data(), ActivationDesc{Activation::None});
+    if (compact.compactOutputBlock() > 0) {
+        compact.useCompactOutput();
+        EXPECT_THROW(compact.fuseMaxPool2x2(), Error);
+        EXPECT_THROW(compact.forward(full.data(), conv.outputShape(1), input.data(), conv.inputShape(1)),
+                     Error);  // the blocked layout where the compact one is expected
+    }
 }
 
 }  // namespace
