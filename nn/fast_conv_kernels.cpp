@@ -75,6 +75,7 @@ struct RowContext {
     int64_t outBlockStride = 0;
     int64_t outPixelStep = 0;
     VFloat narrowBias{};
+    bool streamWide = false;  // the wide kernel streams its stores (a large output)
 };
 
 RowContext rowContext(const ConvRowsArgs& a, int64_t r) {
@@ -113,6 +114,28 @@ RowContext rowContext(const ConvRowsArgs& a, int64_t r) {
     }
     return c;
 }
+
+// A store that bypasses the caches (p aligned to the vector). Over a large frame an output's lines are
+// not read again before they leave the cache, and reading them first (write-allocate) would add half
+// again to a layer's memory traffic (a 1080p activation of 16 channels: 133 MB).
+inline void streamStore(float* p, VFloat v) {
+#if defined(DEJAG_SIMD_LEVEL_avx512)
+    _mm512_stream_ps(p, __m512(v));
+#elif defined(DEJAG_SIMD_LEVEL_avx2)
+    _mm256_stream_ps(p, __m256(v));
+#else
+    *p = v;
+#endif
+}
+
+inline void storeFence() {
+#if !defined(DEJAG_SIMD_LEVEL_scalar)
+    _mm_sfence();  // streamed stores are visible before the work item ends
+#endif
+}
+
+// Outputs larger than this are streamed past the caches (a 1080p frame's: 130 MB).
+constexpr int64_t kStreamOutputBytes = int64_t(8) << 20;
 
 // ---- The wide kernel: lanes = output channels ------------------------------------------------------
 
@@ -162,9 +185,12 @@ template <int TW, int CB>
     const ActivationDesc activation = c.activation;
     for (int b = 0; b < CB; ++b) {
         float* out = c.out + (cob + b) * c.outBlockStride + j * c.outPixelStep;
-        for (int i = 0; i < TW; ++i) {
-            const VFloat v = applyActivation(acc[b][i], activation);
-            storeu(out + i * c.outPixelStep, v);
+        if (c.streamWide) {
+            for (int i = 0; i < TW; ++i)
+                streamStore(out + i * c.outPixelStep, applyActivation(acc[b][i], activation));
+        } else {
+            for (int i = 0; i < TW; ++i)
+                storeu(out + i * c.outPixelStep, applyActivation(acc[b][i], activation));
         }
     }
 }
@@ -210,13 +236,19 @@ template <int BI, bool UNIT, bool POOL>
 void wideRows(const ConvRowsArgs& a) {
     // Pooling reads lattice columns in pairs; an odd last column has no pooled output.
     const int64_t columns = POOL ? a.pass.columns / 2 * 2 : a.pass.columns;
+    const bool stream =
+        a.outShape.block == B &&
+        a.outShape.batch * a.outShape.imageStride() * int64_t(sizeof(float)) > kStreamOutputBytes &&
+        reinterpret_cast<uintptr_t>(a.out) % sizeof(VFloat) == 0;
     for (int64_t r = a.rowBegin; r < a.rowEnd; ++r) {
-        const RowContext c = rowContext(a, r);
+        RowContext c = rowContext(a, r);
+        c.streamWide = stream;
         int64_t cob = a.outBlockBegin;
         for (; cob + kTileBlocks <= a.outBlockEnd; cob += kTileBlocks)
             wideRow<kTileBlocks, BI, UNIT, POOL>(c, cob, columns);
         for (; cob < a.outBlockEnd; ++cob) wideRow<1, BI, UNIT, POOL>(c, cob, columns);
     }
+    if (stream) storeFence();
 }
 
 template <int BI>
@@ -288,17 +320,6 @@ constexpr std::array<int32_t, B> pixelLanes(int i) {
 }
 template <int COUT, int I>
 inline constexpr std::array<int32_t, B> kPixelLanes = pixelLanes<COUT>(I);
-
-// A store that bypasses the caches (p aligned to the vector). A narrow layer writes a whole vector per
-// pixel for its 1-4 channels; over a large frame those lines are not read again before they leave the
-// cache, and reading them first (write-allocate) would add half again to the layer's memory traffic.
-inline void streamStore(float* p, VFloat v) {
-#if defined(DEJAG_SIMD_LEVEL_avx512)
-    _mm512_stream_ps(p, __m512(v));
-#else
-    _mm256_stream_ps(p, __m256(v));
-#endif
-}
 
 // Pixel I's COUT values (lanes 0..COUT-1, zeros elsewhere), activated, to its output.
 template <int COUT, int I, bool STREAM>
@@ -447,7 +468,7 @@ void compactRows(const ConvRowsArgs& a) {
         for (; j + width <= columns; j += width) compactTile<1, width, COUT, OB, UNIT, full>(c, j);
         if (j < columns) partial[size_t(columns - j - 1)](c, j);
     }
-    if constexpr (STREAM) _mm_sfence();
+    if constexpr (STREAM) storeFence();
 }
 template <int COUT, bool UNIT, size_t... I>
 constexpr auto makeNarrowTiles(std::index_sequence<I...>) {
@@ -465,11 +486,8 @@ void narrowRows(const ConvRowsArgs& a) {
         for (; j + width <= a.pass.columns; j += width) narrowTile<width, COUT, UNIT, STREAM>(c, j);
         if (j < a.pass.columns) tiles[size_t(a.pass.columns - j - 1)](c, j);
     }
-    if constexpr (STREAM) _mm_sfence();  // the streamed stores are visible before the work item ends
+    if constexpr (STREAM) storeFence();  // the streamed stores are visible before the work item ends
 }
-
-// Outputs larger than this are streamed past the caches (a 1080p frame's: 130 MB).
-constexpr int64_t kStreamOutputBytes = int64_t(8) << 20;
 
 template <int COUT, bool UNIT>
 void narrowRowsStreamedOrNot(const ConvRowsArgs& a) {

@@ -308,6 +308,41 @@ TEST_P(FastConv, FusedMaxPoolingMatchesTheReference) {
     }
 }
 
+// Wide layers whose output exceeds 8 MB stream their stores past the caches: two output blocks from a
+// planar input, and one block with fused pooling (the pooled output is what is streamed).
+TEST_P(FastConv, WideLayersOverALargeFrameMatchTheReference) {
+    Rng rng(81);
+    for (const bool pooled : {false, true}) {
+        Conv2dDesc d;
+        d.inChannels = 3, d.outChannels = pooled ? 16 : 32;
+        d.inHeight = pooled ? 731 : 301, d.inWidth = pooled ? 729 : 297;  // 8.6 and 11.6 MB of output
+        d.padTop = d.padBottom = d.padLeft = d.padRight = 1;
+        SCOPED_TRACE(pooled ? "pooled" : "two output blocks");
+        const auto input = randomValues(size_t(d.inChannels * d.inHeight * d.inWidth), rng);
+        const auto weight = randomValues(size_t(d.weightCount()), rng, 0.3f);
+        const auto bias = randomValues(size_t(d.outChannels), rng);
+        const int64_t convCount = d.outChannels * d.outHeight() * d.outWidth();
+        std::vector<float> want(static_cast<size_t>(convCount));
+        conv2dForward(want.data(), input.data(), weight.data(), bias.data(), d);
+        ActivationDesc relu{Activation::ReLU};
+        activationForward(want.data(), want.data(), convCount, relu);
+        BlockedConv conv(d, weight.data(), bias.data(), relu, 1);
+        int64_t outCount = convCount;
+        if (pooled) {
+            MaxPool2dDesc pool;
+            pool.channels = d.outChannels, pool.inHeight = d.outHeight(), pool.inWidth = d.outWidth();
+            outCount = d.outChannels * pool.outHeight() * pool.outWidth();
+            std::vector<float> full(std::move(want));
+            want.assign(size_t(outCount), 0.0f);
+            std::vector<int32_t> argmax(static_cast<size_t>(outCount));
+            maxPool2dForward(want.data(), argmax.data(), full.data(), pool);
+            conv.fuseMaxPool2x2();
+        }
+        ASSERT_GT(conv.outputShape(1).floatCount() * int64_t(sizeof(float)), int64_t(8) << 20);
+        expectClose(runBlocked(conv, input, outCount), want);
+    }
+}
+
 TEST_P(FastConv, SameResultForEveryThreadCount) {
     Rng rng(5);
     Conv2dDesc d;
