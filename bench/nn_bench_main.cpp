@@ -1,10 +1,12 @@
 // dejag-bench-nn: dejag's convolution kernels side by side with oneDNN and libtorch, in one process.
 // Run through `dejag bench nn` (or `make bench`). oneDNN and libtorch are linked here only, never into nn/.
 //
-// Every case runs each library at each thread count: one warm-up, then the median of --repeat runs,
-// next to the machine's fp32 FMA peak measured in the same run. Each library works in its preferred
-// layout (dejag: blocked with a zero border; oneDNN: the format it picks with format_tag::any; libtorch:
-// NCHW), with layout conversions outside the timed region, and every library fuses bias and ReLU
+// Every case runs each library at each thread count: one warm-up each, then --repeat rounds in which the
+// FMA peak, dejag, oneDNN and libtorch run one after the other; each figure is the median over the
+// rounds. Interleaving matters on this shared machine: a neighbour's load that comes and goes then
+// slows every library alike, instead of whichever happened to be measuring. Each library works in its
+// preferred layout (dejag: blocked with a zero border; oneDNN: the format it picks with format_tag::any;
+// libtorch: NCHW), with layout conversions outside the timed region, and every library fuses bias and ReLU
 // (libtorch: an in-place relu_ after the convolution, which is how a libtorch user would write it).
 #include <sys/resource.h>
 #include <unistd.h>
@@ -13,7 +15,9 @@
 #include <cstdlib>
 #include <cstring>
 #include <functional>
+#include <memory>
 #include <nlohmann/json.hpp>
+#include <optional>
 #include <string>
 #include <unordered_map>
 #include <vector>
@@ -50,6 +54,35 @@ struct Case {
     int64_t macs() const { return inChannels * outChannels * kernel * kernel * height * width; }
 };
 
+// One library's work for a case, set up once (weights packed, buffers allocated); empty if the
+// library is not built in.
+using Runner = std::function<void()>;
+
+struct Rounds {
+    double peakGmacs = 0.0;       // median of the FMA peak measured in each round
+    std::vector<double> medians;  // per runner, ms (0 for an empty runner)
+};
+
+Rounds runInterleaved(int repeat, const std::vector<Runner>& runners) {
+    for (const Runner& run : runners)
+        if (run) run();  // warm-up
+    std::vector<std::vector<double>> times(runners.size());
+    std::vector<double> peaks;
+    for (int round = 0; round < repeat; ++round) {
+        peaks.push_back(measureFmaPeak(60.0).gmacsTotal);
+        for (size_t k = 0; k < runners.size(); ++k) {
+            if (!runners[k]) continue;
+            Stopwatch watch;
+            runners[k]();
+            times[k].push_back(watch.elapsedMs());
+        }
+    }
+    Rounds r;
+    r.peakGmacs = median(peaks);
+    for (const std::vector<double>& t : times) r.medians.push_back(t.empty() ? 0.0 : median(t));
+    return r;
+}
+
 void setAllThreads(int threads) {
     setThreadCount(threads);
 #if DEJAG_HAVE_ONEDNN
@@ -60,7 +93,7 @@ void setAllThreads(int threads) {
 #endif
 }
 
-double benchDejag(const Case& c, int repeat) {
+Runner dejagRunner(const Case& c) {
     Rng rng(1);
     std::vector<float> weight(size_t(c.inChannels * c.outChannels * c.kernel * c.kernel)),
         bias(size_t(c.outChannels));
@@ -84,20 +117,21 @@ double benchDejag(const Case& c, int repeat) {
         d.padTop = d.padBottom = d.padLeft = d.padRight = int(c.kernel / 2);
         return BlockedConv(d, weight.data(), bias.data(), ActivationDesc{Activation::ReLU}, inputBlock);
     };
-    BlockedConv conv = make();
+    auto conv = std::make_shared<BlockedConv>(make());
     // A layer of 1-4 outputs writes them compactly (4 floats per pixel for 3 channels), as the
     // inference plan does for a network's last layer.
-    if (conv.compactOutputBlock() > 0) conv.useCompactOutput();
-    const int border = conv.requiredInputBorder();
-    const BlockedShape inShape = conv.inputShape(border), outShape = conv.outputShape(border);
-    Tensor in = allocateBlocked(inShape), out = allocateBlocked(outShape);
+    if (conv->compactOutputBlock() > 0) conv->useCompactOutput();
+    const int border = conv->requiredInputBorder();
+    const BlockedShape inShape = conv->inputShape(border), outShape = conv->outputShape(border);
+    auto in = std::make_shared<Tensor>(allocateBlocked(inShape));
+    auto out = std::make_shared<Tensor>(allocateBlocked(outShape));
     std::vector<float> plain(size_t(c.inChannels * c.height * c.width));
     for (float& v : plain) v = rng.uniform(0.0f, 1.0f);
-    toBlocked(in.data(), plain.data(), inShape);
-    return medianMilliseconds(repeat, [&] { conv.forward(out.data(), outShape, in.data(), inShape); });
+    toBlocked(in->data(), plain.data(), inShape);
+    return [=] { conv->forward(out->data(), outShape, in->data(), inShape); };
 }
 
-double benchOneDnn(const Case& c, int repeat) {
+Runner oneDnnRunner(const Case& c) {
 #if DEJAG_HAVE_ONEDNN
     using namespace dnnl;
     using tag = memory::format_tag;
@@ -143,89 +177,103 @@ double benchOneDnn(const Case& c, int repeat) {
         for (size_t i = 0; i < n; ++i) p[i] = value * float(int(i % 13) - 6);
     };
     fill(srcMem, 0.05f), fill(weiMem, 0.01f), fill(biaMem, 0.01f);
-    return medianMilliseconds(repeat, [&] {
+    return [=]() mutable {
         primitiveToRun.execute(s, {{DNNL_ARG_SRC, srcMem},
                                    {DNNL_ARG_WEIGHTS, weiMem},
                                    {DNNL_ARG_BIAS, biaMem},
                                    {DNNL_ARG_DST, dstMem}});
         s.wait();
-    });
+    };
 #else
-    (void)c, (void)repeat;
-    return 0.0;
+    (void)c;
+    return {};
 #endif
 }
 
-double benchLibtorch(const Case& c, int repeat) {
+Runner libtorchRunner(const Case& c) {
 #if DEJAG_HAVE_LIBTORCH
-    torch::NoGradGuard noGrad;
     torch::manual_seed(1);
     const auto x = torch::rand({1, c.inChannels, c.height, c.width});
     const auto b = torch::randn({c.outChannels}) * 0.1;
     if (c.transposed) {
         const auto w = torch::randn({c.inChannels, c.outChannels, c.kernel, c.kernel}) * 0.1;
-        return medianMilliseconds(repeat, [&] {
+        return [=] {
+            torch::NoGradGuard noGrad;
             auto y = torch::conv_transpose2d(x, w, b, 2, 1, 1);
             torch::relu_(y);
-        });
+        };
     }
     const auto w = torch::randn({c.outChannels, c.inChannels, c.kernel, c.kernel}) * 0.1;
-    return medianMilliseconds(repeat, [&] {
-        auto y = torch::conv2d(x, w, b, 1, c.kernel / 2);
+    const int64_t padding = c.kernel / 2;
+    return [=] {
+        torch::NoGradGuard noGrad;
+        auto y = torch::conv2d(x, w, b, 1, padding);
         torch::relu_(y);
-    });
+    };
 #else
-    (void)c, (void)repeat;
-    return 0.0;
+    (void)c;
+    return {};
 #endif
 }
 
 // ---- Whole networks: seed2020 forward (inference plan) and one training step ----------------------
 
-struct NetworkResult {
-    double ms = 0.0;
+struct NetworkRunner {
+    Runner run;
     double macs = 0.0;
     size_t arenaBytes = 0;
 };
 
-NetworkResult benchSeed2020Forward(int64_t size, int repeat) {
-    Model model = Model::builtin("seed2020");
-    model.initialize(1);
-    Tensor input({1, 1, size, size});
+NetworkRunner seed2020ForwardRunner(int64_t size) {
+    struct State {
+        Model model = Model::builtin("seed2020");
+        Tensor input;
+        std::optional<InferencePlan> plan;
+    };
+    auto state = std::make_shared<State>();
+    state->model.initialize(1);
+    state->input = Tensor({1, 1, size, size});
     Rng rng(2);
-    for (int64_t i = 0; i < input.numel(); ++i) input.data()[i] = rng.uniform();
-    InferencePlan plan(model, input.shape());
-    NetworkResult r;
-    r.ms = medianMilliseconds(repeat, [&] { plan.runUnchecked(input); });
-    r.macs = double(plan.macs());
-    r.arenaBytes = plan.arenaBytes();
+    for (int64_t i = 0; i < state->input.numel(); ++i) state->input.data()[i] = rng.uniform();
+    state->plan.emplace(state->model, state->input.shape());
+    NetworkRunner r;
+    r.run = [state] { state->plan->runUnchecked(state->input); };
+    r.macs = double(state->plan->macs());
+    r.arenaBytes = state->plan->arenaBytes();
     return r;
 }
 
-NetworkResult benchSeed2020TrainingStep(int64_t batch, int64_t size, int repeat) {
-    Model model = Model::builtin("seed2020");
-    model.initialize(1);
-    Tensor input({batch, 1, size, size}), target({batch, 1, size, size});
+NetworkRunner seed2020TrainingStepRunner(int64_t batch, int64_t size) {
+    struct State {
+        Model model = Model::builtin("seed2020");
+        Tensor input, target, dout;
+        std::optional<Optimizer> optimizer;
+        SsimLossDesc shape;
+    };
+    auto state = std::make_shared<State>();
+    state->model.initialize(1);
+    state->input = Tensor({batch, 1, size, size}), state->target = Tensor({batch, 1, size, size});
     Rng rng(3);
-    for (int64_t i = 0; i < input.numel(); ++i)
-        input.data()[i] = rng.uniform(), target.data()[i] = rng.uniform();
-    Optimizer optimizer(OptimizerConfig{}, model.parameterCount());
-    const SsimLossDesc shape{batch, 1, size, size, 1.0};
-    Tensor dout({batch, 1, size, size});
-    NetworkResult r;
-    r.ms = medianMilliseconds(repeat, [&] {
-        const Tensor& out = model.forward(input);
-        dout.zero();
-        ssimLossBackward(dout.data(), out.data(), target.data(), shape, 1.0);
-        model.backward(dout);
-        optimizer.step(model.parameterData(), model.gradientData(), 1e-3);
-    });
-    r.macs = 3.0 * double(model.macs(input.shape()));  // forward + input and weight gradients
+    for (int64_t i = 0; i < state->input.numel(); ++i)
+        state->input.data()[i] = rng.uniform(), state->target.data()[i] = rng.uniform();
+    state->optimizer.emplace(OptimizerConfig{}, state->model.parameterCount());
+    state->shape = SsimLossDesc{batch, 1, size, size, 1.0};
+    state->dout = Tensor({batch, 1, size, size});
+    NetworkRunner r;
+    r.run = [state] {
+        State& m = *state;
+        const Tensor& out = m.model.forward(m.input);
+        m.dout.zero();
+        ssimLossBackward(m.dout.data(), out.data(), m.target.data(), m.shape, 1.0);
+        m.model.backward(m.dout);
+        m.optimizer->step(m.model.parameterData(), m.model.gradientData(), 1e-3);
+    };
+    r.macs = 3.0 * double(state->model.macs(state->input.shape()));  // forward + input and weight gradients
     return r;
 }
 
 #if DEJAG_HAVE_ONEDNN
-double oneDnnSeed2020Forward(int64_t size, int repeat) {
+Runner oneDnnSeed2020Forward(int64_t size) {
     using namespace dnnl;
     using tag = memory::format_tag;
     using dt = memory::data_type;
@@ -294,10 +342,10 @@ double oneDnnSeed2020Forward(int64_t size, int repeat) {
     addConv(128, 3, false, algorithm::eltwise_relu);
     addConv(64, 3, true, algorithm::eltwise_relu);
     addConv(1, 3, true, algorithm::eltwise_logistic);
-    return medianMilliseconds(repeat, [&] {
+    return [=]() mutable {
         for (size_t i = 0; i < primitives.size(); ++i) primitives[i].execute(s, arguments[i]);
         s.wait();
-    });
+    };
 }
 #endif
 
@@ -315,12 +363,14 @@ torch::nn::Sequential torchSeed2020() {
         tnn::Sigmoid());
 }
 
-double libtorchSeed2020Forward(int64_t size, int repeat) {
-    torch::NoGradGuard noGrad;
+Runner libtorchSeed2020Forward(int64_t size) {
     auto net = torchSeed2020();
     net->eval();
     const auto x = torch::rand({1, 1, size, size});
-    return medianMilliseconds(repeat, [&] { net->forward(x); });
+    return [=]() mutable {
+        torch::NoGradGuard noGrad;
+        net->forward(x);
+    };
 }
 
 torch::Tensor torchSsimLoss(const torch::Tensor& pred, const torch::Tensor& target) {
@@ -335,16 +385,16 @@ torch::Tensor torchSsimLoss(const torch::Tensor& pred, const torch::Tensor& targ
     return 1 - (((2 * mx * my + c1) * (2 * cxy + c2)) / ((mx * mx + my * my + c1) * (vx + vy + c2))).mean();
 }
 
-double libtorchSeed2020TrainingStep(int64_t batch, int64_t size, int repeat) {
+Runner libtorchSeed2020TrainingStep(int64_t batch, int64_t size) {
     auto net = torchSeed2020();
     net->train();
-    torch::optim::Adam adam(net->parameters(), torch::optim::AdamOptions(1e-3));
+    auto adam = std::make_shared<torch::optim::Adam>(net->parameters(), torch::optim::AdamOptions(1e-3));
     const auto x = torch::rand({batch, 1, size, size}), y = torch::rand({batch, 1, size, size});
-    return medianMilliseconds(repeat, [&] {
-        adam.zero_grad();
+    return [=]() mutable {
+        adam->zero_grad();
         torchSsimLoss(net->forward(x), y).backward();
-        adam.step();
-    });
+        adam->step();
+    };
 }
 #endif
 
@@ -403,10 +453,11 @@ int main(int argc, char** argv) {
                 double(c.inChannels * c.outChannels * c.kernel * c.kernel * c.height * c.width);
             for (int threads : threadCounts) {
                 setAllThreads(threads);
-                const FmaPeak peak = measureFmaPeak(100.0);
-                const double ours = benchDejag(c, repeat);
-                const double onednn = benchOneDnn(c, repeat);
-                const double libtorch = benchLibtorch(c, repeat);
+                const Rounds rounds =
+                    runInterleaved(repeat, {dejagRunner(c), oneDnnRunner(c), libtorchRunner(c)});
+                const double ours = rounds.medians[0], onednn = rounds.medians[1],
+                             libtorch = rounds.medians[2];
+                const FmaPeak peak{threads, activeSimdLevel(), rounds.peakGmacs, rounds.peakGmacs / threads};
                 const double gmacs = macs / (ours * 1e6);
                 nlohmann::json row = {
                     {"name", c.name},
@@ -441,19 +492,24 @@ int main(int argc, char** argv) {
             if (!only.empty() && net.name.find(only) == std::string::npos) continue;
             for (int threads : threadCounts) {
                 setAllThreads(threads);
-                const FmaPeak peak = measureFmaPeak(100.0);
                 const int netRepeat = net.training ? std::max(1, repeat / 2) : repeat;
-                const NetworkResult ours = net.training ? benchSeed2020TrainingStep(8, 128, netRepeat)
-                                                        : benchSeed2020Forward(800, netRepeat);
-                double onednn = 0.0, libtorch = 0.0;
+                const NetworkRunner dejagNet =
+                    net.training ? seed2020TrainingStepRunner(8, 128) : seed2020ForwardRunner(800);
+                Runner onednnNet, libtorchNet;
 #if DEJAG_HAVE_ONEDNN
-                if (!net.training)
-                    onednn = oneDnnSeed2020Forward(800, netRepeat);  // no oneDNN training loop here
+                if (!net.training) onednnNet = oneDnnSeed2020Forward(800);  // no oneDNN training loop here
 #endif
 #if DEJAG_HAVE_LIBTORCH
-                libtorch = net.training ? libtorchSeed2020TrainingStep(8, 128, netRepeat)
-                                        : libtorchSeed2020Forward(800, netRepeat);
+                libtorchNet =
+                    net.training ? libtorchSeed2020TrainingStep(8, 128) : libtorchSeed2020Forward(800);
 #endif
+                const Rounds rounds = runInterleaved(netRepeat, {dejagNet.run, onednnNet, libtorchNet});
+                struct {
+                    double ms, macs;
+                    size_t arenaBytes;
+                } ours{rounds.medians[0], dejagNet.macs, dejagNet.arenaBytes};
+                const double onednn = rounds.medians[1], libtorch = rounds.medians[2];
+                const FmaPeak peak{threads, activeSimdLevel(), rounds.peakGmacs, rounds.peakGmacs / threads};
                 const double gmacs = ours.macs / (ours.ms * 1e6);
                 nlohmann::json row = {
                     {"name", net.name},
