@@ -93,6 +93,26 @@ inline float element(const float* data, const BlockedShape& s, int64_t n, int64_
     return data[s.offset(n, c / s.block, y, x) + c % s.block];
 }
 
+// `lanes` floats of each of `width` pixels (`step` floats apart on both sides) from src, or zeros if src is
+// null: a fixed-size copy per pixel for the usual run lengths.
+void copyLanes(float* out, const float* src, int lanes, int64_t width, int64_t step) {
+    auto copy = [&]<int N>() {
+        for (int64_t x = 0; x < width; ++x) std::memcpy(out + x * step, src + x * step, N * sizeof(float));
+    };
+    if (!src) {
+        for (int64_t x = 0; x < width; ++x) std::memset(out + x * step, 0, size_t(lanes) * sizeof(float));
+    } else if (lanes == 16) {
+        copy.template operator()<16>();
+    } else if (lanes == 8) {
+        copy.template operator()<8>();
+    } else if (lanes == 4) {
+        copy.template operator()<4>();
+    } else {
+        for (int64_t x = 0; x < width; ++x)
+            for (int l = 0; l < lanes; ++l) out[x * step + l] = src[x * step + l];
+    }
+}
+
 template <class F>
 void forEachOutputElement(const BlockedShape& os, const F& body) {
     parallelFor(0, os.batch * os.channels * os.height, 0, [&](int64_t first, int64_t last) {
@@ -377,13 +397,15 @@ const Tensor& InferencePlan::runUnchecked(const Tensor& input) {
                         std::memcpy(o, sources[0], size_t(os.width * B) * sizeof(float));
                         return;
                     }
-                    for (int l = 0; l < B; ++l) {
-                        const float* src = sources[l];
-                        if (!src) {
-                            for (int64_t x = 0; x < os.width; ++x) o[x * B + l] = 0.0f;
-                        } else {
-                            for (int64_t x = 0; x < os.width; ++x) o[x * B + l] = src[x * B];
-                        }
+                    // Runs of lanes that come from consecutive lanes of one source block (or are past
+                    // the channel count): each is a short copy (or clear) per pixel.
+                    for (int l = 0; l < B;) {
+                        int run = 1;
+                        while (l + run < B && (sources[l] ? sources[l + run] == sources[l] + run
+                                                          : sources[l + run] == nullptr))
+                            ++run;
+                        copyLanes(o + l, sources[l], run, os.width, B);
+                        l += run;
                     }
                 });
                 break;
@@ -413,23 +435,28 @@ const Tensor& InferencePlan::runUnchecked(const Tensor& input) {
                 break;
             }
             case GraphOp::PixelShuffle: {
-                // out(c, y, x) = in((c f + y % f) f + x % f, y / f, x / f), row by row and lane by lane.
+                // out(c, y, x) = in((c f + y % f) f + x % f, y / f, x / f), row by row, a pixel's lanes
+                // written together (lanes past the channel count are zeroed).
                 const int64_t f = n.factor;
                 const int B = os.block;
                 forEachRow(os, [&](int64_t b, int64_t ob, int64_t y) {
                     float* o = out + os.offset(b, ob, y, 0);
-                    for (int l = 0; l < B; ++l) {
-                        const int64_t c = ob * B + l;
-                        if (c >= os.channels) {
-                            for (int64_t x = 0; x < os.width; ++x) o[x * B + l] = 0.0f;
-                            continue;
+                    const int valid = int(std::min<int64_t>(B, os.channels - ob * B));
+                    // Per column phase j = x % f, each lane's offset from the source row's pixel 0.
+                    int64_t offset[16][16];  // factors and lanes up to 16
+                    const float* row = in + is.offset(b, 0, y / f, 0);
+                    for (int64_t j = 0; j < f; ++j)
+                        for (int l = 0; l < valid; ++l) {
+                            const int64_t k = ((ob * B + l) * f + y % f) * f + j;
+                            offset[j][l] = is.offset(b, k / is.block, y / f, 0) - is.offset(b, 0, y / f, 0) +
+                                           k % is.block;
                         }
-                        for (int64_t j = 0; j < f; ++j) {
-                            const int64_t k = (c * f + y % f) * f + j;
-                            const float* src = in + is.offset(b, k / B, y / f, 0) + k % B;
-                            for (int64_t x = j, sx = 0; x < os.width; x += f, ++sx)
-                                o[x * B + l] = src[sx * B];
-                        }
+                    for (int64_t x = 0; x < os.width; ++x) {
+                        const int64_t* lane = offset[x % f];
+                        const float* pixel = row + (x / f) * is.block;
+                        float* dst = o + x * B;
+                        for (int l = 0; l < valid; ++l) dst[l] = pixel[lane[l]];
+                        for (int l = valid; l < B; ++l) dst[l] = 0.0f;
                     }
                 });
                 break;
