@@ -50,7 +50,10 @@ void registerTrainCommand(CLI::App& app) {
     auto runtime = std::make_shared<RuntimeOptions>();
     auto poison = std::make_shared<std::string>();
     trainCommand->add_option("--data", config->data, "dataset folder (dejag data generate)");
-    trainCommand->add_option("--arch", config->arch, "seed2020 | fast | FILE.json (an architecture)")
+    trainCommand
+        ->add_option("--arch", config->arch,
+                     "seed2020 | fast | fast:WIDTHxDEPTH (the fast family at another size, e.g. fast:12x3) | "
+                     "FILE.json")
         ->capture_default_str();
     trainCommand->add_option("--out", config->out, "run folder (checkpoints, logs, plots)");
     trainCommand

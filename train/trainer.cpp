@@ -43,16 +43,38 @@ std::string readText(const std::string& path) {
     return s.str();
 }
 
+}  // namespace
+
 nlohmann::json architectureFor(const std::string& arch) {
     if (arch == "seed2020" || arch == "fast") return nn::Model::builtinArchitecture(arch);
+    // fast:W or fast:WxD: the fast family with first width W and D levels (default 16 and 3).
+    if (arch.rfind("fast:", 0) == 0) {
+        nn::ModelOptions options;
+        const std::string spec = arch.substr(5);
+        size_t used = 0, usedDepth = 0;
+        try {
+            options.width = std::stoi(spec, &used);
+            if (used < spec.size() && spec[used] == 'x') {
+                options.depth = std::stoi(spec.substr(used + 1), &usedDepth);
+                used += 1 + usedDepth;
+            }
+        } catch (const std::exception&) {
+            used = 0;
+        }
+        if (used == 0 || used != spec.size())
+            throw Error("--arch '" + arch + "': expected fast:WIDTH or fast:WIDTHxDEPTH (e.g. fast:12x3)");
+        return nn::Model::builtinArchitecture("fast", options);
+    }
     if (!fs::exists(arch))
-        throw Error("--arch '" + arch + "' is neither seed2020, fast nor an existing JSON file");
+        throw Error("--arch '" + arch + "' is neither seed2020, fast, fast:WxD nor an existing JSON file");
     try {
         return json::parse(readText(arch));
     } catch (const json::exception& e) {
         throw Error("architecture file '" + arch + "' is not valid JSON: " + e.what());
     }
 }
+
+namespace {
 
 json configToJson(const TrainConfig& c) {
     return {{"data", c.data},

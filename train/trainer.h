@@ -96,6 +96,10 @@ struct TrainResult {
 // training diverges (after maxBadSteps bad steps in a row).
 TrainResult trainModel(const TrainConfig& config, const std::vector<Baseline>& baselines);
 
+// The architecture --arch names: seed2020, fast, fast:WIDTH[xDEPTH] (the fast family at another size),
+// or a JSON file. Throws dejag::Error naming what is wrong.
+nlohmann::json architectureFor(const std::string& arch);
+
 // Runs a model on whole sRGB RGB images (grey models see the luma and return one channel), padding each
 // side to what the network's strides need. Plans are reused while the image size stays the same.
 class ModelRunner {

@@ -372,3 +372,29 @@ TEST(Plot, WritesAPngOfTheAskedSizeAndSkipsNonFinitePoints) {
 
 }  // namespace
 }  // namespace dejag::train
+
+namespace dejag::train {
+namespace {
+
+// --arch fast:WIDTH[xDEPTH] builds the fast family at another size; malformed sizes are one clear error.
+TEST(TrainArchitecture, TheFastFamilyAtAnotherSize) {
+    auto outChannels = [](const nlohmann::json& arch, const std::string& name) {
+        for (const auto& node : arch["nodes"])
+            if (node["name"] == name) return node["out_channels"].get<int>();
+        return -1;
+    };
+    const nlohmann::json wide = architectureFor("fast:12");
+    EXPECT_EQ(outChannels(wide, "enc1"), 12);
+    EXPECT_EQ(outChannels(wide, "enc3b"), 48);
+    EXPECT_EQ(outChannels(wide, "to_subpixels"), 12);
+    const nlohmann::json shallow = architectureFor("fast:8x2");
+    EXPECT_EQ(outChannels(shallow, "enc2b"), 16);
+    EXPECT_EQ(outChannels(shallow, "enc3"), -1);
+    EXPECT_EQ(architectureFor("fast:16x3"), architectureFor("fast"));
+    EXPECT_NO_THROW(nn::Model::fromArchitecture(architectureFor("fast:10x4")));
+    for (const char* bad : {"fast:", "fast:7", "fast:abc", "fast:8x", "fast:8x9", "fast:8y3", "fast:12x3 "})
+        EXPECT_THROW(architectureFor(bad), Error) << bad;
+}
+
+}  // namespace
+}  // namespace dejag::train
