@@ -221,6 +221,22 @@ class Band {
         }
     }
 
+    // The previous frame's depth at whole pixels (x, y) of the lanes: where the lanes share a row and
+    // lie within 32 pixels (a still or smoothly moving camera), two loads and a permute replace the
+    // gather (AVX-512), unless the window would run past the end of the buffer.
+    VFloat previousDepthAt(VInt x, VInt y) const {
+#if defined(DEJAG_SIMD_LEVEL_avx512)
+        const int first = laneMin(x), row = y[0];
+        if (laneMax(x) - first < 32 && all(y == splatInt(row)) &&
+            (size_t(row) * size_t(W_) + size_t(first) + 32 <= size_t(W_) * size_t(H_))) {
+            const float* p = in_.previousDepth + size_t(row) * size_t(W_) + size_t(first);
+            return VFloat(
+                _mm512_permutex2var_ps(_mm512_loadu_ps(p), __m512i(x - first), _mm512_loadu_ps(p + 16)));
+        }
+#endif
+        return gather(in_.previousDepth, y * splatInt(W_) + x);
+    }
+
     // The Sobel's own TAA: reprojected with the pixel's motion, clamped to the 3x3 box, no sharpen.
     const float* stableSobelRow(int y) {
         return row(stableSobel_, y, [&](int yy, float* r) {
@@ -339,7 +355,7 @@ class Band {
                     const VFloat pv = vabs(loadu<VFloat>(d[1] + x) - davg) / maxDepthDistance;
                     const VInt priorX = vclamp(floorToInt(px), zero, lastX);
                     const VInt priorY = vclamp(floorToInt(py), zero, lastY);
-                    const VFloat prior = gather(in_.previousDepth, priorY * splatInt(W_) + priorX);
+                    const VFloat prior = previousDepthAt(priorX, priorY);
                     const VFloat tpv = vabs(prior - davg) / maxDepthDistance;
                     depthPV = select(varies, pv * pv, depthPV);
                     depthTPV = select(varies, tpv * tpv * tpv * tpv, depthTPV);
