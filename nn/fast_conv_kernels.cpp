@@ -136,6 +136,9 @@ inline void storeFence() {
 
 // Outputs larger than this are streamed past the caches (a 1080p frame's: 130 MB).
 constexpr int64_t kStreamOutputBytes = int64_t(8) << 20;
+inline bool largeOutput(const ConvRowsArgs& a) {
+    return a.outShape.batch * a.outShape.imageStride() * int64_t(sizeof(float)) > kStreamOutputBytes;
+}
 
 // ---- The wide kernel: lanes = output channels ------------------------------------------------------
 
@@ -237,9 +240,7 @@ void wideRows(const ConvRowsArgs& a) {
     // Pooling reads lattice columns in pairs; an odd last column has no pooled output.
     const int64_t columns = POOL ? a.pass.columns / 2 * 2 : a.pass.columns;
     const bool stream =
-        a.outShape.block == B &&
-        a.outShape.batch * a.outShape.imageStride() * int64_t(sizeof(float)) > kStreamOutputBytes &&
-        reinterpret_cast<uintptr_t>(a.out) % sizeof(VFloat) == 0;
+        a.outShape.block == B && largeOutput(a) && reinterpret_cast<uintptr_t>(a.out) % sizeof(VFloat) == 0;
     for (int64_t r = a.rowBegin; r < a.rowEnd; ++r) {
         RowContext c = rowContext(a, r);
         c.streamWide = stream;
@@ -457,10 +458,10 @@ void compactRows(const ConvRowsArgs& a) {
     for (int64_t r = a.rowBegin; r < a.rowEnd; ++r) {
         const RowContext c = rowContext(a, r);
         int64_t j = 0;
-        if constexpr (STREAM) {  // streamed stores need whole vectors: a partial tile up to the first
+        if constexpr (STREAM) {  // streamed stores need aligned vectors: a partial tile up to the first
             const int64_t misaligned = int64_t(reinterpret_cast<uintptr_t>(c.out) / sizeof(float)) % B;
             const int64_t head = std::min<int64_t>(columns, misaligned ? (B - misaligned) / OB : 0);
-            if (head > 0) partial[size_t(head - 1)](c, 0);
+            if (head > 0) partial[size_t(head - 1)](c, 0);  // aligned vector of output
             j = head;
         }
         for (; j + groups * width <= columns; j += groups * width)
@@ -470,6 +471,7 @@ void compactRows(const ConvRowsArgs& a) {
     }
     if constexpr (STREAM) storeFence();
 }
+
 template <int COUT, bool UNIT, size_t... I>
 constexpr auto makeNarrowTiles(std::index_sequence<I...>) {
     return std::array<void (*)(const RowContext&, int64_t), sizeof...(I)>{
@@ -491,8 +493,7 @@ void narrowRows(const ConvRowsArgs& a) {
 
 template <int COUT, bool UNIT>
 void narrowRowsStreamedOrNot(const ConvRowsArgs& a) {
-    const int64_t outputBytes = a.outShape.batch * a.outShape.imageStride() * int64_t(sizeof(float));
-    const bool large = outputBytes > kStreamOutputBytes;
+    const bool large = largeOutput(a);
     if (a.outShape.block < B) {  // compact (OB = 1, 2 or 4); pixels are a whole number of floats apart
         constexpr int OB = COUT == 1 ? 1 : COUT == 2 ? 2 : 4;
         const bool stream = large && reinterpret_cast<uintptr_t>(a.out) % (OB * sizeof(float)) == 0;
