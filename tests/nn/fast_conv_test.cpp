@@ -55,6 +55,25 @@ void expectClose(const std::vector<float>& got, const std::vector<float>& want) 
     EXPECT_LE(worst / scale, 1e-5);
 }
 
+// A convolution's random input, weights and bias (weights ±0.3) and its reference output before any
+// activation.
+struct RandomConv {
+    std::vector<float> input, weight, bias, linear;
+    RandomConv(const Conv2dDesc& d, Rng& rng)
+        : input(randomValues(size_t(d.batch * d.inChannels * d.inHeight * d.inWidth), rng)),
+          weight(randomValues(size_t(d.weightCount()), rng, 0.3f)),
+          bias(randomValues(size_t(d.outChannels), rng)),
+          linear(size_t(d.batch * d.outChannels * d.outHeight() * d.outWidth())) {
+        conv2dForward(linear.data(), input.data(), weight.data(), bias.data(), d);
+    }
+    // The reference output after `activation`.
+    std::vector<float> activated(const ActivationDesc& activation) const {
+        std::vector<float> out(linear);
+        activationForward(out.data(), out.data(), int64_t(out.size()), activation);
+        return out;
+    }
+};
+
 const Activation kActivations[] = {Activation::None, Activation::ReLU, Activation::LeakyReLU,
                                    Activation::Clamp};
 
@@ -119,16 +138,10 @@ TEST_P(FastConv, NarrowLayerOverALargeFrameMatchesTheReference) {
     d.inChannels = 16, d.outChannels = 3;
     d.inHeight = 181, d.inWidth = 1467;  // 8-float blocks (AVX2) x 183 x 1469 padded pixels: 8.6 MB
     d.padTop = d.padBottom = d.padLeft = d.padRight = 1;
-    const auto input = randomValues(size_t(d.inChannels * d.inHeight * d.inWidth), rng);
-    const auto weight = randomValues(size_t(d.weightCount()), rng, 0.3f);
-    const auto bias = randomValues(size_t(d.outChannels), rng);
-    const int64_t outCount = d.outChannels * d.outHeight() * d.outWidth();
-    std::vector<float> want(static_cast<size_t>(outCount));
-    conv2dForward(want.data(), input.data(), weight.data(), bias.data(), d);
-    ActivationDesc relu{Activation::ReLU};
-    activationForward(want.data(), want.data(), outCount, relu);
-    const BlockedConv conv(d, weight.data(), bias.data(), relu);
-    expectClose(runBlocked(conv, input, outCount), want);
+    const RandomConv data(d, rng);
+    const ActivationDesc relu{Activation::ReLU};
+    const BlockedConv conv(d, data.weight.data(), data.bias.data(), relu);
+    expectClose(runBlocked(conv, data.input, int64_t(data.linear.size())), data.activated(relu));
 }
 
 // The compact output (4 floats per pixel for 3 channels) streamed past the caches: above 8 MB of
@@ -140,18 +153,13 @@ TEST_P(FastConv, NarrowLayerWithCompactOutputOverALargeFrameMatchesTheReference)
     d.inChannels = 16, d.outChannels = 3;
     d.inHeight = 601, d.inWidth = 901;  // 4 floats x 603 x 903 padded pixels: 8.7 MB (> 8 MiB)
     d.padTop = d.padBottom = d.padLeft = d.padRight = 1;
-    const auto input = randomValues(size_t(d.inChannels * d.inHeight * d.inWidth), rng);
-    const auto weight = randomValues(size_t(d.weightCount()), rng, 0.3f);
-    const auto bias = randomValues(size_t(d.outChannels), rng);
-    const int64_t outCount = d.outChannels * d.outHeight() * d.outWidth();
-    std::vector<float> linear(static_cast<size_t>(outCount));
-    conv2dForward(linear.data(), input.data(), weight.data(), bias.data(), d);
+    const RandomConv data(d, rng);
+    const int64_t outCount = int64_t(data.linear.size());
     for (const Activation kind : kActivations) {
         ActivationDesc activation{kind};
         activation.low = 0.1f, activation.high = 0.5f;  // a clamp whose low end is not zero
-        std::vector<float> want(linear);
-        activationForward(want.data(), want.data(), outCount, activation);
-        BlockedConv conv(d, weight.data(), bias.data(), activation);
+        const std::vector<float> want = data.activated(activation);
+        BlockedConv conv(d, data.weight.data(), data.bias.data(), activation);
         if (GetParam() == SimdLevel::Scalar) {  // no narrow kernel: the scalar layout is planar already
             EXPECT_EQ(conv.compactOutputBlock(), 0);
             EXPECT_EQ(conv.outputShape(1).block, 1);
@@ -160,7 +168,7 @@ TEST_P(FastConv, NarrowLayerWithCompactOutputOverALargeFrameMatchesTheReference)
         }
         conv.useCompactOutput();
         ASSERT_EQ(conv.outputShape(1).block, 4);
-        expectClose(runBlocked(conv, input, outCount), want);
+        expectClose(runBlocked(conv, data.input, outCount), want);
     }
 }
 
@@ -323,16 +331,11 @@ TEST_P(FastConv, WideLayersOverALargeFrameMatchTheReference) {
         d.inHeight = pooled ? 731 : 301, d.inWidth = pooled ? 729 : 297;  // 8.6 and 11.6 MB of output
         d.padTop = d.padBottom = d.padLeft = d.padRight = 1;
         SCOPED_TRACE(pooled ? "pooled" : "two output blocks");
-        const auto input = randomValues(size_t(d.inChannels * d.inHeight * d.inWidth), rng);
-        const auto weight = randomValues(size_t(d.weightCount()), rng, 0.3f);
-        const auto bias = randomValues(size_t(d.outChannels), rng);
-        const int64_t convCount = d.outChannels * d.outHeight() * d.outWidth();
-        std::vector<float> want(static_cast<size_t>(convCount));
-        conv2dForward(want.data(), input.data(), weight.data(), bias.data(), d);
-        ActivationDesc relu{Activation::ReLU};
-        activationForward(want.data(), want.data(), convCount, relu);
-        BlockedConv conv(d, weight.data(), bias.data(), relu, 1);
-        int64_t outCount = convCount;
+        const RandomConv data(d, rng);
+        const ActivationDesc relu{Activation::ReLU};
+        std::vector<float> want = data.activated(relu);
+        BlockedConv conv(d, data.weight.data(), data.bias.data(), relu, 1);
+        int64_t outCount = int64_t(want.size());
         if (pooled) {
             MaxPool2dDesc pool;
             pool.channels = d.outChannels, pool.inHeight = d.outHeight(), pool.inWidth = d.outWidth();
@@ -344,7 +347,7 @@ TEST_P(FastConv, WideLayersOverALargeFrameMatchTheReference) {
             conv.fuseMaxPool2x2();
         }
         ASSERT_GT(conv.outputShape(1).floatCount() * int64_t(sizeof(float)), int64_t(8) << 20);
-        expectClose(runBlocked(conv, input, outCount), want);
+        expectClose(runBlocked(conv, data.input, outCount), want);
     }
 }
 
