@@ -173,6 +173,12 @@ InferencePlan::InferencePlan(const Model& model, const Shape& inputShape) : impl
     m.block = simdFloatLanes(activeSimdLevel());
     const float* params = model.parameterData();
 
+    auto readers = [&](int node) {  // how many inputs of the graph's nodes are `node`
+        int count = 0;
+        for (const GraphNode& n : graph)
+            for (int source : n.inputs) count += source == node;
+        return count;
+    };
     // The residual output stage (see Impl::residualSource).
     int residualAdd = -1, residualShuffle = -1;
     if (const GraphNode& out = graph[size_t(m.outputStep)];
@@ -180,10 +186,7 @@ InferencePlan::InferencePlan(const Model& model, const Shape& inputShape) : impl
         const int other = out.inputs[0] < 0 ? out.inputs[1] : out.inputs[1] < 0 ? out.inputs[0] : -1;
         if (other >= 0 && graph[size_t(other)].op == GraphOp::PixelShuffle &&
             shapes[size_t(other)] == inputShape) {
-            int readers = 0;
-            for (const GraphNode& n : graph)
-                for (int source : n.inputs) readers += source == other || source == m.outputStep;
-            if (readers == 1) {
+            if (readers(other) == 1 && readers(m.outputStep) == 0) {
                 residualAdd = m.outputStep, residualShuffle = other;
                 m.residualSource = graph[size_t(other)].inputs[0];
                 m.residualFactor = graph[size_t(other)].factor;
@@ -236,11 +239,8 @@ InferencePlan::InferencePlan(const Model& model, const Shape& inputShape) : impl
             continue;
         const int source = pool.node.inputs[0];
         if (source < 0 || source == m.outputStep || graph[size_t(source)].op != GraphOp::Conv2d) continue;
-        int consumers = 0;
-        for (const GraphNode& n : graph)
-            for (int input : n.inputs) consumers += input == source;
         Impl::Step& conv = m.steps[size_t(source)];
-        if (consumers != 1 || shapes[size_t(source)][2] < 2 || shapes[size_t(source)][3] < 2) continue;
+        if (readers(source) != 1 || shapes[size_t(source)][2] < 2 || shapes[size_t(source)][3] < 2) continue;
         conv.conv->fuseMaxPool2x2();
         conv.pooledInto = int(i);
         pool.fusedIntoConv = true;
@@ -253,14 +253,10 @@ InferencePlan::InferencePlan(const Model& model, const Shape& inputShape) : impl
     for (size_t i = 0; i < graph.size(); ++i) m.steps[i].shape = blockedOf(shapes[i]);
     // A network's last layer with 1-4 outputs, read by nothing but the conversion to planes, writes them
     // compactly (4 floats per pixel for 3 channels instead of a vector of 16).
-    if (Impl::Step& last = m.steps[size_t(m.outputStep)]; last.conv && last.conv->compactOutputBlock() > 0) {
-        bool consumed = false;
-        for (const GraphNode& n : graph)
-            for (int input : n.inputs) consumed = consumed || input == m.outputStep;
-        if (!consumed) {
-            last.conv->useCompactOutput();
-            last.shape.block = last.conv->outputShape(border).block;
-        }
+    if (Impl::Step& last = m.steps[size_t(m.outputStep)];
+        last.conv && last.conv->compactOutputBlock() > 0 && readers(m.outputStep) == 0) {
+        last.conv->useCompactOutput();
+        last.shape.block = last.conv->outputShape(border).block;
     }
 
     // Arena: a tensor lives from its producer to its last consumer; first-fit reuse of dead regions.
