@@ -43,6 +43,9 @@ ReceptiveField receptiveField(const nn::Model& model) {
                 r += s;
                 s /= n.factor;
                 break;
+            case nn::GraphOp::KernelFilter:
+                r += (n.kernel / 2) * s;
+                break;
             default:
                 break;
         }

@@ -10,6 +10,7 @@
 #include "base/simd.h"
 #include "base/thread_pool.h"
 #include "nn/fast_conv.h"
+#include "nn/kernel_filter_kernels.h"
 
 namespace dejag::nn {
 namespace {
@@ -113,6 +114,38 @@ void copyLanes(float* out, const float* src, int lanes, int64_t width, int64_t s
     }
 }
 
+// The kernel filter (nn/layers.h) between blocked tensors, a pixel at a time.
+void blockedKernelFilter(float* out, const BlockedShape& os, const float* in, const BlockedShape& is,
+                         const float* logits, const BlockedShape& ls, const KernelFilterDesc& d) {
+    const int r = d.kernel / 2, taps = d.kernel * d.kernel, centre = taps / 2;
+    parallelFor(0, os.batch * os.height, 0, [&](int64_t first, int64_t last) {
+        float w[49];
+        for (int64_t row = first; row < last; ++row) {
+            const int64_t n = row / os.height, y = row % os.height;
+            for (int64_t x = 0; x < os.width; ++x) {
+                float largest = -INFINITY;
+                for (int j = 0; j < taps; ++j) {
+                    w[j] = element(logits, ls, n, j, y, x) + (j == centre ? d.centreBias : 0.0f);
+                    largest = std::max(largest, w[j]);
+                }
+                float sum = 0;
+                for (int j = 0; j < taps; ++j) sum += (w[j] = std::exp(w[j] - largest));
+                for (int j = 0; j < taps; ++j) w[j] /= sum;
+                for (int64_t c = 0; c < os.channelBlocks() * os.block; ++c) {
+                    float value = 0;
+                    if (c < os.channels)
+                        for (int dy = -r, j = 0; dy <= r; ++dy)
+                            for (int dx = -r; dx <= r; ++dx, ++j)
+                                value += w[j] * element(in, is, n, c,
+                                                        std::clamp<int64_t>(y + dy, 0, is.height - 1),
+                                                        std::clamp<int64_t>(x + dx, 0, is.width - 1));
+                    element(out, os, n, c, y, x) = value;
+                }
+            }
+        }
+    });
+}
+
 template <class F>
 void forEachOutputElement(const BlockedShape& os, const F& body) {
     parallelFor(0, os.batch * os.channels * os.height, 0, [&](int64_t first, int64_t last) {
@@ -151,6 +184,16 @@ struct InferencePlan::Impl {
     // traffic less per frame). x's step index, or -1.
     int residualSource = -1;
     int residualFactor = 1;
+    // The kernel filter output stage: when the output is `kernel_filter(input, pixel_shuffle(x))` (a
+    // kernel-predicting network) and nothing else reads the shuffle, each output row's logits are
+    // gathered from x into a scratch row and the row is filtered from the caller's planar input straight
+    // into the planar output. x's step index, or -1.
+    int kernelSource = -1;
+    int kernelFactor = 1;
+    KernelFilterDesc kernelFilter;
+    static constexpr int kKernelParts = 16;  // row ranges, each with its own scratch
+    static constexpr int kKernelMaxChannels = 4;
+    Tensor kernelScratch;  // [parts][kernel^2][W]
     Tensor arena;
     Tensor output;
     size_t unpackedBytes = 0;
@@ -193,6 +236,21 @@ InferencePlan::InferencePlan(const Model& model, const Shape& inputShape) : impl
             }
         }
     }
+    // The kernel filter output stage (see Impl::kernelSource).
+    int filterNode = -1, filterShuffle = -1;
+    if (const GraphNode& out = graph[size_t(m.outputStep)]; out.op == GraphOp::KernelFilter &&
+                                                            out.inputs[0] < 0 && out.inputs[1] >= 0 &&
+                                                            inputShape[1] <= Impl::kKernelMaxChannels) {
+        const int shuffle = out.inputs[1];
+        if (graph[size_t(shuffle)].op == GraphOp::PixelShuffle && graph[size_t(shuffle)].inputs[0] >= 0 &&
+            readers(shuffle) == 1 && readers(m.outputStep) == 0) {
+            filterNode = m.outputStep, filterShuffle = shuffle;
+            m.kernelSource = graph[size_t(shuffle)].inputs[0];
+            m.kernelFactor = graph[size_t(shuffle)].factor;
+            m.kernelFilter = out.kernelFilterDesc(inputShape);
+            m.kernelScratch = Tensor({Impl::kKernelParts, m.kernelFilter.taps(), inputShape[3]});
+        }
+    }
     // The model input goes in planar (block 1) when only convolutions read it (and the residual output
     // stage, which reads the caller's tensor) and it has a few channels: a 16th of the memory traffic
     // of the blocked layout for an RGB or grey frame.
@@ -200,7 +258,7 @@ InferencePlan::InferencePlan(const Model& model, const Shape& inputShape) : impl
     for (int i = 0; i < int(graph.size()); ++i)
         for (int source : graph[size_t(i)].inputs)
             if (source < 0 && graph[size_t(i)].op != GraphOp::Conv2d &&
-                graph[size_t(i)].op != GraphOp::ConvTranspose2d && i != residualAdd)
+                graph[size_t(i)].op != GraphOp::ConvTranspose2d && i != residualAdd && i != filterNode)
                 planarInput = false;
 
     // Convolutions first: their kernels say how wide a border every activation needs.
@@ -247,6 +305,8 @@ InferencePlan::InferencePlan(const Model& model, const Shape& inputShape) : impl
     }
     if (residualAdd >= 0) m.steps[size_t(residualAdd)].fusedIntoOutput = true;
     if (residualShuffle >= 0) m.steps[size_t(residualShuffle)].fusedIntoOutput = true;
+    if (filterNode >= 0) m.steps[size_t(filterNode)].fusedIntoOutput = true;
+    if (filterShuffle >= 0) m.steps[size_t(filterShuffle)].fusedIntoOutput = true;
     auto blockedOf = [&](const Shape& s) { return BlockedShape{s[0], s[1], s[2], s[3], m.block, border}; };
     m.inputBlocked = blockedOf(inputShape);
     if (planarInput) m.inputBlocked.block = 1;
@@ -268,6 +328,7 @@ InferencePlan::InferencePlan(const Model& model, const Shape& inputShape) : impl
     lastUse[size_t(m.outputStep + 1)] = count;  // the output is read after the last step
     if (m.residualSource >= 0)
         lastUse[size_t(m.residualSource + 1)] = count;  // ... or the residual stage's source
+    if (m.kernelSource >= 0) lastUse[size_t(m.kernelSource + 1)] = count;  // ... or the filter stage's
     struct Region {
         int64_t offset, size;
         int owner;  // tensor index as in lastUse
@@ -457,6 +518,10 @@ const Tensor& InferencePlan::runUnchecked(const Tensor& input) {
                 });
                 break;
             }
+            case GraphOp::KernelFilter:
+                blockedKernelFilter(out, os, in, is, m.data(n.inputs[1]), m.shape(n.inputs[1]),
+                                    n.kernelFilterDesc({is.batch, is.channels, is.height, is.width}));
+                break;
             case GraphOp::Count:
                 break;
         }
@@ -486,6 +551,45 @@ const Tensor& InferencePlan::runUnchecked(const Tensor& input) {
                     if (x < W) out[x] = in[x] + subpixel[0][(x / 2) * B];
                 } else {
                     for (int64_t x = 0; x < W; ++x) out[x] = in[x] + subpixel[x % f][(x / f) * B];
+                }
+            }
+        });
+        return m.output;
+    }
+    if (m.kernelSource >= 0) {
+        // Row by row: the logits of tap j at column x are channel (j f + y % f) f + x % f of the source
+        // at (y / f, x / f); gathered into the part's scratch, then filtered (nn/kernel_filter_kernels.h).
+        const BlockedShape& ss = m.shape(m.kernelSource);
+        const float* source = m.data(m.kernelSource);
+        const KernelFilterDesc& d = m.kernelFilter;
+        const int64_t f = m.kernelFactor, C = d.channels, H = d.height, W = d.width, rows = d.batch * H;
+        const int k = d.kernel, r = k / 2, taps = k * k;
+        parallelFor(0, Impl::kKernelParts, 1, [&](int64_t first, int64_t last) {
+            for (int64_t part = first; part < last; ++part) {
+                float* logits = m.kernelScratch.data() + part * taps * W;
+                const float* in[Impl::kKernelMaxChannels * 7];
+                float* out[Impl::kKernelMaxChannels];
+                KernelFilterRowArgs args;
+                args.out = out, args.in = in, args.logits = logits;
+                args.width = W, args.channels = int(C), args.kernel = k, args.centreBias = d.centreBias;
+                for (int64_t row = rows * part / Impl::kKernelParts;
+                     row < rows * (part + 1) / Impl::kKernelParts; ++row) {
+                    const int64_t n = row / H, y = row % H;
+                    for (int j = 0; j < taps; ++j)
+                        for (int64_t phase = 0; phase < f; ++phase) {
+                            const int64_t channel = (j * f + y % f) * f + phase;
+                            const float* src =
+                                source + ss.offset(n, channel / ss.block, y / f, 0) + channel % ss.block;
+                            float* dst = logits + j * W;
+                            for (int64_t x = phase; x < W; x += f) dst[x] = src[(x / f) * ss.block];
+                        }
+                    for (int64_t c = 0; c < C; ++c) {
+                        for (int dy = -r; dy <= r; ++dy)
+                            in[c * k + dy + r] =
+                                input.data() + ((n * C + c) * H + std::clamp<int64_t>(y + dy, 0, H - 1)) * W;
+                        out[c] = m.output.data() + ((n * C + c) * H + y) * W;
+                    }
+                    DEJAG_SIMD_CALL(kernelFilterRow, args);
                 }
             }
         });

@@ -160,4 +160,33 @@ void pixelShuffleForward(T* out, const T* in, const ResampleDesc& d);
 template <class T>
 void pixelShuffleBackward(T* dinput, const T* dout, const ResampleDesc& d);
 
+// ---- Kernel filter (the output of a kernel-predicting network) -----------------------------------------
+// Each output pixel is a weighted average of its input's k x k neighbourhood (edge pixels repeated past
+// the border); the k^2 weights are the softmax of k^2 per-pixel logits, the centre's raised by
+// centreBias. The output can only mix colours that are there: it cannot invent a hue, and the identity
+// (all weight in the centre) is one logit away.
+//   out(n, c, y, x) = sum_j w_j(n, y, x) in(n, c, clamp(y + dy_j), clamp(x + dx_j)),
+//   w_j = softmax_j(logits(n, j, y, x) + [j is the centre] centreBias), j = (dy + r) k + (dx + r), r = k / 2.
+struct KernelFilterDesc {
+    int64_t batch = 1, channels = 1, height = 1, width = 1;
+    int kernel = 3;  // odd
+    float centreBias = 0.0f;
+
+    int64_t taps() const { return int64_t(kernel) * kernel; }
+    void validate() const;
+};
+
+template <class T>
+void kernelFilterForward(T* out,           // (N, C, H, W)
+                         const T* in,      // (N, C, H, W)
+                         const T* logits,  // (N, k^2, H, W)
+                         const KernelFilterDesc& d);
+template <class T>
+void kernelFilterBackward(T* dinput,        // (N, C, H, W) or null
+                          T* dlogits,       // (N, k^2, H, W) or null
+                          const T* dout,    // (N, C, H, W)
+                          const T* in,      // (N, C, H, W)
+                          const T* logits,  // (N, k^2, H, W)
+                          const KernelFilterDesc& d);
+
 }  // namespace dejag::nn

@@ -97,6 +97,13 @@ struct Model::Impl {
                     return {in[0], in[1], in[2] * n.factor, in[3] * n.factor};
                 case Op::PixelShuffle:
                     return {in[0], in[1] / (n.factor * n.factor), in[2] * n.factor, in[3] * n.factor};
+                case Op::KernelFilter: {
+                    const Shape want{in[0], int64_t(n.kernel) * n.kernel, in[2], in[3]};
+                    if (ins[1] != want)
+                        throw fail("filters " + shapeToString(in) + " with logits " + shapeToString(ins[1]) +
+                                   " (wanted " + shapeToString(want) + ")");
+                    return in;
+                }
                 case Op::Count:
                     break;
             }
@@ -121,8 +128,9 @@ struct Model::Impl {
 };
 
 const char* graphOpName(GraphOp op) {
-    static constexpr const char* kNames[] = {"conv2d", "conv_transpose2d", "maxpool2d", "activation",
-                                             "add",    "concat",           "upsample",  "pixel_shuffle"};
+    static constexpr const char* kNames[] = {"conv2d",       "conv_transpose2d", "maxpool2d", "activation",
+                                             "add",          "concat",           "upsample",  "pixel_shuffle",
+                                             "kernel_filter"};
     static_assert(sizeof(kNames) / sizeof(kNames[0]) == size_t(GraphOp::Count), "every op needs a name");
     return op < GraphOp::Count ? kNames[int(op)] : "unknown";
 }
@@ -162,6 +170,9 @@ MaxPool2dDesc GraphNode::poolDesc(const Shape& in) const {
 }
 ResampleDesc GraphNode::resampleDesc(const Shape& in) const {
     return {in[0], in[1], in[2], in[3], factor};
+}
+KernelFilterDesc GraphNode::kernelFilterDesc(const Shape& in) const {
+    return {in[0], in[1], in[2], in[3], kernel, centreBias};
 }
 
 Model::Model(std::unique_ptr<Impl> impl) : impl_(std::move(impl)) {}
@@ -203,7 +214,8 @@ Model Model::fromArchitecture(const nlohmann::json& a) {
                     throw Error("node '" + n.name + "': input '" + source +
                                 "' is not 'input' or an earlier node");
             }
-            const size_t wantInputs = (n.op == Op::Add) ? 2 : (n.op == Op::Concat ? 0 : 1);
+            const size_t wantInputs =
+                (n.op == Op::Add || n.op == Op::KernelFilter) ? 2 : (n.op == Op::Concat ? 0 : 1);
             if ((wantInputs && n.inputs.size() != wantInputs) || (n.op == Op::Concat && n.inputs.size() < 2))
                 throw Error("node '" + n.name + "': " + graphOpName(n.op) + " takes " +
                             (n.op == Op::Concat ? std::string("two or more inputs")
@@ -297,6 +309,19 @@ Model Model::fromArchitecture(const nlohmann::json& a) {
                                     " channels are not a multiple of factor^2");
                     n.outChannels = n.inChannels / (n.factor * n.factor);
                     break;
+                case Op::KernelFilter:
+                    n.kernel = j.value("kernel", 3);
+                    n.centreBias = j.value("centre_bias", 0.0f);
+                    if (n.kernel < 1 || n.kernel > 7 || n.kernel % 2 == 0)
+                        throw Error("node '" + n.name + "': kernel must be odd and 1..7");
+                    if (!std::isfinite(n.centreBias))
+                        throw Error("node '" + n.name + "': centre_bias must be finite");
+                    if (channelsOf(n.inputs[1]) != n.kernel * n.kernel)
+                        throw Error("node '" + n.name + "': the logits have " +
+                                    std::to_string(channelsOf(n.inputs[1])) +
+                                    " channels, not kernel^2 = " + std::to_string(n.kernel * n.kernel));
+                    n.outChannels = n.inChannels;
+                    break;
                 case Op::Count:
                     break;
             }
@@ -361,7 +386,7 @@ nlohmann::json Model::builtinArchitecture(const std::string& name, const ModelOp
                 {"nodes", nodes},
                 {"output", "up2"}};
     }
-    if (name == "fast") {
+    if (name == "fast" || name == "kpn") {
         // Residual RGB: output = input + correction. The correction is a small U-Net that never works at
         // full resolution: a stride-2 conv to 1/2 (width w), then per level a stride-2 conv and a conv
         // (widths 2w, 4w, ...) down to 1/2^depth; back up, each level is pixel-shuffled to the next finer
@@ -370,7 +395,7 @@ nlohmann::json Model::builtinArchitecture(const std::string& name, const ModelOp
         // for a few multiply-adds per pixel (docs/train.md).
         const int w = options.width, c = options.channels, levels = options.depth;
         if (w < 2 || w % 2 != 0 || levels < 2 || levels > 6 || c < 1)
-            throw Error("the fast family needs an even width >= 2 and depth (levels) in 2..6");
+            throw Error("the fast and kpn families need an even width >= 2 and depth (levels) in 2..6");
         json nodes = json::array();
         nodes.push_back(conv("enc1", "input", w, 3, "relu", 2));
         std::vector<std::string> encoder = {"enc1"};  // the output of each level
@@ -390,6 +415,29 @@ nlohmann::json Model::builtinArchitecture(const std::string& name, const ModelOp
             nodes.push_back(conv(dec, cat, w << (l - 2), 3, "relu"));
             previous = dec;
         }
+        if (name == "kpn") {
+            // Kernel-predicting: per full-resolution pixel, 9 logits of a 3x3 kernel (4 pixels' worth at
+            // 1/2, a 1x1 conv, then a pixel shuffle); the output is the input filtered by those kernels
+            // (kernel_filter). A softmax of mostly-zero logits with the centre raised by 4 starts the
+            // network near the identity (87 % of the weight in the centre).
+            nodes.push_back(conv("to_kernels", previous, 4 * 9, 1, "none"));
+            nodes.back()["init_scale"] = 0.1;
+            nodes.push_back(
+                {{"name", "shuffle"}, {"op", "pixel_shuffle"}, {"inputs", {"to_kernels"}}, {"factor", 2}});
+            nodes.push_back({{"name", "filter"},
+                             {"op", "kernel_filter"},
+                             {"inputs", {"input", "shuffle"}},
+                             {"kernel", 3},
+                             {"centre_bias", 4.0}});
+            return {{"name", "kpn"},
+                    {"input_channels", c},
+                    {"input_colour", "sRGB-encoded RGB"},
+                    {"normalisation", "[0, 1]"},
+                    {"init", "he_normal"},
+                    {"nodes", nodes},
+                    {"output", "filter"},
+                    {"family", {{"width", w}, {"depth", levels}}}};
+        }
         nodes.push_back(conv("to_subpixels", previous, 4 * c, 3, "none"));
         nodes.back()["init_scale"] = 0.1;  // the correction starts small: the network starts near identity
         nodes.push_back(
@@ -404,7 +452,7 @@ nlohmann::json Model::builtinArchitecture(const std::string& name, const ModelOp
                 {"output", "residual"},
                 {"family", {{"width", w}, {"depth", levels}}}};
     }
-    throw Error("unknown built-in architecture '" + name + "' (seed2020, fast)");
+    throw Error("unknown built-in architecture '" + name + "' (seed2020, fast, kpn)");
 }
 
 Model Model::builtin(const std::string& name, const ModelOptions& options) {
@@ -503,6 +551,7 @@ int64_t Model::macs(const Shape& input) const {
         const std::vector<Shape> ins = impl_->inputShapes(n, shapes, input);
         if (n.op == Op::Conv2d) total += n.convDesc(ins[0]).macs();
         if (n.op == Op::ConvTranspose2d) total += n.convTransposeDesc(ins[0]).macs();
+        if (n.op == Op::KernelFilter) total += shapeNumel(ins[0]) * n.kernel * n.kernel;
         shapes.push_back(impl_->nodeOutputShape(n, ins));
     }
     return total;
@@ -592,6 +641,9 @@ const Tensor& Model::forward(const Tensor& input) {
                 break;
             case Op::PixelShuffle:
                 pixelShuffleForward(target, x, n.resampleDesc(ins[0]));
+                break;
+            case Op::KernelFilter:
+                kernelFilterForward(target, x, m.inputTensor(n.inputs[1]).data(), n.kernelFilterDesc(ins[0]));
                 break;
             case Op::Count:
                 break;
@@ -705,6 +757,12 @@ void Model::backward(const Tensor& doutput) {
             case Op::PixelShuffle:
                 if (dx) pixelShuffleBackward(dx, g, n.resampleDesc(ins[0]));
                 break;
+            case Op::KernelFilter: {
+                float* dlogits = n.inputs[1] >= 0 ? m.nodes[size_t(n.inputs[1])].gradient.data() : nullptr;
+                kernelFilterBackward(dx, dlogits, g, x, m.inputTensor(n.inputs[1]).data(),
+                                     n.kernelFilterDesc(ins[0]));
+                break;
+            }
             case Op::Count:
                 break;
         }
@@ -820,6 +878,9 @@ std::vector<double> forwardInDouble(const Model& model, const std::vector<double
                 break;
             case GraphOp::PixelShuffle:
                 pixelShuffleForward(out.data(), x, n.resampleDesc(in));
+                break;
+            case GraphOp::KernelFilter:
+                kernelFilterForward(out.data(), x, tensor(n.inputs[1]).data(), n.kernelFilterDesc(in));
                 break;
             default:
                 throw Error("forwardInDouble: node '" + n.name + "' has an op it does not know");

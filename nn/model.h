@@ -16,6 +16,8 @@
 //   concat            inputs along channels
 //   upsample          mode ("nearest" | "bilinear"), factor (2)
 //   pixel_shuffle     factor (2)
+//   kernel_filter     inputs [image, logits with kernel^2 channels]; kernel (3), centre_bias (0): each
+//                     pixel a softmax-weighted average of the image's kernel x kernel neighbourhood
 // Nodes are listed in topological order: inputs name "input" or earlier nodes. A DAG, so skips work.
 //
 // forward() keeps what backward() needs; backward() zeroes the gradient buffer, then fills it.
@@ -52,6 +54,7 @@ enum class GraphOp {
     Concat,
     Upsample,
     PixelShuffle,
+    KernelFilter,
     Count
 };
 const char* graphOpName(GraphOp op);
@@ -69,6 +72,7 @@ struct GraphNode {
     ActivationDesc activation{Activation::None};  // fused into convolutions; the op of "activation"
     bool bilinear = false;                        // upsample
     int factor = 2;                               // upsample, pixel_shuffle
+    float centreBias = 0.0f;                      // kernel_filter
     int64_t weightOffset = -1, biasOffset = -1;   // into the flat parameter buffer
 
     // Layer descriptors for an input of shape (N, C, H, W).
@@ -76,6 +80,7 @@ struct GraphNode {
     ConvTranspose2dDesc convTransposeDesc(const Shape& in) const;
     MaxPool2dDesc poolDesc(const Shape& in) const;
     ResampleDesc resampleDesc(const Shape& in) const;
+    KernelFilterDesc kernelFilterDesc(const Shape& in) const;
 };
 
 struct ModelOptions {

@@ -46,11 +46,12 @@ std::string readText(const std::string& path) {
 }  // namespace
 
 nlohmann::json architectureFor(const std::string& arch) {
-    if (arch == "seed2020" || arch == "fast") return nn::Model::builtinArchitecture(arch);
-    // fast:W or fast:WxD: the fast family with first width W and D levels (default 16 and 3).
-    if (arch.rfind("fast:", 0) == 0) {
+    if (arch == "seed2020" || arch == "fast" || arch == "kpn") return nn::Model::builtinArchitecture(arch);
+    // fast:W, fast:WxD, kpn:W, kpn:WxD: the family with first width W and D levels (default 16 and 3).
+    const std::string family = arch.substr(0, arch.find(':'));
+    if ((family == "fast" || family == "kpn") && arch.size() > family.size()) {
         nn::ModelOptions options;
-        const std::string spec = arch.substr(5);
+        const std::string spec = arch.substr(family.size() + 1);
         size_t used = 0, usedDepth = 0;
         try {
             options.width = std::stoi(spec, &used);
@@ -62,11 +63,13 @@ nlohmann::json architectureFor(const std::string& arch) {
             used = 0;
         }
         if (used == 0 || used != spec.size())
-            throw Error("--arch '" + arch + "': expected fast:WIDTH or fast:WIDTHxDEPTH (e.g. fast:12x3)");
-        return nn::Model::builtinArchitecture("fast", options);
+            throw Error("--arch '" + arch + "': expected " + family + ":WIDTH or " + family +
+                        ":WIDTHxDEPTH (e.g. " + family + ":12x3)");
+        return nn::Model::builtinArchitecture(family, options);
     }
     if (!fs::exists(arch))
-        throw Error("--arch '" + arch + "' is neither seed2020, fast, fast:WxD nor an existing JSON file");
+        throw Error("--arch '" + arch +
+                    "' is neither seed2020, fast, fast:WxD, kpn, kpn:WxD nor an existing JSON file");
     try {
         return json::parse(readText(arch));
     } catch (const json::exception& e) {

@@ -118,6 +118,23 @@ def resample_case(name, kind, factor, n, c, h, w):
                    "height": h, "width": w})
 
 
+def kernel_filter_case(name, n, c, h, w, k, centre_bias, logit_scale=2.0):
+    """dejag's kernel_filter: a softmax-weighted average of each pixel's k x k neighbourhood, edges repeated."""
+    inputs = {"input": f32(n, c, h, w), "logits": f32(n, k * k, h, w, low=-logit_scale, high=logit_scale)}
+
+    def fn(input, logits):
+        bias = torch.zeros(k * k, dtype=logits.dtype)
+        bias[k * k // 2] = centre_bias
+        weights = torch.softmax(logits + bias.view(1, k * k, 1, 1), dim=1)  # (N, k^2, H, W)
+        r = k // 2
+        padded = F.pad(input, (r, r, r, r), mode="replicate")
+        taps = F.unfold(padded, k).view(n, c, k * k, h, w)  # tap j = (dy + r) k + (dx + r)
+        return (taps * weights.unsqueeze(1)).sum(dim=2)
+
+    cases[name] = (run(fn, inputs, {}), {"layer": "kernel_filter", "batch": n, "channels": c, "height": h,
+                   "width": w, "kernel": k, "centre_bias": centre_bias})
+
+
 def gaussian_window():
     coords = torch.arange(11, dtype=torch.float64) - 5
     g = torch.exp(-0.5 * coords ** 2 / 1.5 ** 2)
@@ -270,6 +287,12 @@ def main():
     optimizer_case("optim_adamw", "adamw", weight_decay=0.1)
     # The whole graph: 5 Adam steps of seed2020.
     seed2020_adam_case()
+    # The kernel filter (kpn's output): 3x3 raised centre, 5x5 on an image smaller than the kernel, 1x1,
+    # and logits large enough that a naive softmax would overflow.
+    kernel_filter_case("kernel_filter_k3_centre4", 2, 3, 6, 7, 3, 4.0)
+    kernel_filter_case("kernel_filter_k5_small_image", 1, 2, 3, 4, 5, 0.0)
+    kernel_filter_case("kernel_filter_k1", 1, 3, 4, 5, 1, 0.0)
+    kernel_filter_case("kernel_filter_k3_large_logits", 1, 3, 5, 6, 3, -2.5, logit_scale=60.0)
 
     for name, (tensors, config) in cases.items():
         write_safetensors(os.path.join(HERE, name + ".safetensors"), tensors, config)

@@ -180,6 +180,23 @@ TEST(NnGolden, Resampling) {
     EXPECT_EQ(count, 4);
 }
 
+TEST(NnGolden, KernelFilter) {
+    const auto fixtures = loadFixtures("kernel_filter");
+    ASSERT_EQ(fixtures.size(), 4u);
+    for (const Fixture& x : fixtures) {
+        const auto& c = x.config;
+        KernelFilterDesc d;
+        d.batch = c["batch"], d.channels = c["channels"], d.height = c["height"], d.width = c["width"];
+        d.kernel = c["kernel"], d.centreBias = c["centre_bias"];
+        const auto input = x.f("input"), logits = x.f("logits"), dout = x.f("dout");
+        std::vector<float> out(input.size()), dinput(input.size()), dlogits(logits.size());
+        kernelFilterForward(out.data(), input.data(), logits.data(), d);
+        kernelFilterBackward(dinput.data(), dlogits.data(), dout.data(), input.data(), logits.data(), d);
+        report(x, relativeError(out, x.d("output")),
+               std::max(relativeError(dinput, x.d("dinput")), relativeError(dlogits, x.d("dlogits"))));
+    }
+}
+
 TEST(NnGolden, Losses) {
     const auto fixtures = loadFixtures("loss");
     ASSERT_EQ(fixtures.size(), 5u);

@@ -199,6 +199,29 @@ TEST(GradCheck, Resampling) {
     }
 }
 
+TEST(GradCheck, KernelFilterRandomShapes) {
+    std::mt19937 rng(9);
+    for (int trial = 0; trial < 6; ++trial) {
+        KernelFilterDesc d;
+        d.batch = 1 + int(rng() % 2), d.channels = 1 + int(rng() % 3);
+        d.height = 1 + int(rng() % 6), d.width = 1 + int(rng() % 7);  // smaller than the kernel too
+        d.kernel = 1 + 2 * int(rng() % 3);
+        d.centreBias = float(int(rng() % 5) - 1);
+        const size_t image = size_t(d.batch * d.channels * d.height * d.width),
+                     logits = size_t(d.batch * d.taps() * d.height * d.width);
+        Vec x = randomValues(image, rng), l = randomValues(logits, rng, -3.0, 3.0), y(image);
+        const Vec r = randomValues(image, rng);
+        auto loss = [&] {
+            kernelFilterForward(y.data(), x.data(), l.data(), d);
+            return dot(y, r);
+        };
+        Vec dx(image), dl(logits);
+        kernelFilterBackward(dx.data(), dl.data(), r.data(), x.data(), l.data(), d);
+        EXPECT_LE(checkGradient(x, dx, loss, rng), kTolerance) << "input, trial " << trial;
+        EXPECT_LE(checkGradient(l, dl, loss, rng), kTolerance) << "logits, trial " << trial;
+    }
+}
+
 TEST(GradCheck, LossesRandomShapes) {
     std::mt19937 rng(7);
     for (int trial = 0; trial < 8; ++trial) {

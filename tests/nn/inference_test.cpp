@@ -68,7 +68,12 @@ nlohmann::json everyOpArchitecture() {
     nodes.push_back(
         {{"name", "sub"}, {"op", "conv2d"}, {"inputs", {"v"}}, {"out_channels", 8}, {"kernel", 1}});
     nodes.push_back({{"name", "shuf"}, {"op", "pixel_shuffle"}, {"inputs", {"sub"}}});
-    nodes.push_back({{"name", "all"}, {"op", "concat"}, {"inputs", {"skip", "near", "bil", "shuf"}}});
+    nodes.push_back(
+        {{"name", "taps"}, {"op", "conv2d"}, {"inputs", {"v"}}, {"out_channels", 9}, {"kernel", 1}});
+    nodes.push_back(
+        {{"name", "kf"}, {"op", "kernel_filter"}, {"inputs", {"v", "taps"}}, {"centre_bias", 1.5}});
+    nodes.push_back({{"name", "kfup"}, {"op", "upsample"}, {"inputs", {"kf"}}, {"mode", "nearest"}});
+    nodes.push_back({{"name", "all"}, {"op", "concat"}, {"inputs", {"skip", "near", "bil", "shuf", "kfup"}}});
     nodes.push_back({{"name", "out"},
                      {"op", "conv2d"},
                      {"inputs", {"all"}},
@@ -104,6 +109,38 @@ TEST_P(Inference, Seed2020MatchesTheReference) {
 TEST_P(Inference, FastFamilyMatchesTheReference) {
     Model model = Model::builtin("fast");
     expectPlanMatchesReference(model, {1, 3, 40, 32});
+}
+
+TEST_P(Inference, KpnFamilyMatchesTheReference) {
+    Model model = Model::builtin("kpn");
+    expectPlanMatchesReference(model, {1, 3, 40, 32});
+    Model narrow = Model::builtin("kpn", {8, 2, 3});
+    expectPlanMatchesReference(narrow, {2, 3, 20, 28});
+    // The output stage with a 5x5 kernel, a factor of 3 and a width that is no multiple of a vector.
+    using nlohmann::json;
+    const json nodes =
+        json::array({{{"name", "down"},
+                      {"op", "conv2d"},
+                      {"inputs", {"input"}},
+                      {"out_channels", 8},
+                      {"kernel", 3},
+                      {"stride", 3},
+                      {"padding", "same"},
+                      {"activation", "relu"}},
+                     {{"name", "taps"},
+                      {"op", "conv2d"},
+                      {"inputs", {"down"}},
+                      {"out_channels", 9 * 25},
+                      {"kernel", 1},
+                      {"init_scale", 8.0}},
+                     {{"name", "shuffle"}, {"op", "pixel_shuffle"}, {"inputs", {"taps"}}, {"factor", 3}},
+                     {{"name", "filter"},
+                      {"op", "kernel_filter"},
+                      {"inputs", {"input", "shuffle"}},
+                      {"kernel", 5},
+                      {"centre_bias", -1.0}}});
+    Model wide = Model::fromArchitecture({{"name", "k5"}, {"input_channels", 2}, {"nodes", nodes}});
+    expectPlanMatchesReference(wide, {2, 2, 21, 39});
 }
 
 TEST_P(Inference, EveryOpMatchesTheReference) {

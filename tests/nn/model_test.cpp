@@ -60,6 +60,41 @@ TEST(Model, FastFamilyIsResidualAndCheap) {
     for (int64_t i = 0; i < input.numel(); ++i) ASSERT_EQ(output.data()[i], input.data()[i]);
 }
 
+TEST(Model, KpnFamilyOnlyMixesTheNeighbourhood) {
+    Model model = Model::builtin("kpn");
+    EXPECT_EQ(model.outputShape({2, 3, 64, 48}), (Shape{2, 3, 64, 48}));
+    // The trunk of fast with a 1x1 head of 36 logits at 1/2 instead of a 3x3 head of 12, plus the
+    // filter's 27 multiply-adds per pixel.
+    const double macsPerPixel = double(model.macs({1, 3, 256, 256})) / (256.0 * 256.0);
+    EXPECT_NEAR(macsPerPixel, 3996.0 - 432.0 + 144.0 + 27.0, 0.5);
+    model.initialize(3);
+    const ParameterInfo& head = model.parameter("to_kernels.weight");  // far from the identity start
+    for (int64_t i = 0; i < shapeNumel(head.shape); ++i) model.parameterData()[head.offset + i] *= 30.0f;
+    const Tensor input = randomTensor({1, 3, 24, 16}, 4);
+    const Tensor& output = model.forward(input);
+    // Every output is a convex combination of its 3x3 neighbourhood (edges repeated): inside its range.
+    auto at = [&](int64_t c, int64_t y, int64_t x) {
+        return input.data()[(c * 24 + std::clamp<int64_t>(y, 0, 23)) * 16 + std::clamp<int64_t>(x, 0, 15)];
+    };
+    for (int64_t c = 0; c < 3; ++c)
+        for (int64_t y = 0; y < 24; ++y)
+            for (int64_t x = 0; x < 16; ++x) {
+                float low = INFINITY, high = -INFINITY;
+                for (int dy = -1; dy <= 1; ++dy)
+                    for (int dx = -1; dx <= 1; ++dx)
+                        low = std::min(low, at(c, y + dy, x + dx)),
+                        high = std::max(high, at(c, y + dy, x + dx));
+                const float v = output.data()[(c * 24 + y) * 16 + x];
+                ASSERT_GE(v, low - 1e-6f) << c << " " << y << " " << x;
+                ASSERT_LE(v, high + 1e-6f) << c << " " << y << " " << x;
+            }
+    // A flat image stays flat, whatever the weights.
+    Tensor flat({1, 3, 24, 16});
+    flat.fill(0.3f);
+    const Tensor& same = model.forward(flat);
+    for (int64_t i = 0; i < flat.numel(); ++i) ASSERT_NEAR(same.data()[i], 0.3f, 1e-6f);
+}
+
 // 5 Adam steps of seed2020 on one batch against PyTorch (tests/golden/make_nn_golden.py), with the
 // reference kernels and with the fast ones.
 class Seed2020Golden : public ::testing::TestWithParam<bool> {};
@@ -173,7 +208,7 @@ INSTANTIATE_TEST_SUITE_P(Kernels, Seed2020Golden, ::testing::Values(false, true)
 // The double-precision forward (the yardstick of the accumulation figure in `dejag bench stability`)
 // agrees with the float32 forward to float rounding, for both built-in families.
 TEST(Model, ForwardInDoubleAgreesWithTheFloatForward) {
-    for (const std::string name : {"seed2020", "fast"}) {
+    for (const std::string name : {"seed2020", "fast", "kpn"}) {
         Model model = Model::builtin(name);
         model.initialize(5);
         const Shape shape = {2, model.inputChannels(), 40, 48};
@@ -199,6 +234,8 @@ TEST(Model, FastKernelsMatchTheReferenceKernelsInTheGraph) {
     expectFastMatchesReference(seed, {2, 1, 24, 20});
     Model fast = Model::builtin("fast");
     expectFastMatchesReference(fast, {2, 3, 24, 40});
+    Model kpn = Model::builtin("kpn");
+    expectFastMatchesReference(kpn, {2, 3, 24, 40});
 }
 
 TEST(Model, SameSeedSameWeightsAndThreadCountDoesNotChangeOutputs) {
@@ -313,6 +350,24 @@ TEST(Model, BadArchitecturesAndInputsAreClearErrors) {
                      arch(json::array({{{"name", "a"}, {"op", "conv2d"}, {"inputs", {"input"}}}}))),
                  Error);  // no out_channels
     EXPECT_THROW(Model::fromArchitecture(json{{"nodes", json::array()}}), Error);
+    // A kernel filter whose logits are not kernel^2 channels, or whose kernel is even.
+    auto filter = [&](int logits, int kernel) {
+        return arch(json::array(
+            {{{"name", "l"},
+              {"op", "conv2d"},
+              {"inputs", {"input"}},
+              {"out_channels", logits},
+              {"kernel", 1}},
+             {{"name", "f"}, {"op", "kernel_filter"}, {"inputs", {"input", "l"}}, {"kernel", kernel}}}));
+    };
+    EXPECT_NO_THROW(Model::fromArchitecture(filter(9, 3)));
+    try {
+        Model::fromArchitecture(filter(8, 3));
+        FAIL() << "8 logits for a 3x3 kernel accepted";
+    } catch (const Error& e) {
+        EXPECT_NE(std::string(e.what()).find("kernel^2"), std::string::npos) << e.what();
+    }
+    EXPECT_THROW(Model::fromArchitecture(filter(4, 2)), Error);
     EXPECT_THROW(Model::builtin("resnet50"), Error);
 
     Model model = Model::builtin("seed2020");

@@ -1,0 +1,128 @@
+// The kernel filter, forward and backward (see nn/layers.h).
+#include <algorithm>
+#include <cmath>
+#include <string>
+
+#include "base/error.h"
+#include "base/thread_pool.h"
+#include "nn/layers.h"
+
+namespace dejag::nn {
+namespace {
+
+constexpr int kMaxKernel = 7;
+
+// The softmax weights of pixel (y, x) of batch item n: w[j], j over the k^2 taps.
+template <class T>
+void tapWeights(T* w, const T* logits, int64_t n, int64_t y, int64_t x, const KernelFilterDesc& d) {
+    const int64_t taps = d.taps(), plane = d.height * d.width, centre = taps / 2;
+    const T* l = logits + n * taps * plane + y * d.width + x;
+    T largest = -INFINITY;
+    for (int64_t j = 0; j < taps; ++j) {
+        w[j] = l[j * plane] + (j == centre ? T(d.centreBias) : T(0));
+        largest = std::max(largest, w[j]);
+    }
+    T sum = 0;
+    for (int64_t j = 0; j < taps; ++j) sum += (w[j] = std::exp(w[j] - largest));
+    for (int64_t j = 0; j < taps; ++j) w[j] /= sum;
+}
+
+// Offsets of the k^2 taps of pixel (y, x) in its plane, clamped to the image.
+void tapOffsets(int64_t* offset, int64_t y, int64_t x, const KernelFilterDesc& d) {
+    const int r = d.kernel / 2;
+    for (int dy = -r, j = 0; dy <= r; ++dy)
+        for (int dx = -r; dx <= r; ++dx, ++j)
+            offset[j] = std::clamp<int64_t>(y + dy, 0, d.height - 1) * d.width +
+                        std::clamp<int64_t>(x + dx, 0, d.width - 1);
+}
+
+}  // namespace
+
+void KernelFilterDesc::validate() const {
+    if (batch < 1 || channels < 1 || height < 1 || width < 1) throw Error("KernelFilter: sizes must be >= 1");
+    if (kernel < 1 || kernel > kMaxKernel || kernel % 2 == 0)
+        throw Error("KernelFilter: kernel must be odd and 1.." + std::to_string(kMaxKernel) + ", not " +
+                    std::to_string(kernel));
+    if (!std::isfinite(centreBias)) throw Error("KernelFilter: centre_bias must be finite");
+}
+
+template <class T>
+void kernelFilterForward(T* out, const T* in, const T* logits, const KernelFilterDesc& d) {
+    d.validate();
+    const int64_t H = d.height, W = d.width, C = d.channels, plane = H * W, taps = d.taps();
+    parallelFor(0, d.batch * H, 1, [&](int64_t first, int64_t last) {
+        T w[kMaxKernel * kMaxKernel];
+        int64_t offset[kMaxKernel * kMaxKernel];
+        for (int64_t row = first; row < last; ++row) {
+            const int64_t n = row / H, y = row % H;
+            for (int64_t x = 0; x < W; ++x) {
+                tapWeights(w, logits, n, y, x, d);
+                tapOffsets(offset, y, x, d);
+                for (int64_t c = 0; c < C; ++c) {
+                    const T* source = in + (n * C + c) * plane;
+                    T sum = 0;
+                    for (int64_t j = 0; j < taps; ++j) sum += w[j] * source[offset[j]];
+                    out[(n * C + c) * plane + y * W + x] = sum;
+                }
+            }
+        }
+    });
+}
+
+template <class T>
+void kernelFilterBackward(T* dinput, T* dlogits, const T* dout, const T* in, const T* logits,
+                          const KernelFilterDesc& d) {
+    d.validate();
+    const int64_t H = d.height, W = d.width, C = d.channels, plane = H * W, taps = d.taps();
+    if (dlogits) {
+        // dL/dlogit_j = w_j (g_j - sum_k w_k g_k), g_j = sum_c dout_c in_c(tap j).
+        parallelFor(0, d.batch * H, 1, [&](int64_t first, int64_t last) {
+            T w[kMaxKernel * kMaxKernel], g[kMaxKernel * kMaxKernel];
+            int64_t offset[kMaxKernel * kMaxKernel];
+            for (int64_t row = first; row < last; ++row) {
+                const int64_t n = row / H, y = row % H;
+                for (int64_t x = 0; x < W; ++x) {
+                    tapWeights(w, logits, n, y, x, d);
+                    tapOffsets(offset, y, x, d);
+                    T mean = 0;
+                    for (int64_t j = 0; j < taps; ++j) {
+                        g[j] = 0;
+                        for (int64_t c = 0; c < C; ++c)
+                            g[j] +=
+                                dout[(n * C + c) * plane + y * W + x] * in[(n * C + c) * plane + offset[j]];
+                        mean += w[j] * g[j];
+                    }
+                    for (int64_t j = 0; j < taps; ++j)
+                        dlogits[(n * taps + j) * plane + y * W + x] += w[j] * (g[j] - mean);
+                }
+            }
+        });
+    }
+    if (dinput) {
+        // Each tap sends w_j dout back to the pixel it read; one thread per batch item, in a fixed order.
+        parallelFor(0, d.batch, 1, [&](int64_t first, int64_t last) {
+            T w[kMaxKernel * kMaxKernel];
+            int64_t offset[kMaxKernel * kMaxKernel];
+            for (int64_t n = first; n < last; ++n)
+                for (int64_t y = 0; y < H; ++y)
+                    for (int64_t x = 0; x < W; ++x) {
+                        tapWeights(w, logits, n, y, x, d);
+                        tapOffsets(offset, y, x, d);
+                        for (int64_t c = 0; c < C; ++c) {
+                            T* di = dinput + (n * C + c) * plane;
+                            const T g = dout[(n * C + c) * plane + y * W + x];
+                            for (int64_t j = 0; j < taps; ++j) di[offset[j]] += w[j] * g;
+                        }
+                    }
+        });
+    }
+}
+
+#define DEJAG_INSTANTIATE(T)                                                               \
+    template void kernelFilterForward<T>(T*, const T*, const T*, const KernelFilterDesc&); \
+    template void kernelFilterBackward<T>(T*, T*, const T*, const T*, const T*, const KernelFilterDesc&);
+DEJAG_INSTANTIATE(float)
+DEJAG_INSTANTIATE(double)
+#undef DEJAG_INSTANTIATE
+
+}  // namespace dejag::nn
