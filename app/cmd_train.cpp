@@ -53,7 +53,7 @@ void registerTrainCommand(CLI::App& app) {
     trainCommand
         ->add_option("--arch", config->arch,
                      "seed2020 | fast | fast:WIDTHxDEPTH (the fast family at another size, e.g. fast:12x3) | "
-                     "FILE.json")
+                     "kpn | kpn:WIDTHxDEPTH (fast's trunk predicting a 3x3 kernel per pixel) | FILE.json")
         ->capture_default_str();
     trainCommand->add_option("--out", config->out, "run folder (checkpoints, logs, plots)");
     trainCommand

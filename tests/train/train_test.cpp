@@ -394,6 +394,15 @@ TEST(TrainArchitecture, TheFastFamilyAtAnotherSize) {
     EXPECT_NO_THROW(nn::Model::fromArchitecture(architectureFor("fast:10x4")));
     for (const char* bad : {"fast:", "fast:7", "fast:abc", "fast:8x", "fast:8x9", "fast:8y3", "fast:12x3 "})
         EXPECT_THROW(architectureFor(bad), Error) << bad;
+    // The kpn family: the same trunk, 36 logits at 1/2 and a kernel filter at the end.
+    const nlohmann::json kpn = architectureFor("kpn:8x3");
+    EXPECT_EQ(kpn["name"], "kpn");
+    EXPECT_EQ(outChannels(kpn, "enc3b"), 32);
+    EXPECT_EQ(outChannels(kpn, "to_kernels"), 36);
+    EXPECT_EQ(kpn["nodes"].back()["op"], "kernel_filter");
+    EXPECT_EQ(architectureFor("kpn:16x3"), architectureFor("kpn"));
+    for (const char* bad : {"kpn:", "kpn:5", "kpnx", "kpn:8x1"})
+        EXPECT_THROW(architectureFor(bad), Error) << bad;
 }
 
 }  // namespace
