@@ -575,14 +575,21 @@ const Tensor& InferencePlan::runUnchecked(const Tensor& input) {
                 for (int64_t row = rows * part / Impl::kKernelParts;
                      row < rows * (part + 1) / Impl::kKernelParts; ++row) {
                     const int64_t n = row / H, y = row % H;
+                    // Source pixel by source pixel: the lanes this row's taps and phases read, each
+                    // an offset from the pixel (a few KB of row, read once).
+                    int64_t lane[49][16];  // [tap][phase], factors up to 16
                     for (int j = 0; j < taps; ++j)
                         for (int64_t phase = 0; phase < f; ++phase) {
                             const int64_t channel = (j * f + y % f) * f + phase;
-                            const float* src =
-                                source + ss.offset(n, channel / ss.block, y / f, 0) + channel % ss.block;
-                            float* dst = logits + j * W;
-                            for (int64_t x = phase; x < W; x += f) dst[x] = src[(x / f) * ss.block];
+                            lane[j][phase] = (channel / ss.block) * ss.planeStride() + channel % ss.block;
                         }
+                    const float* pixel = source + ss.offset(n, 0, y / f, 0);
+                    for (int64_t x0 = 0; x0 < W; x0 += f, pixel += ss.block) {
+                        const int64_t phases = std::min<int64_t>(f, W - x0);
+                        for (int j = 0; j < taps; ++j)
+                            for (int64_t phase = 0; phase < phases; ++phase)
+                                logits[j * W + x0 + phase] = pixel[lane[j][phase]];
+                    }
                     for (int64_t c = 0; c < C; ++c) {
                         for (int dy = -r; dy <= r; ++dy)
                             in[c * k + dy + r] =
