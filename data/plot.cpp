@@ -176,11 +176,38 @@ void writeMosaicPng(const std::string& path, const std::vector<std::vector<Image
                     const std::vector<std::string>& rowLabels, const std::vector<std::string>& columnLabels) {
     if (rows.empty() || rows[0].empty()) throw Error("a mosaic needs at least one image");
     const int cw = rows[0][0].width, ch = rows[0][0].height, columns = int(rows[0].size());
-    const int left = 150, top = 30, gap = 4;
-    const int W = left + columns * (cw + gap), H = top + int(rows.size()) * (ch + gap);
-    cv::Mat canvas(H, W, CV_8UC3, cv::Scalar(255, 255, 255));
     const int font = cv::FONT_HERSHEY_SIMPLEX;
     const cv::Scalar ink(40, 40, 40);
+    // Column labels wider than their column wrap at spaces (a word too long for a line is cut).
+    auto textWidth = [&](const std::string& text) {
+        int baseline = 0;
+        return cv::getTextSize(text, font, 0.45, 1, &baseline).width;
+    };
+    std::vector<std::vector<std::string>> columnLines;
+    size_t mostLines = 1;
+    for (const std::string& label : columnLabels) {
+        std::vector<std::string> lines{""};
+        size_t start = 0;
+        while (start < label.size()) {
+            size_t end = label.find(' ', start);
+            if (end == std::string::npos) end = label.size();
+            std::string word = label.substr(start, end - start);
+            while (word.size() > 1 && textWidth(word) > cw - 6) word.pop_back();
+            const std::string joined = lines.back().empty() ? word : lines.back() + " " + word;
+            if (textWidth(joined) <= cw - 6)
+                lines.back() = joined;
+            else
+                lines.push_back(word);
+            start = end + 1;
+        }
+        mostLines = std::max(mostLines, lines.size());
+        columnLines.push_back(std::move(lines));
+    }
+    int left = 150;
+    for (const std::string& label : rowLabels) left = std::max(left, textWidth(label) + 14);
+    const int lineHeight = 15, top = 12 + int(mostLines) * lineHeight, gap = 4;
+    const int W = left + columns * (cw + gap), H = top + int(rows.size()) * (ch + gap);
+    cv::Mat canvas(H, W, CV_8UC3, cv::Scalar(255, 255, 255));
     for (size_t r = 0; r < rows.size(); ++r) {
         if (int(rows[r].size()) != columns) throw Error("mosaic rows differ in length");
         for (int c = 0; c < columns; ++c) {
@@ -201,9 +228,11 @@ void writeMosaicPng(const std::string& path, const std::vector<std::vector<Image
             cv::putText(canvas, rowLabels[r], {6, top + int(r) * (ch + gap) + ch / 2}, font, 0.45, ink, 1,
                         cv::LINE_AA);
     }
-    for (int c = 0; c < columns && c < int(columnLabels.size()); ++c)
-        cv::putText(canvas, columnLabels[size_t(c)], {left + c * (cw + gap) + 4, 20}, font, 0.45, ink, 1,
-                    cv::LINE_AA);
+    for (int c = 0; c < columns && c < int(columnLines.size()); ++c)
+        for (size_t line = 0; line < columnLines[size_t(c)].size(); ++line)
+            cv::putText(canvas, columnLines[size_t(c)][line],
+                        {left + c * (cw + gap) + 4, 20 + int(line) * lineHeight}, font, 0.45, ink, 1,
+                        cv::LINE_AA);
     writeCanvas(path, canvas);
 }
 
