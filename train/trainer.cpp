@@ -957,11 +957,13 @@ std::string exportModel(const std::string& run, const std::string& modelPath,
         const bool conv = n.op == nn::GraphOp::Conv2d || n.op == nn::GraphOp::ConvTranspose2d;
         md << "| " << n.name << " | " << nn::graphOpName(n.op) << " | " << inputs << " | "
            << (conv ? std::to_string(n.outChannels) : "") << " | "
-           << (conv || n.op == nn::GraphOp::MaxPool2d
+           << (conv || n.op == nn::GraphOp::MaxPool2d || n.op == nn::GraphOp::KernelFilter
                    ? std::to_string(n.kernel) + "x" + std::to_string(n.kernel)
                    : "")
            << " | " << (conv || n.op == nn::GraphOp::MaxPool2d ? std::to_string(n.stride) : "") << " | "
-           << (conv || n.op == nn::GraphOp::Activation ? nn::activationName(n.activation.kind) : "")
+           << (conv || n.op == nn::GraphOp::Activation ? nn::activationName(n.activation.kind)
+               : n.op == nn::GraphOp::KernelFilter     ? "softmax weights"
+                                                       : "")
            << " |\n";
     }
     md << "\n## Training\n\n";

@@ -309,6 +309,28 @@ TEST_F(Training, ExportThenLoadGivesIdenticalOutputsAndACard) {
     EXPECT_THROW(exportModel(unfinished.out, root_ + "/models/x.safetensors", baselines(), 1, true), Error);
 }
 
+TEST_F(Training, AKernelPredictingNetworkLearnsExportsAndLoads) {
+    TrainConfig c = tinyConfig("kpn");
+    const std::string arch = root_ + "/tiny-kpn.json";
+    std::ofstream(arch) << nn::Model::builtinArchitecture("kpn", {8, 3, 3}).dump();
+    c.arch = arch;
+    c.steps = 120, c.evalEvery = 60;
+    trainModel(c, baselines());
+    const std::vector<double> losses = lossesOf(c.out);
+    ASSERT_GE(losses.size(), 6u);
+    const double first = (losses[0] + losses[1]) / 2,
+                 last = (losses[losses.size() - 1] + losses[losses.size() - 2]) / 2;
+    EXPECT_LT(last, 0.8 * first) << "first " << first << ", last " << last;
+    const std::string modelPath = root_ + "/models/tiny-kpn.safetensors";
+    fs::create_directories(root_ + "/models");
+    const std::string card = exportModel(c.out, modelPath, baselines(), 2, true);
+    EXPECT_NE(card.find("| filter | kernel_filter | input, shuffle |"), std::string::npos) << card;
+    const auto items = data::loadEvaluationItems(data_, data::Split::Test, 1);
+    const nn::Model best = nn::loadModel(c.out + "/best.safetensors"), shipped = nn::loadModel(modelPath);
+    ModelRunner a(best), b(shipped);  // they keep a reference to their model
+    EXPECT_EQ(a.run(items[0].input).pixels, b.run(items[0].input).pixels);
+}
+
 TEST_F(Training, EarlyStoppingEndsAfterPatienceEvaluationsWithoutProgress) {
     TrainConfig c = tinyConfig("patience");
     c.steps = 200, c.evalEvery = 5, c.checkpointEvery = 5, c.patience = 1;
