@@ -116,6 +116,7 @@ TEST_P(Inference, KpnFamilyMatchesTheReference) {
     expectPlanMatchesReference(model, {1, 3, 40, 32});
     Model narrow = Model::builtin("kpn", {8, 2, 3});
     expectPlanMatchesReference(narrow, {2, 3, 20, 28});
+    expectPlanMatchesReference(narrow, {1, 3, 4, 8});  // narrower than a vector: the edge path only
     // The output stage with a 5x5 kernel, a factor of 3 and a width that is no multiple of a vector.
     using nlohmann::json;
     const json nodes =
