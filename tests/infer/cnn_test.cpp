@@ -53,6 +53,9 @@ TEST(Cnn, ReceptiveFieldOfTheShippedArchitectures) {
     const ReceptiveField fast = receptiveField(nn::Model::builtin("fast"));
     EXPECT_EQ(fast.stride, 8);
     EXPECT_GE(fast.radius, 2 + 4 + 4 + 8 + 8);  // the encoder alone
+    const ReceptiveField kpn = receptiveField(nn::Model::builtin("kpn"));
+    EXPECT_EQ(kpn.stride, 8);
+    EXPECT_GE(kpn.radius, fast.radius - 2 + 1);  // a 1x1 head instead of a 3x3, then the 3x3 kernel filter
 }
 
 class CnnTiles : public ::testing::TestWithParam<const char*> {};
@@ -75,7 +78,7 @@ TEST_P(CnnTiles, TiledEqualsWholeFrame) {
     for (size_t p = 0; p < size_t(W) * H; ++p) ASSERT_EQ(tiled[p * C + 3], 0.5f) << "alpha passes through";
 }
 
-INSTANTIATE_TEST_SUITE_P(Architectures, CnnTiles, ::testing::Values("seed2020", "fast"));
+INSTANTIATE_TEST_SUITE_P(Architectures, CnnTiles, ::testing::Values("seed2020", "fast", "kpn"));
 
 TEST(Cnn, GatedTilesAreTheInputOrTheUngatedResult) {
     const int W = 256, H = 192, C = 3;
