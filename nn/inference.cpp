@@ -172,6 +172,13 @@ struct InferencePlan::Impl {
         int pooledInto = -1;           // conv2d: the maxpool2d step whose output it writes (pooling fused)
         bool fusedIntoConv = false;    // maxpool2d: computed by its input's convolution
         bool fusedIntoOutput = false;  // the residual output stage computes it (see residualSource)
+        // Concatenation in place (batch 1): `concat(shuffle, conv)` or `concat(conv, shuffle)` read only by
+        // convolutions is never copied. The conv writes its blocks at the start of the concatenation's
+        // buffer, the shuffle writes its channels into the lanes after them (from laneOffset), and the
+        // readers' weights are permuted to that order.
+        int concatBuffer = -1;       // conv2d, pixel_shuffle: the concat step whose buffer this writes
+        int laneOffset = 0;          // pixel_shuffle: the first lane it writes in that buffer
+        bool concatInPlace = false;  // concat: computed by its inputs
     };
     Shape inputShape, outputShape;
     BlockedShape inputBlocked;
@@ -288,6 +295,66 @@ InferencePlan::InferencePlan(const Model& model, const Shape& inputShape) : impl
         if (step.conv) border = std::max(border, step.conv->requiredInputBorder());
         m.steps.push_back(std::move(step));
     }
+    // Concatenations in place (see Step::concatBuffer): the last layers of a U-Net concatenate an
+    // upsampled coarse level with an encoder's output, a copy of both per pixel.
+    auto readByConvsOnly = [&](int node, int except) {
+        for (int i = 0; i < int(graph.size()); ++i)
+            for (int source : graph[size_t(i)].inputs)
+                if (source == node && i != except && graph[size_t(i)].op != GraphOp::Conv2d &&
+                    graph[size_t(i)].op != GraphOp::ConvTranspose2d)
+                    return false;
+        return true;
+    };
+    for (int i = 0; inputShape[0] == 1 && i < int(graph.size()); ++i) {
+        const GraphNode& cat = graph[size_t(i)];
+        if (cat.op != GraphOp::Concat || cat.inputs.size() != 2 || i == m.outputStep || readers(i) == 0 ||
+            !readByConvsOnly(i, -1))
+            continue;
+        const int a = cat.inputs[0], b = cat.inputs[1];
+        if (a < 0 || b < 0) continue;
+        const bool convFirst = graph[size_t(a)].op == GraphOp::Conv2d;
+        const int conv = convFirst ? a : b, shuffle = convFirst ? b : a;
+        if (graph[size_t(conv)].op != GraphOp::Conv2d || graph[size_t(shuffle)].op != GraphOp::PixelShuffle ||
+            conv >= shuffle || conv == m.outputStep || readers(shuffle) != 1 || !readByConvsOnly(conv, i) ||
+            m.steps[size_t(conv)].concatBuffer >= 0)
+            continue;
+        const int64_t convChannels = shapes[size_t(conv)][1], shuffleChannels = shapes[size_t(shuffle)][1];
+        m.steps[size_t(conv)].concatBuffer = m.steps[size_t(shuffle)].concatBuffer = i;
+        m.steps[size_t(shuffle)].laneOffset = int(convChannels);
+        m.steps[size_t(i)].concatInPlace = true;
+        // Physical lane of each of the concatenation's channels, and the readers' weights in that order.
+        std::vector<int64_t> lane(size_t(convChannels + shuffleChannels));
+        for (int64_t c = 0; c < int64_t(lane.size()); ++c)
+            lane[size_t(c)] = convFirst ? c : c < shuffleChannels ? convChannels + c : c - shuffleChannels;
+        for (int r = 0; r < int(graph.size()); ++r) {
+            const GraphNode& reader = graph[size_t(r)];
+            if (std::find(reader.inputs.begin(), reader.inputs.end(), i) == reader.inputs.end()) continue;
+            const int64_t cin = int64_t(lane.size()), cout = reader.outChannels,
+                          taps = int64_t(reader.kernel) * reader.kernel;
+            const float* weight = params + reader.weightOffset;
+            std::vector<float> permuted(size_t(cin * cout * taps));
+            for (int64_t o = 0; o < cout; ++o)
+                for (int64_t c = 0; c < cin; ++c)
+                    for (int64_t t = 0; t < taps; ++t) {
+                        // Conv2d (Cout, Cin, k, k); ConvTranspose2d (Cin, Cout, k, k).
+                        const bool transposed = reader.op == GraphOp::ConvTranspose2d;
+                        const int64_t from =
+                            transposed ? (c * cout + o) * taps + t : (o * cin + c) * taps + t;
+                        const int64_t to = transposed ? (lane[size_t(c)] * cout + o) * taps + t
+                                                      : (o * cin + lane[size_t(c)]) * taps + t;
+                        permuted[size_t(to)] = weight[from];
+                    }
+            Impl::Step& step = m.steps[size_t(r)];
+            const float* bias = reader.biasOffset >= 0 ? params + reader.biasOffset : nullptr;
+            ActivationDesc fused = reader.activation;
+            if (fused.kind == Activation::Sigmoid) fused.kind = Activation::None;
+            if (reader.op == GraphOp::Conv2d)
+                step.conv.emplace(reader.convDesc(shapes[size_t(i)]), permuted.data(), bias, fused, 0);
+            else
+                step.conv.emplace(reader.convTransposeDesc(shapes[size_t(i)]), permuted.data(), bias, fused,
+                                  0);
+        }
+    }
     // A 2x2 stride-2 max pooling that is its convolution's only consumer is fused into it: the
     // full-size activation is never stored.
     for (size_t i = 0; i < graph.size(); ++i) {
@@ -353,10 +420,22 @@ InferencePlan::InferencePlan(const Model& model, const Shape& inputShape) : impl
         return offset;
     };
     m.inputOffset = place(0, m.inputBlocked.floatCount(), 0);
+    for (int i = 0; i < count; ++i)  // a concatenation in place lives as long as its conv input's buffer
+        if (const int cat = m.steps[size_t(i)].concatBuffer;
+            cat >= 0 && graph[size_t(i)].op == GraphOp::Conv2d)
+            lastUse[size_t(i + 1)] = std::max(lastUse[size_t(i + 1)], lastUse[size_t(cat + 1)]);
     for (int i = 0; i < count; ++i) {
         Impl::Step& step = m.steps[size_t(i)];
-        if (step.fusedIntoConv || step.fusedIntoOutput)
-            continue;                // placed with its convolution, or never stored
+        if (step.fusedIntoConv || step.fusedIntoOutput || step.concatInPlace ||
+            (step.concatBuffer >= 0 && step.node.op == GraphOp::PixelShuffle))
+            continue;  // placed with its convolution or its concatenation's conv input, or never stored
+        if (step.concatBuffer >= 0) {  // the conv's buffer is its concatenation's
+            Impl::Step& cat = m.steps[size_t(step.concatBuffer)];
+            step.offset = cat.offset = place(i + 1, cat.shape.floatCount(), i);
+            for (Impl::Step& other : m.steps)
+                if (other.concatBuffer == step.concatBuffer) other.offset = step.offset;
+            continue;
+        }
         if (step.pooledInto >= 0) {  // the conv writes the pooled tensor; its own is never stored
             Impl::Step& pool = m.steps[size_t(step.pooledInto)];
             pool.offset = place(step.pooledInto + 1, pool.shape.floatCount(), i);
@@ -403,9 +482,10 @@ const Tensor& InferencePlan::runUnchecked(const Tensor& input) {
     toBlocked(m.data(-1), input.data(), m.inputBlocked);
     for (size_t i = 0; i < m.steps.size(); ++i) {
         Impl::Step& step = m.steps[i];
-        if (step.fusedIntoConv || step.fusedIntoOutput) continue;
+        if (step.fusedIntoConv || step.fusedIntoOutput || step.concatInPlace) continue;
         const GraphNode& n = step.node;
-        const int target = step.pooledInto >= 0 ? step.pooledInto : int(i);
+        const bool intoConcat = n.op == GraphOp::PixelShuffle && step.concatBuffer >= 0;
+        const int target = step.pooledInto >= 0 ? step.pooledInto : intoConcat ? step.concatBuffer : int(i);
         float* out = m.data(target);
         const BlockedShape& os = m.shape(target);
         const float* in = m.data(n.inputs[0]);
@@ -493,18 +573,22 @@ const Tensor& InferencePlan::runUnchecked(const Tensor& input) {
             }
             case GraphOp::PixelShuffle: {
                 // out(c, y, x) = in((c f + y % f) f + x % f, y / f, x / f), row by row, a pixel's lanes
-                // written together (lanes past the channel count are zeroed).
-                const int64_t f = n.factor;
+                // written together (lanes past the channel count are zeroed). Into a concatenation in
+                // place, channel c goes to lane `laneOffset` + c and the lanes before are left alone.
+                const int64_t f = n.factor, first = step.laneOffset;
+                const int64_t end = first + n.outChannels;  // lanes [first, end) are the shuffle's
                 const int B = os.block;
                 forEachRow(os, [&](int64_t b, int64_t ob, int64_t y) {
+                    if (ob * B + B <= first) return;  // the conv input's blocks
                     float* o = out + os.offset(b, ob, y, 0);
-                    const int valid = int(std::min<int64_t>(B, os.channels - ob * B));
+                    const int from = int(std::max<int64_t>(0, first - ob * B));
+                    const int valid = int(std::clamp<int64_t>(end - ob * B, from, B));
                     // Per column phase j = x % f, each lane's offset from the source row's pixel 0.
                     int64_t offset[16][16];  // factors and lanes up to 16
                     const float* row = in + is.offset(b, 0, y / f, 0);
                     for (int64_t j = 0; j < f; ++j)
-                        for (int l = 0; l < valid; ++l) {
-                            const int64_t k = ((ob * B + l) * f + y % f) * f + j;
+                        for (int l = from; l < valid; ++l) {
+                            const int64_t k = ((ob * B + l - first) * f + y % f) * f + j;
                             offset[j][l] = is.offset(b, k / is.block, y / f, 0) - is.offset(b, 0, y / f, 0) +
                                            k % is.block;
                         }
@@ -512,7 +596,7 @@ const Tensor& InferencePlan::runUnchecked(const Tensor& input) {
                         const int64_t* lane = offset[x % f];
                         const float* pixel = row + (x / f) * is.block;
                         float* dst = o + x * B;
-                        for (int l = 0; l < valid; ++l) dst[l] = pixel[lane[l]];
+                        for (int l = from; l < valid; ++l) dst[l] = pixel[lane[l]];
                         for (int l = valid; l < B; ++l) dst[l] = 0.0f;
                     }
                 });
