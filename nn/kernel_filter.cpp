@@ -36,6 +36,24 @@ void tapOffsets(int64_t* offset, int64_t y, int64_t x, const KernelFilterDesc& d
                         std::clamp<int64_t>(x + dx, 0, d.width - 1);
 }
 
+// Calls body(n, y, x, w, offset) for every pixel, rows split across the thread pool, with the pixel's
+// tap weights and tap offsets.
+template <class T, class F>
+void forEachPixel(const KernelFilterDesc& d, const T* logits, const F& body) {
+    parallelFor(0, d.batch * d.height, 1, [&](int64_t first, int64_t last) {
+        T w[kMaxKernel * kMaxKernel];
+        int64_t offset[kMaxKernel * kMaxKernel];
+        for (int64_t row = first; row < last; ++row) {
+            const int64_t n = row / d.height, y = row % d.height;
+            for (int64_t x = 0; x < d.width; ++x) {
+                tapWeights(w, logits, n, y, x, d);
+                tapOffsets(offset, y, x, d);
+                body(n, y, x, w, offset);
+            }
+        }
+    });
+}
+
 }  // namespace
 
 void KernelFilterDesc::validate() const {
@@ -50,21 +68,12 @@ template <class T>
 void kernelFilterForward(T* out, const T* in, const T* logits, const KernelFilterDesc& d) {
     d.validate();
     const int64_t H = d.height, W = d.width, C = d.channels, plane = H * W, taps = d.taps();
-    parallelFor(0, d.batch * H, 1, [&](int64_t first, int64_t last) {
-        T w[kMaxKernel * kMaxKernel];
-        int64_t offset[kMaxKernel * kMaxKernel];
-        for (int64_t row = first; row < last; ++row) {
-            const int64_t n = row / H, y = row % H;
-            for (int64_t x = 0; x < W; ++x) {
-                tapWeights(w, logits, n, y, x, d);
-                tapOffsets(offset, y, x, d);
-                for (int64_t c = 0; c < C; ++c) {
-                    const T* source = in + (n * C + c) * plane;
-                    T sum = 0;
-                    for (int64_t j = 0; j < taps; ++j) sum += w[j] * source[offset[j]];
-                    out[(n * C + c) * plane + y * W + x] = sum;
-                }
-            }
+    forEachPixel(d, logits, [&](int64_t n, int64_t y, int64_t x, const T* w, const int64_t* offset) {
+        for (int64_t c = 0; c < C; ++c) {
+            const T* source = in + (n * C + c) * plane;
+            T sum = 0;
+            for (int64_t j = 0; j < taps; ++j) sum += w[j] * source[offset[j]];
+            out[(n * C + c) * plane + y * W + x] = sum;
         }
     });
 }
@@ -76,26 +85,16 @@ void kernelFilterBackward(T* dinput, T* dlogits, const T* dout, const T* in, con
     const int64_t H = d.height, W = d.width, C = d.channels, plane = H * W, taps = d.taps();
     if (dlogits) {
         // dL/dlogit_j = w_j (g_j - sum_k w_k g_k), g_j = sum_c dout_c in_c(tap j).
-        parallelFor(0, d.batch * H, 1, [&](int64_t first, int64_t last) {
-            T w[kMaxKernel * kMaxKernel], g[kMaxKernel * kMaxKernel];
-            int64_t offset[kMaxKernel * kMaxKernel];
-            for (int64_t row = first; row < last; ++row) {
-                const int64_t n = row / H, y = row % H;
-                for (int64_t x = 0; x < W; ++x) {
-                    tapWeights(w, logits, n, y, x, d);
-                    tapOffsets(offset, y, x, d);
-                    T mean = 0;
-                    for (int64_t j = 0; j < taps; ++j) {
-                        g[j] = 0;
-                        for (int64_t c = 0; c < C; ++c)
-                            g[j] +=
-                                dout[(n * C + c) * plane + y * W + x] * in[(n * C + c) * plane + offset[j]];
-                        mean += w[j] * g[j];
-                    }
-                    for (int64_t j = 0; j < taps; ++j)
-                        dlogits[(n * taps + j) * plane + y * W + x] += w[j] * (g[j] - mean);
-                }
+        forEachPixel(d, logits, [&](int64_t n, int64_t y, int64_t x, const T* w, const int64_t* offset) {
+            T g[kMaxKernel * kMaxKernel], mean = 0;
+            for (int64_t j = 0; j < taps; ++j) {
+                g[j] = 0;
+                for (int64_t c = 0; c < C; ++c)
+                    g[j] += dout[(n * C + c) * plane + y * W + x] * in[(n * C + c) * plane + offset[j]];
+                mean += w[j] * g[j];
             }
+            for (int64_t j = 0; j < taps; ++j)
+                dlogits[(n * taps + j) * plane + y * W + x] += w[j] * (g[j] - mean);
         });
     }
     if (dinput) {
