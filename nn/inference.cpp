@@ -117,20 +117,14 @@ void copyLanes(float* out, const float* src, int lanes, int64_t width, int64_t s
 // The kernel filter (nn/layers.h) between blocked tensors, a pixel at a time.
 void blockedKernelFilter(float* out, const BlockedShape& os, const float* in, const BlockedShape& is,
                          const float* logits, const BlockedShape& ls, const KernelFilterDesc& d) {
-    const int r = d.kernel / 2, taps = d.kernel * d.kernel, centre = taps / 2;
+    const int r = d.kernel / 2, taps = d.kernel * d.kernel;
     parallelFor(0, os.batch * os.height, 0, [&](int64_t first, int64_t last) {
         float w[49];
         for (int64_t row = first; row < last; ++row) {
             const int64_t n = row / os.height, y = row % os.height;
             for (int64_t x = 0; x < os.width; ++x) {
-                float largest = -INFINITY;
-                for (int j = 0; j < taps; ++j) {
-                    w[j] = element(logits, ls, n, j, y, x) + (j == centre ? d.centreBias : 0.0f);
-                    largest = std::max(largest, w[j]);
-                }
-                float sum = 0;
-                for (int j = 0; j < taps; ++j) sum += (w[j] = std::exp(w[j] - largest));
-                for (int j = 0; j < taps; ++j) w[j] /= sum;
+                for (int j = 0; j < taps; ++j) w[j] = element(logits, ls, n, j, y, x);
+                kernelFilterWeights(w, w, d);
                 for (int64_t c = 0; c < os.channelBlocks() * os.block; ++c) {
                     float value = 0;
                     if (c < os.channels)
@@ -268,29 +262,30 @@ InferencePlan::InferencePlan(const Model& model, const Shape& inputShape) : impl
                 graph[size_t(i)].op != GraphOp::ConvTranspose2d && i != residualAdd && i != filterNode)
                 planarInput = false;
 
+    // A step's convolution packed from `weight` (the model's, or permuted for a concatenation in place).
+    auto packConv = [&](Impl::Step& step, const float* weight, int inputBlock) {
+        const GraphNode& n = step.node;
+        const Shape& in = n.inputs[0] < 0 ? inputShape : shapes[size_t(n.inputs[0])];
+        const float* bias = n.biasOffset >= 0 ? params + n.biasOffset : nullptr;
+        ActivationDesc fused = n.activation;
+        step.sigmoidAfterConv = fused.kind == Activation::Sigmoid;  // not fused: applied afterwards
+        if (step.sigmoidAfterConv) fused.kind = Activation::None;
+        if (n.op == GraphOp::Conv2d)
+            step.conv.emplace(n.convDesc(in), weight, bias, fused, inputBlock);
+        else
+            step.conv.emplace(n.convTransposeDesc(in), weight, bias, fused, inputBlock);
+    };
     // Convolutions first: their kernels say how wide a border every activation needs.
     int border = 0;
     for (size_t i = 0; i < graph.size(); ++i) {
         Impl::Step step;
         step.node = graph[i];
         const GraphNode& n = step.node;
-        const Shape& in = n.inputs[0] < 0 ? inputShape : shapes[size_t(n.inputs[0])];
-        const float* weight = n.weightOffset >= 0 ? params + n.weightOffset : nullptr;
-        const float* bias = n.biasOffset >= 0 ? params + n.biasOffset : nullptr;
-        ActivationDesc fused = n.activation;
-        if (fused.kind == Activation::Sigmoid) {
-            step.sigmoidAfterConv = true;
-            fused.kind = Activation::None;
-        }
-        const int inputBlock = planarInput && n.inputs[0] < 0 ? 1 : 0;
-        if (n.op == GraphOp::Conv2d) {
-            step.conv.emplace(n.convDesc(in), weight, bias, fused, inputBlock);
-            m.macs += step.conv->macs();
-        } else if (n.op == GraphOp::ConvTranspose2d) {
-            step.conv.emplace(n.convTransposeDesc(in), weight, bias, fused, inputBlock);
+        if (n.op == GraphOp::Conv2d || n.op == GraphOp::ConvTranspose2d) {
+            packConv(step, params + n.weightOffset, planarInput && n.inputs[0] < 0 ? 1 : 0);
             m.macs += step.conv->macs();
         } else if (n.op == GraphOp::MaxPool2d) {
-            step.pool = n.poolDesc(in);
+            step.pool = n.poolDesc(n.inputs[0] < 0 ? inputShape : shapes[size_t(n.inputs[0])]);
         }
         if (step.conv) border = std::max(border, step.conv->requiredInputBorder());
         m.steps.push_back(std::move(step));
@@ -332,27 +327,16 @@ InferencePlan::InferencePlan(const Model& model, const Shape& inputShape) : impl
             const int64_t cin = int64_t(lane.size()), cout = reader.outChannels,
                           taps = int64_t(reader.kernel) * reader.kernel;
             const float* weight = params + reader.weightOffset;
+            const bool transposed =
+                reader.op == GraphOp::ConvTranspose2d;  // (Cin, Cout, k, k), else (Cout, Cin, k, k)
             std::vector<float> permuted(size_t(cin * cout * taps));
             for (int64_t o = 0; o < cout; ++o)
-                for (int64_t c = 0; c < cin; ++c)
-                    for (int64_t t = 0; t < taps; ++t) {
-                        // Conv2d (Cout, Cin, k, k); ConvTranspose2d (Cin, Cout, k, k).
-                        const bool transposed = reader.op == GraphOp::ConvTranspose2d;
-                        const int64_t from =
-                            transposed ? (c * cout + o) * taps + t : (o * cin + c) * taps + t;
-                        const int64_t to = transposed ? (lane[size_t(c)] * cout + o) * taps + t
-                                                      : (o * cin + lane[size_t(c)]) * taps + t;
-                        permuted[size_t(to)] = weight[from];
-                    }
-            Impl::Step& step = m.steps[size_t(r)];
-            const float* bias = reader.biasOffset >= 0 ? params + reader.biasOffset : nullptr;
-            ActivationDesc fused = reader.activation;
-            if (fused.kind == Activation::Sigmoid) fused.kind = Activation::None;
-            if (reader.op == GraphOp::Conv2d)
-                step.conv.emplace(reader.convDesc(shapes[size_t(i)]), permuted.data(), bias, fused, 0);
-            else
-                step.conv.emplace(reader.convTransposeDesc(shapes[size_t(i)]), permuted.data(), bias, fused,
-                                  0);
+                for (int64_t c = 0; c < cin; ++c) {
+                    const int64_t from = transposed ? c * cout + o : o * cin + c;
+                    const int64_t to = transposed ? lane[size_t(c)] * cout + o : o * cin + lane[size_t(c)];
+                    std::copy_n(weight + from * taps, taps, permuted.data() + to * taps);
+                }
+            packConv(m.steps[size_t(r)], permuted.data(), 0);
         }
     }
     // A 2x2 stride-2 max pooling that is its convolution's only consumer is fused into it: the

@@ -15,16 +15,10 @@ constexpr int kMaxKernel = 7;
 // The softmax weights of pixel (y, x) of batch item n: w[j], j over the k^2 taps.
 template <class T>
 void tapWeights(T* w, const T* logits, int64_t n, int64_t y, int64_t x, const KernelFilterDesc& d) {
-    const int64_t taps = d.taps(), plane = d.height * d.width, centre = taps / 2;
+    const int64_t taps = d.taps(), plane = d.height * d.width;
     const T* l = logits + n * taps * plane + y * d.width + x;
-    T largest = -INFINITY;
-    for (int64_t j = 0; j < taps; ++j) {
-        w[j] = l[j * plane] + (j == centre ? T(d.centreBias) : T(0));
-        largest = std::max(largest, w[j]);
-    }
-    T sum = 0;
-    for (int64_t j = 0; j < taps; ++j) sum += (w[j] = std::exp(w[j] - largest));
-    for (int64_t j = 0; j < taps; ++j) w[j] /= sum;
+    for (int64_t j = 0; j < taps; ++j) w[j] = l[j * plane];
+    kernelFilterWeights(w, w, d);
 }
 
 // Offsets of the k^2 taps of pixel (y, x) in its plane, clamped to the image.
@@ -55,6 +49,19 @@ void forEachPixel(const KernelFilterDesc& d, const T* logits, const F& body) {
 }
 
 }  // namespace
+
+template <class T>
+void kernelFilterWeights(T* weights, const T* logits, const KernelFilterDesc& d) {
+    const int64_t taps = d.taps(), centre = taps / 2;
+    T largest = -INFINITY;
+    for (int64_t j = 0; j < taps; ++j) {
+        weights[j] = logits[j] + (j == centre ? T(d.centreBias) : T(0));
+        largest = std::max(largest, weights[j]);
+    }
+    T sum = 0;
+    for (int64_t j = 0; j < taps; ++j) sum += (weights[j] = std::exp(weights[j] - largest));
+    for (int64_t j = 0; j < taps; ++j) weights[j] /= sum;
+}
 
 void KernelFilterDesc::validate() const {
     if (batch < 1 || channels < 1 || height < 1 || width < 1) throw Error("KernelFilter: sizes must be >= 1");
@@ -118,6 +125,7 @@ void kernelFilterBackward(T* dinput, T* dlogits, const T* dout, const T* in, con
 }
 
 #define DEJAG_INSTANTIATE(T)                                                               \
+    template void kernelFilterWeights<T>(T*, const T*, const KernelFilterDesc&);           \
     template void kernelFilterForward<T>(T*, const T*, const T*, const KernelFilterDesc&); \
     template void kernelFilterBackward<T>(T*, T*, const T*, const T*, const T*, const KernelFilterDesc&);
 DEJAG_INSTANTIATE(float)

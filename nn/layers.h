@@ -176,6 +176,9 @@ struct KernelFilterDesc {
     void validate() const;
 };
 
+// One pixel's k^2 weights from its k^2 logits (contiguous; weights may equal logits).
+template <class T>
+void kernelFilterWeights(T* weights, const T* logits, const KernelFilterDesc& d);
 template <class T>
 void kernelFilterForward(T* out,           // (N, C, H, W)
                          const T* in,      // (N, C, H, W)
