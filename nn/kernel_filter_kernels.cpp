@@ -47,7 +47,7 @@ inline V expNonPositive(V x) {
     return p * bitCast<V>(exponent);
 }
 
-// Pixels [x, x + L) of the row, all of whose taps x + dx lie in [0, width) unless `clampX`.
+// The pixels from x (as many as V has lanes), all of whose taps x + dx lie in [0, width) unless `clampX`.
 template <class V, class I, int K>
 inline void filterPixels(const KernelFilterRowArgs& a, int64_t x, bool clampX) {
     constexpr int kTaps = K * K, kRadius = K / 2, kCentre = kTaps / 2;

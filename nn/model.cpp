@@ -415,41 +415,36 @@ nlohmann::json Model::builtinArchitecture(const std::string& name, const ModelOp
             nodes.push_back(conv(dec, cat, w << (l - 2), 3, "relu"));
             previous = dec;
         }
-        if (name == "kpn") {
-            // Kernel-predicting: per full-resolution pixel, 9 logits of a 3x3 kernel (4 pixels' worth at
-            // 1/2, a 1x1 conv, then a pixel shuffle); the output is the input filtered by those kernels
-            // (kernel_filter). A softmax of mostly-zero logits with the centre raised by 4 starts the
-            // network near the identity (87 % of the weight in the centre).
-            nodes.push_back(conv("to_kernels", previous, 4 * 9, 1, "none"));
-            nodes.back()["init_scale"] = 0.1;
-            nodes.push_back(
-                {{"name", "shuffle"}, {"op", "pixel_shuffle"}, {"inputs", {"to_kernels"}}, {"factor", 2}});
-            nodes.push_back({{"name", "filter"},
+        // The head, the same size for both: a last conv at 1/2 starting at 0.1x its initialisation
+        // (the network starts near the identity), then a pixel shuffle to full resolution.
+        const bool kernels = name == "kpn";
+        const std::string head = kernels ? "to_kernels" : "to_subpixels",
+                          output = kernels ? "filter" : "residual";
+        if (kernels) {
+            // Kernel-predicting: per full-resolution pixel, the 9 logits of a 3x3 kernel (a 1x1 conv makes 4
+            // pixels' worth at 1/2); the output is the input filtered by those kernels (kernel_filter). A
+            // softmax of near-zero logits with the centre raised by 4 puts 87 % of the weight in the centre.
+            nodes.push_back(conv(head, previous, 4 * 9, 1, "none"));
+        } else {
+            nodes.push_back(conv(head, previous, 4 * c, 3, "none"));  // residual: output = input + correction
+        }
+        nodes.back()["init_scale"] = 0.1;
+        nodes.push_back({{"name", "shuffle"}, {"op", "pixel_shuffle"}, {"inputs", {head}}, {"factor", 2}});
+        if (kernels)
+            nodes.push_back({{"name", output},
                              {"op", "kernel_filter"},
                              {"inputs", {"input", "shuffle"}},
                              {"kernel", 3},
                              {"centre_bias", 4.0}});
-            return {{"name", "kpn"},
-                    {"input_channels", c},
-                    {"input_colour", "sRGB-encoded RGB"},
-                    {"normalisation", "[0, 1]"},
-                    {"init", "he_normal"},
-                    {"nodes", nodes},
-                    {"output", "filter"},
-                    {"family", {{"width", w}, {"depth", levels}}}};
-        }
-        nodes.push_back(conv("to_subpixels", previous, 4 * c, 3, "none"));
-        nodes.back()["init_scale"] = 0.1;  // the correction starts small: the network starts near identity
-        nodes.push_back(
-            {{"name", "shuffle"}, {"op", "pixel_shuffle"}, {"inputs", {"to_subpixels"}}, {"factor", 2}});
-        nodes.push_back({{"name", "residual"}, {"op", "add"}, {"inputs", {"input", "shuffle"}}});
-        return {{"name", "fast"},
+        else
+            nodes.push_back({{"name", output}, {"op", "add"}, {"inputs", {"input", "shuffle"}}});
+        return {{"name", name},
                 {"input_channels", c},
                 {"input_colour", "sRGB-encoded RGB"},
                 {"normalisation", "[0, 1]"},
                 {"init", "he_normal"},
                 {"nodes", nodes},
-                {"output", "residual"},
+                {"output", output},
                 {"family", {{"width", w}, {"depth", levels}}}};
     }
     throw Error("unknown built-in architecture '" + name + "' (seed2020, fast, kpn)");
