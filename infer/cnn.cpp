@@ -204,45 +204,36 @@ void CnnFilter::apply(const float* in, float* out, int width, int height, int ch
         Impl::TilePlan& plan = m.planFor(ry1 - ry0, rx1 - rx0);
         nn::Tensor& input = plan.input;
         const int RW = rx1 - rx0, RH = ry1 - ry0;
-        // The region's rows into the planes of the tile's input (replicating the last column and row
-        // where the region runs past the frame into its stride padding).
         parallelFor(0, RH, 8, [&](int64_t j0, int64_t j1) {
-            const size_t plane = size_t(RH) * size_t(RW);
             for (int64_t j = j0; j < j1; ++j) {
-                const size_t y = size_t(std::min(int(ry0 + j), height - 1));
-                float* row = input.data() + size_t(j) * size_t(RW);
-                const int inside = std::min(RW, width - rx0);  // columns inside the frame
-                if (grey) {
-                    const float* l = &m.luma[y * size_t(width) + size_t(rx0)];
-                    std::copy(l, l + inside, row);
-                    std::fill(row + inside, row + RW, l[inside - 1]);
-                } else {
-                    const float* s = in + (y * size_t(width) + size_t(rx0)) * C;
-                    for (int i = 0; i < inside; ++i, s += C)
-                        row[i] = s[0], row[plane + size_t(i)] = s[1], row[2 * plane + size_t(i)] = s[2];
-                    s -= C;
-                    for (int i = inside; i < RW; ++i)
-                        row[i] = s[0], row[plane + size_t(i)] = s[1], row[2 * plane + size_t(i)] = s[2];
+                const int y = std::min(int(ry0 + j), height - 1);
+                for (int i = 0; i < RW; ++i) {
+                    const int x = std::min(rx0 + i, width - 1);
+                    const size_t p = size_t(y) * size_t(width) + size_t(x);
+                    if (grey) {
+                        input.at(0, 0, j, i) = m.luma[p];
+                    } else {
+                        const float* s = in + p * C;
+                        for (int c = 0; c < 3; ++c) input.at(0, c, j, i) = s[c];
+                    }
                 }
             }
         });
         const nn::Tensor& result = plan.plan->runUnchecked(input);
         parallelFor(cy0, cy1, 8, [&](int64_t y0, int64_t y1) {
-            const size_t plane = size_t(RH) * size_t(RW);
-            for (int64_t y = y0; y < y1; ++y) {
-                const float* r = result.data() + size_t(y - ry0) * size_t(RW) + size_t(cx0 - rx0);
-                const size_t first = size_t(y) * size_t(width) + size_t(cx0);
-                float* o = out + first * C;
-                const float* s = in + first * C;
-                for (int x = cx0; x < cx1; ++x, ++r, o += C, s += C) {
+            for (int64_t y = y0; y < y1; ++y)
+                for (int x = cx0; x < cx1; ++x) {
+                    const size_t p = size_t(y) * size_t(width) + size_t(x);
+                    float* o = out + p * C;
+                    const int64_t j = y - ry0, i = x - rx0;
                     if (grey) {
-                        const float change = r[0] - m.luma[first + size_t(x - cx0)];
-                        for (int c = 0; c < 3; ++c) o[c] = std::clamp(s[c] + change, 0.0f, 1.0f);
+                        const float change = result.at(0, 0, j, i) - m.luma[p];
+                        for (int c = 0; c < 3; ++c)
+                            o[c] = std::clamp(in[p * C + size_t(c)] + change, 0.0f, 1.0f);
                     } else {
-                        for (int c = 0; c < 3; ++c) o[c] = std::clamp(r[size_t(c) * plane], 0.0f, 1.0f);
+                        for (int c = 0; c < 3; ++c) o[c] = std::clamp(result.at(0, c, j, i), 0.0f, 1.0f);
                     }
                 }
-            }
         });
     }
 }
