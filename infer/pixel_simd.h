@@ -137,6 +137,12 @@ inline int32_t laneMax(VInt m) {
     m = vmax(m, __builtin_shufflevector(m, m, 1, 0, 3, 2, 5, 4, 7, 6, 9, 8, 11, 10, 13, 12, 15, 14));
     return m[0];
 }
+// Whether every lane of lo and hi lies in [first, first + 32): the span two loads and a 32-entry permute
+// can read (no lane reductions: one subtraction each, an or and a test).
+inline bool withinWindow32(VInt lo, VInt hi, int32_t first) {
+    const VInt offsets = (lo - first) | (hi - first);  // a lane below first is negative: high bits set
+    return _mm512_test_epi32_mask(__m512i(offsets), _mm512_set1_epi32(~31)) == 0;
+}
 // base[index] and base[index + 1] per lane: 64-bit gathers, half as many elements as two 32-bit ones.
 inline void gatherPairs(const float* base, VInt index, VFloat& first, VFloat& second) {
     typedef int32_t VInt8 __attribute__((vector_size(32)));

@@ -192,14 +192,26 @@ class Band {
         const VInt zero = splatInt(0), lastX = splatInt(W_ - 1), lastY = splatInt(H_ - 1);
         const VInt xa = vclamp(x0, zero, lastX), xb = vclamp(x0 + 1, zero, lastX);
         const VInt ya = vclamp(y0, zero, lastY), yb = vclamp(y0 + 1, zero, lastY);
+        // Motion by whole pixels (a still camera): every lane reads its top-left tap only, exactly what
+        // the weights 1, 0, 0, 0 give.
+        const bool whole = all((tx == splat<VFloat>(0.0f)) & (ty == splat<VFloat>(0.0f)));
         VFloat a[planes], b[planes], c[planes], d[planes];
 #if defined(DEJAG_SIMD_LEVEL_avx512)
         // Where the lanes read two rows and a span of at most 32 pixels (smooth motion: the usual case),
-        // two loads per row and a 32-entry permute replace each gather.
-        const int first = laneMin(xa), last = laneMax(xb);
+        // two loads per row and a 32-entry permute replace each gather. The window starts 8 pixels left of
+        // lane 0's tap, so motion that shrinks or grows across the lanes stays inside it.
+        const int first = std::max(0, xa[0] - 8);
         const int rowA = ya[0], rowB = yb[0];
-        if (last - first < 32 && all(ya == splatInt(rowA)) && all(yb == splatInt(rowB))) {
+        if (withinWindow32(xa, xb, first) && all((ya == splatInt(rowA)) & (yb == splatInt(rowB)))) {
             const __m512i ia = __m512i(xa - first), ib = __m512i(xb - first);
+            if (whole) {
+                for (int k = 0; k < planes; ++k) {
+                    const float* pa = plane + size_t(k) * in_.planeFloats + size_t(rowA) * in_.stride + first;
+                    result[k] =
+                        VFloat(_mm512_permutex2var_ps(_mm512_loadu_ps(pa), ia, _mm512_loadu_ps(pa + 16)));
+                }
+                return;
+            }
             for (int k = 0; k < planes; ++k) {
                 const float* pa = plane + size_t(k) * in_.planeFloats + size_t(rowA) * in_.stride + first;
                 const float* pb = plane + size_t(k) * in_.planeFloats + size_t(rowB) * in_.stride + first;
@@ -215,6 +227,11 @@ class Band {
         {
             const VInt stride = splatInt(int32_t(in_.stride));
             const VInt ra = ya * stride, rb = yb * stride;
+            if (whole) {
+                for (int k = 0; k < planes; ++k)
+                    result[k] = gather(plane + size_t(k) * in_.planeFloats, ra + xa);
+                return;
+            }
             for (int k = 0; k < planes; ++k) {
                 const float* p = plane + size_t(k) * in_.planeFloats;
                 a[k] = gather(p, ra + xa), b[k] = gather(p, ra + xb);
@@ -232,8 +249,8 @@ class Band {
     // gather (AVX-512), unless the window would run past the end of the buffer.
     VFloat previousDepthAt(VInt x, VInt y) const {
 #if defined(DEJAG_SIMD_LEVEL_avx512)
-        const int first = laneMin(x), row = y[0];
-        if (laneMax(x) - first < 32 && all(y == splatInt(row)) &&
+        const int first = std::max(0, x[0] - 8), row = y[0];
+        if (withinWindow32(x, x, first) && all(y == splatInt(row)) &&
             (size_t(row) * size_t(W_) + size_t(first) + 32 <= size_t(W_) * size_t(H_))) {
             const float* p = in_.previousDepth + size_t(row) * size_t(W_) + size_t(first);
             return VFloat(
@@ -306,21 +323,25 @@ class Band {
         const VInt lastX = splatInt(W_ - 1), lastY = splatInt(H_ - 1), zero = splatInt(0);
 
         for (int x = 0; x < W_; x += L) {
+            // The colour box of the cross (centre and its 4 neighbours), then of all 9 taps: the 4 corners
+            // extend the cross's.
             VFloat current[3], min9[3], max9[3], minCross[3], maxCross[3];
             for (int ch = 0; ch < 3; ++ch) {
                 current[ch] = loadu<VFloat>(c[1][ch] + x);
-                min9[ch] = max9[ch] = minCross[ch] = maxCross[ch] = current[ch];
+                VFloat lo = current[ch], hi = current[ch];
+                for (const VFloat v : {loadu<VFloat>(c[0][ch] + x), loadu<VFloat>(c[1][ch] + x - 1),
+                                       loadu<VFloat>(c[1][ch] + x + 1), loadu<VFloat>(c[2][ch] + x)})
+                    lo = vmin(lo, v), hi = vmax(hi, v);
+                minCross[ch] = lo, maxCross[ch] = hi;
+                for (const VFloat v : {loadu<VFloat>(c[0][ch] + x - 1), loadu<VFloat>(c[0][ch] + x + 1),
+                                       loadu<VFloat>(c[2][ch] + x - 1), loadu<VFloat>(c[2][ch] + x + 1)})
+                    lo = vmin(lo, v), hi = vmax(hi, v);
+                min9[ch] = lo, max9[ch] = hi;
             }
             VFloat closest = splat<VFloat>(1e30f);
             VFloat vx = loadu<VFloat>(m[1][0] + x), vy = loadu<VFloat>(m[1][1] + x);
             for (int dy = 0; dy < 3; ++dy)
                 for (int dx = -1; dx <= 1; ++dx) {
-                    const bool cross = dx == 0 || dy == 1;
-                    for (int ch = 0; ch < 3; ++ch) {
-                        const VFloat v = loadu<VFloat>(c[dy][ch] + x + dx);
-                        min9[ch] = vmin(min9[ch], v), max9[ch] = vmax(max9[ch], v);
-                        if (cross) minCross[ch] = vmin(minCross[ch], v), maxCross[ch] = vmax(maxCross[ch], v);
-                    }
                     const VFloat depth = loadu<VFloat>(d[dy] + x + dx);
                     const VMask nearer = depth < closest;
                     closest = select(nearer, depth, closest);

@@ -142,10 +142,14 @@ TEST(Taa, StaticSceneConvergesTowardsTheTruth) {
     }
 }
 
+// How the pixels of a test frame move: random per pixel (sub-pixel, some of it pointing outside the
+// frame: the kernel's gathers), smooth like a camera's (its windowed reads), or by whole pixels (a still
+// camera and objects moving a pixel or two: the reads of single taps).
+enum class Motion { Random, Smooth, WholePixels };
+
 // A frame of blocks (objects with their own IDs, depths and colours) over fine noise, with a depth step
-// per block and motion that is either random per pixel (sub-pixel, some of it pointing outside the
-// frame: the kernel's gathers) or smooth like a camera's (its windowed reads).
-Buffers randomFrame(int W, int H, uint64_t seed, bool smoothMotion) {
+// per block and the given motion.
+Buffers randomFrame(int W, int H, uint64_t seed, Motion motion) {
     uint64_t state = seed;
     auto uniform = [&] { return float(unitInterval(state = splitMix64(state))); };
     Buffers b;
@@ -164,8 +168,10 @@ Buffers randomFrame(int W, int H, uint64_t seed, bool smoothMotion) {
             b.depth[i] = 0.01f * float(block + 1) + 0.0005f * uniform();
             b.previousDepth[i] = b.depth[i] + 0.003f * (uniform() - 0.5f);
             b.ids[i] = float(block);
-            if (smoothMotion) {
+            if (motion == Motion::Smooth) {
                 b.motion[2 * i] = 0.7f + 0.043f * float(x), b.motion[2 * i + 1] = -0.4f + 0.021f * float(y);
+            } else if (motion == Motion::WholePixels) {
+                b.motion[2 * i] = block == 3 ? 2.0f : 0.0f, b.motion[2 * i + 1] = block == 2 ? -1.0f : 0.0f;
             } else {
                 b.motion[2 * i] = 3.0f * (uniform() - 0.5f) + (x < 3 ? 4.0f : 0.0f);
                 b.motion[2 * i + 1] = 2.0f * (uniform() - 0.5f) - (y > H - 3 ? 3.0f : 0.0f);
@@ -190,8 +196,11 @@ TEST(Taa, EverySimdPathMatchesTheScalarReference) {
                 reference::ReferenceTaa oracle(options);
                 std::vector<float> out(size_t(W * H * 3)), expected(out.size());
                 float worst = 0;
-                for (int t = 0; t < 6; ++t) {
-                    const Buffers frame = randomFrame(W, H, uint64_t(100 * W + t), t % 2 == 1);
+                for (int t = 0; t < 9; ++t) {
+                    const Motion motion = t % 3 == 0   ? Motion::Random
+                                          : t % 3 == 1 ? Motion::Smooth
+                                                       : Motion::WholePixels;
+                    const Buffers frame = randomFrame(W, H, uint64_t(100 * W + t), motion);
                     taa.apply(frame.frame(), out.data());
                     oracle.apply(frame.frame(), expected.data());
                     for (size_t i = 0; i < out.size(); ++i)
