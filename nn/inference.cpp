@@ -192,6 +192,13 @@ struct InferencePlan::Impl {
     int kernelSource = -1;
     int kernelFactor = 1;
     KernelFilterDesc kernelFilter;
+    // ... and when x is a 1x1 convolution read by nothing else (a KPN's head), that convolution is fused
+    // too: each row's logits are computed from the convolution's input (kernelFeatures, the step index),
+    // so the logit tensor is never stored (for dejag-fast at 1080p: 36 floats per half-resolution pixel,
+    // 75 MB written and read back per frame). Its weights by row phase: [factor][taps][factor][inputs].
+    int kernelFeatures = -1;
+    int kernelFeatureChannels = 0;
+    std::vector<float> kernelHeadWeights, kernelHeadBias;
     static constexpr int kKernelParts = 16;  // row ranges, each with its own scratch
     static constexpr int kKernelMaxChannels = 4;
     Tensor kernelScratch;  // [parts][kernel^2][W]
@@ -250,6 +257,32 @@ InferencePlan::InferencePlan(const Model& model, const Shape& inputShape) : impl
             m.kernelFactor = graph[size_t(shuffle)].factor;
             m.kernelFilter = out.kernelFilterDesc(inputShape);
             m.kernelScratch = Tensor({Impl::kKernelParts, m.kernelFilter.taps(), inputShape[3]});
+        }
+    }
+    // The head convolution fused into the filter stage (see Impl::kernelFeatures).
+    if (const int head = m.kernelSource; head >= 0 && graph[size_t(head)].op == GraphOp::Conv2d &&
+                                         graph[size_t(head)].inputs[0] >= 0 && readers(head) == 1) {
+        const GraphNode& n = graph[size_t(head)];
+        const Shape& in = shapes[size_t(n.inputs[0])];
+        const Conv2dDesc d = n.convDesc(in);
+        const int64_t f = m.kernelFactor, taps = m.kernelFilter.taps();
+        if (d.kernelHeight == 1 && d.kernelWidth == 1 && d.strideH == 1 && d.strideW == 1 && d.padTop == 0 &&
+            d.padBottom == 0 && d.padLeft == 0 && d.padRight == 0 && n.activation.kind == Activation::None &&
+            d.outChannels == taps * f * f && in[1] <= 16) {
+            m.kernelFeatures = n.inputs[0];
+            m.kernelFeatureChannels = int(in[1]);
+            const float* weight = params + n.weightOffset;  // (Cout, Cin, 1, 1)
+            const float* bias = n.biasOffset >= 0 ? params + n.biasOffset : nullptr;
+            m.kernelHeadWeights.resize(size_t(f * taps * f * in[1]));
+            m.kernelHeadBias.resize(size_t(f * taps * f));
+            // Logit channel of tap j, row phase py, column phase px: (j f + py) f + px (the shuffle's order).
+            for (int64_t py = 0; py < f; ++py)
+                for (int64_t j = 0; j < taps; ++j)
+                    for (int64_t px = 0; px < f; ++px) {
+                        const int64_t k = (j * f + py) * f + px, slot = (py * taps + j) * f + px;
+                        m.kernelHeadBias[size_t(slot)] = bias ? bias[k] : 0.0f;
+                        std::copy_n(weight + k * in[1], in[1], m.kernelHeadWeights.data() + slot * in[1]);
+                    }
         }
     }
     // The model input goes in planar (block 1) when only convolutions read it (and the residual output
@@ -358,6 +391,7 @@ InferencePlan::InferencePlan(const Model& model, const Shape& inputShape) : impl
     if (residualShuffle >= 0) m.steps[size_t(residualShuffle)].fusedIntoOutput = true;
     if (filterNode >= 0) m.steps[size_t(filterNode)].fusedIntoOutput = true;
     if (filterShuffle >= 0) m.steps[size_t(filterShuffle)].fusedIntoOutput = true;
+    if (m.kernelFeatures >= 0) m.steps[size_t(m.kernelSource)].fusedIntoOutput = true;
     auto blockedOf = [&](const Shape& s) { return BlockedShape{s[0], s[1], s[2], s[3], m.block, border}; };
     m.inputBlocked = blockedOf(inputShape);
     if (planarInput) m.inputBlocked.block = 1;
@@ -379,7 +413,8 @@ InferencePlan::InferencePlan(const Model& model, const Shape& inputShape) : impl
     lastUse[size_t(m.outputStep + 1)] = count;  // the output is read after the last step
     if (m.residualSource >= 0)
         lastUse[size_t(m.residualSource + 1)] = count;  // ... or the residual stage's source
-    if (m.kernelSource >= 0) lastUse[size_t(m.kernelSource + 1)] = count;  // ... or the filter stage's
+    if (m.kernelSource >= 0)  // ... or the filter stage's (its head convolution's input when that is fused)
+        lastUse[size_t((m.kernelFeatures >= 0 ? m.kernelFeatures : m.kernelSource) + 1)] = count;
     struct Region {
         int64_t offset, size;
         int owner;  // tensor index as in lastUse
@@ -626,7 +661,8 @@ const Tensor& InferencePlan::runUnchecked(const Tensor& input) {
     }
     if (m.kernelSource >= 0) {
         // Row by row: the logits of tap j at column x are channel (j f + y % f) f + x % f of the source
-        // at (y / f, x / f); gathered into the part's scratch, then filtered (nn/kernel_filter_kernels.h).
+        // at (y / f, x / f); gathered into the part's scratch (or computed there from the fused head
+        // convolution's input), then filtered (nn/kernel_filter_kernels.h).
         const BlockedShape& ss = m.shape(m.kernelSource);
         const float* source = m.data(m.kernelSource);
         const KernelFilterDesc& d = m.kernelFilter;
@@ -640,23 +676,39 @@ const Tensor& InferencePlan::runUnchecked(const Tensor& input) {
                 KernelFilterRowArgs args;
                 args.out = out, args.in = in, args.logits = logits;
                 args.width = W, args.channels = int(C), args.kernel = k, args.centreBias = d.centreBias;
+                KernelLogitsRowArgs head;
+                if (m.kernelFeatures >= 0) {
+                    const BlockedShape& fs = m.shape(m.kernelFeatures);
+                    head.blockStride = fs.planeStride(), head.block = fs.block;
+                    head.inChannels = m.kernelFeatureChannels, head.taps = taps, head.factor = int(f);
+                    head.width = W, head.logits = logits;
+                }
                 for (int64_t row = rows * part / Impl::kKernelParts;
                      row < rows * (part + 1) / Impl::kKernelParts; ++row) {
                     const int64_t n = row / H, y = row % H;
-                    // Source pixel by source pixel: the lanes this row's taps and phases read, each
-                    // an offset from the pixel (a few KB of row, read once).
-                    int64_t lane[49][16];  // [tap][phase], factors up to 16
-                    for (int j = 0; j < taps; ++j)
-                        for (int64_t phase = 0; phase < f; ++phase) {
-                            const int64_t channel = (j * f + y % f) * f + phase;
-                            lane[j][phase] = (channel / ss.block) * ss.planeStride() + channel % ss.block;
-                        }
-                    const float* pixel = source + ss.offset(n, 0, y / f, 0);
-                    for (int64_t x0 = 0; x0 < W; x0 += f, pixel += ss.block) {
-                        const int64_t phases = std::min<int64_t>(f, W - x0);
+                    if (m.kernelFeatures >= 0) {
+                        const int64_t slot = (y % f) * taps * f;
+                        head.features =
+                            m.data(m.kernelFeatures) + m.shape(m.kernelFeatures).offset(n, 0, y / f, 0);
+                        head.weights = m.kernelHeadWeights.data() + slot * head.inChannels;
+                        head.bias = m.kernelHeadBias.data() + slot;
+                        DEJAG_SIMD_CALL(kernelLogitsRow, head);
+                    } else {
+                        // Source pixel by source pixel: the lanes this row's taps and phases read, each
+                        // an offset from the pixel (a few KB of row, read once).
+                        int64_t lane[49][16];  // [tap][phase], factors up to 16
                         for (int j = 0; j < taps; ++j)
-                            for (int64_t phase = 0; phase < phases; ++phase)
-                                logits[j * W + x0 + phase] = pixel[lane[j][phase]];
+                            for (int64_t phase = 0; phase < f; ++phase) {
+                                const int64_t channel = (j * f + y % f) * f + phase;
+                                lane[j][phase] = (channel / ss.block) * ss.planeStride() + channel % ss.block;
+                            }
+                        const float* pixel = source + ss.offset(n, 0, y / f, 0);
+                        for (int64_t x0 = 0; x0 < W; x0 += f, pixel += ss.block) {
+                            const int64_t phases = std::min<int64_t>(f, W - x0);
+                            for (int j = 0; j < taps; ++j)
+                                for (int64_t phase = 0; phase < phases; ++phase)
+                                    logits[j * W + x0 + phase] = pixel[lane[j][phase]];
+                        }
                     }
                     for (int64_t c = 0; c < C; ++c) {
                         for (int dy = -r; dy <= r; ++dy)

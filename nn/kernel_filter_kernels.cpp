@@ -84,7 +84,78 @@ void filterRow(const KernelFilterRowArgs& a) {
     for (; x < W; ++x) filterPixels<float, int32_t, K>(a, x, true);
 }
 
+// One logit: bias + weights . the source pixel's features.
+inline float logitAt(const KernelLogitsRowArgs& a, int64_t source, int tapPhase) {
+    const float* w = a.weights + int64_t(tapPhase) * a.inChannels;
+    float value = a.bias[tapPhase];
+    for (int c = 0; c < a.inChannels; ++c)
+        value += w[c] * a.features[(c / a.block) * a.blockStride + source * a.block + c % a.block];
+    return value;
+}
+
+#if !defined(DEJAG_SIMD_LEVEL_scalar)
+// kFloatLanes source pixels at a time for a factor of 2 and kTaps taps, from source pixel s: each channel's
+// values gathered into a vector, all 2 kTaps weighted sums accumulated side by side (one dependency chain
+// each, so they overlap), then each tap's two column phases interleaved into 2 kFloatLanes columns.
+template <int kTaps>
+void logitsFactor2(const KernelLogitsRowArgs& a, int64_t& s) {
+    const int64_t sources = a.width / 2;
+    VInt stride;
+    for (int l = 0; l < kFloatLanes; ++l) stride[l] = l * a.block;
+    // Each channel's first source pixel (no division per vector).
+    const float* channel[16];
+    for (int c = 0; c < a.inChannels; ++c)
+        channel[c] = a.features + (c / a.block) * a.blockStride + c % a.block;
+    for (; s + kFloatLanes <= sources; s += kFloatLanes) {
+        VFloat sum[2 * kTaps];
+#pragma GCC unroll 32
+        for (int t = 0; t < 2 * kTaps; ++t) sum[t] = splat<VFloat>(a.bias[t]);
+        // The gathers wait on memory unless the pixels two vectors ahead are on their way (the hardware
+        // prefetcher does not follow gathers): a line per pixel for the first channel block.
+        for (int l = 0; l < kFloatLanes; ++l)
+            __builtin_prefetch(channel[0] + (s + 2 * kFloatLanes + l) * a.block);
+        for (int c = 0; c < a.inChannels; ++c) {
+            const float* base = channel[c] + s * a.block;
+#if defined(DEJAG_SIMD_LEVEL_avx512)
+            const VFloat feature =
+                VFloat(_mm512_mask_i32gather_ps(_mm512_setzero_ps(), 0xffff, __m512i(stride), base, 4));
+#else
+            const VFloat feature = VFloat(_mm256_i32gather_ps(base, __m256i(stride), 4));
+#endif
+            const float* w = a.weights + c;
+#pragma GCC unroll 32
+            for (int t = 0; t < 2 * kTaps; ++t)
+                sum[t] = sum[t] + splat<VFloat>(w[t * a.inChannels]) * feature;
+        }
+#pragma GCC unroll 16
+        for (int j = 0; j < kTaps; ++j) {
+            float* out = a.logits + j * a.width + 2 * s;
+#if defined(DEJAG_SIMD_LEVEL_avx512)
+            storeu(out, __builtin_shufflevector(sum[2 * j], sum[2 * j + 1], 0, 16, 1, 17, 2, 18, 3, 19, 4, 20,
+                                                5, 21, 6, 22, 7, 23));
+            storeu(out + 16, __builtin_shufflevector(sum[2 * j], sum[2 * j + 1], 8, 24, 9, 25, 10, 26, 11, 27,
+                                                     12, 28, 13, 29, 14, 30, 15, 31));
+#else
+            storeu(out, __builtin_shufflevector(sum[2 * j], sum[2 * j + 1], 0, 8, 1, 9, 2, 10, 3, 11));
+            storeu(out + 8, __builtin_shufflevector(sum[2 * j], sum[2 * j + 1], 4, 12, 5, 13, 6, 14, 7, 15));
+#endif
+        }
+    }
+}
+#endif
+
 }  // namespace
+
+void kernelLogitsRow(const KernelLogitsRowArgs& a) {
+    int64_t s = 0;
+#if !defined(DEJAG_SIMD_LEVEL_scalar)
+    if (a.factor == 2 && a.taps == 9) logitsFactor2<9>(a, s);  // a 3x3 kernel (the kpn family's)
+#endif
+    for (; s < a.width / a.factor; ++s)
+        for (int j = 0; j < a.taps; ++j)
+            for (int p = 0; p < a.factor; ++p)
+                a.logits[j * a.width + s * a.factor + p] = logitAt(a, s, j * a.factor + p);
+}
 
 void kernelFilterRow(const KernelFilterRowArgs& args) {
     switch (args.kernel) {

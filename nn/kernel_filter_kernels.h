@@ -18,6 +18,24 @@ struct KernelFilterRowArgs {
     float centreBias = 0.0f;
 };
 
-DEJAG_SIMD_DECLARE(void kernelFilterRow(const KernelFilterRowArgs& args);)
+// The logits of one output row computed from the features a 1x1 convolution would have turned into
+// them (the convolution and the pixel shuffle fused, so the logit tensor is never stored): the logit of
+// tap j at column x is bias + weights . features at source pixel x / factor, for the row's phase.
+struct KernelLogitsRowArgs {
+    // The source row's features, blocked: channel c of source pixel s at
+    // features + (c / block) * blockStride + s * block + c % block.
+    const float* features = nullptr;
+    int64_t blockStride = 0;
+    int block = 1, inChannels = 0;
+    const float* weights =
+        nullptr;                  // [taps][factor][inChannels]: this row phase's 1x1 weights, by column phase
+    const float* bias = nullptr;  // [taps][factor]
+    int taps = 9, factor = 2;
+    int64_t width = 0;        // output columns (factor * source columns)
+    float* logits = nullptr;  // [taps][width]
+};
+
+DEJAG_SIMD_DECLARE(void kernelFilterRow(const KernelFilterRowArgs& args);
+                   void kernelLogitsRow(const KernelLogitsRowArgs& args);)
 
 }  // namespace dejag::nn

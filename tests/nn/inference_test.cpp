@@ -7,6 +7,7 @@
 #include <cmath>
 
 #include "base/error.h"
+#include "base/random.h"
 #include "base/simd.h"
 #include "base/thread_pool.h"
 #include "nn/init.h"
@@ -88,6 +89,12 @@ class Inference : public testing::SimdLevelTest {};
 
 void expectPlanMatchesReference(Model& model, const Shape& shape) {
     model.initialize(11);
+    // Biases start at zero; non-zero ones check that every fused path adds them.
+    uint64_t state = 13;
+    for (const ParameterInfo& p : model.parameters())
+        if (p.isBias)
+            for (int64_t i = p.offset; i < p.offset + shapeNumel(p.shape); ++i)
+                model.parameterData()[i] = float(unitInterval(state = splitMix64(state), -0.5, 0.5));
     const Tensor input = randomTensor(shape, 12);
     const Tensor want = model.forward(input).clone();
     InferencePlan plan(model, shape);
