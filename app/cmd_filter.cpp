@@ -29,7 +29,7 @@ namespace fs = std::filesystem;
 struct FilterArguments {
     std::string method, chain, input, output;
     std::string model = "models/dejag-fast.safetensors", gate = "auto";
-    int tile = 1024;
+    int tile = 2048;
     int preset = 39;
     bool greenLuma = false, json = false, noSharpen = false, quiet = false;
     RuntimeOptions runtime;

@@ -25,7 +25,7 @@
 namespace dejag::infer {
 
 struct CnnOptions {
-    int tileSize = 1024;          // core tile side (rounded up to a multiple of the network's stride)
+    int tileSize = 2048;          // core tile side (rounded up to a multiple of the network's stride)
     bool gate = true;             // false: every tile runs
     float gateThreshold = 0.04f;  // luma step (sRGB-encoded, [0, 1]) that marks a tile as needing work
 };
