@@ -1,8 +1,8 @@
 #include "app/cli.h"
 
-#include <sstream>
-
+#include <filesystem>
 #include <regex>
+#include <sstream>
 
 #include "base/error.h"
 #include "base/simd.h"
@@ -20,6 +20,28 @@ void addRuntimeOptions(CLI::App* command, RuntimeOptions& options) {
 void applyRuntimeOptions(const RuntimeOptions& options) {
     if (!options.simd.empty()) setSimdLevel(*parseSimdLevel(options.simd));
     setThreadCount(options.threads);
+}
+
+std::string shippedModelPath(const std::string& path) {
+    namespace fs = std::filesystem;
+    const fs::path given(path);
+    std::error_code error;
+    if (given.is_absolute() || given.empty() || *given.begin() != "models" || fs::exists(given, error))
+        return path;
+    const fs::path binary = fs::read_symlink("/proc/self/exe", error);
+    if (error) return path;
+    const fs::path folder = binary.parent_path();
+    for (const fs::path& root : {folder / ".." / "..", folder / ".." / "share" / "dejag"}) {
+        const fs::path candidate = (root / given).lexically_normal();
+        if (fs::is_regular_file(candidate, error)) return candidate.string();
+    }
+    return path;
+}
+
+std::vector<std::string> shippedModelPaths(const std::vector<std::string>& paths) {
+    std::vector<std::string> found;
+    for (const std::string& path : paths) found.push_back(shippedModelPath(path));
+    return found;
 }
 
 Size parseSize(const std::string& text, const std::string& what) {

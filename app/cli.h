@@ -25,6 +25,13 @@ Size parseSize(const std::string& text, const std::string& what);
 // "a,b,,c" -> {"a", "b", "c"}: the comma-separated lists of the flags (empty items dropped).
 std::vector<std::string> splitList(const std::string& text);
 
+// A model file as given, or — when the path is relative, starts with models/ and is not in the working
+// directory — the shipped copy found from the binary: the source tree's models/ for a build tree
+// (build/PRESET/dejag) or share/dejag/models for an installed bin/dejag. So `dejag filter --method cnn`
+// finds the shipped network from any directory. Unchanged when there is none (the reader then names it).
+std::string shippedModelPath(const std::string& path);
+std::vector<std::string> shippedModelPaths(const std::vector<std::string>& paths);
+
 // The command line as typed (set by main), recorded in what a command writes (run.json, model cards).
 std::string& invocation();
 

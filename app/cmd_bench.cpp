@@ -303,6 +303,7 @@ void registerBenchCommand(CLI::App& app) {
 
         // A whole network: accumulation error on a large frame, and what denormal inputs cost.
         constexpr double kAccumulationLimit = 1e-5, kDenormalLimit = 1.10;
+        stabilityArgs->model = shippedModelPath(stabilityArgs->model);
         const Size frame = parseSize(stabilityArgs->frame, "--frame");
         const Size denormalFrame = parseSize(stabilityArgs->denormalFrame, "--denormal-frame");
         const bench::AccumulationResult a =
@@ -464,7 +465,7 @@ void registerBenchCommand(CLI::App& app) {
         "report.html.");
     qualityBench->callback([=] {
         applyRuntimeOptions(*qualityRuntime);
-        quality->models = splitList(*qualityModels);
+        quality->models = shippedModelPaths(splitList(*qualityModels));
         const std::vector<nlohmann::json> rows = bench::benchQuality(*quality);
         bench::printQualityRows(rows, *qualityJson, true);
         if (!*qualityJson) std::printf("report: %s/report.html\n", quality->out.c_str());

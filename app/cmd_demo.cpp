@@ -40,7 +40,7 @@ void registerDemoCommand(CLI::App& app) {
         const Size s = parseSize(*size, "--size");
         options->width = s.width, options->height = s.height;
         options->scenes = splitList(*scenes);
-        options->models = splitList(*models);
+        options->models = shippedModelPaths(splitList(*models));
         const std::vector<nlohmann::json> rows = bench::runDemo(*options);
         bench::printQualityRows(rows, *json, false);
         if (!*json) std::printf("report: %s/report.html\n", options->out.c_str());

@@ -354,7 +354,11 @@ void registerFilterCommand(CLI::App& app) {
         "filter", "anti-alias images and sequences: FXAA 3.11, the CNN, U-TAA, T-TAA, alone or chained");
     command->add_option("--method", args->method, "fxaa | cnn | taa | taa-sobel");
     command->add_option("--chain", args->chain, "methods in order, e.g. taa,cnn or fxaa,cnn");
-    command->add_option("--model", args->model, "CNN: model file")->capture_default_str();
+    command
+        ->add_option(
+            "--model", args->model,
+            "CNN: model file (a models/... path missing here is taken from the dejag tree the binary is in)")
+        ->capture_default_str();
     command->add_option("--gate", args->gate, "CNN: off | auto | T (run tiles whose luma steps exceed T)")
         ->capture_default_str();
     command->add_option("--tile", args->tile, "CNN: tile side in pixels")->capture_default_str();
@@ -384,7 +388,10 @@ void registerFilterCommand(CLI::App& app) {
         "TAA (taa = the baseline U-TAA, taa-sobel = T-TAA of spec/taa.md): INPUT is a folder written by\n"
         "dejag render --jitter halton16 --buffers color,albedo,depth,motion,id,prevdepth; OUTPUT a folder\n"
         "of sRGB PNGs, one per frame. History starts with the first frame. In a chain TAA comes first.");
-    command->callback([args] { runFilter(*args); });
+    command->callback([args] {
+        args->model = shippedModelPath(args->model);  // the shipped network from any directory
+        runFilter(*args);
+    });
 }
 
 }  // namespace dejag::cli

@@ -344,6 +344,28 @@ TEST(Cli, FilterFxaaKeepsBitDepthAndAlphaAndRefusesWhatItCannotDo) {
     EXPECT_FALSE(std::filesystem::exists(dir.file("t.png")));
 }
 
+// The default --model (models/dejag-fast.safetensors, relative) is found from the binary when the
+// working directory has no models/ folder.
+TEST(Cli, FilterCnnFindsTheShippedModelFromAnyDirectory) {
+    testing::TempDir dir;
+    Image edge(40, 32, {"R", "G", "B"}, PixelType::UInt8);
+    for (int y = 0; y < 32; ++y)
+        for (int x = 0; x < 40; ++x)
+            for (int c = 0; c < 3; ++c) edge.at(x, y, c) = y > 0.4 * x + 7 ? 1.0f : 0.0f;
+    writeImage(dir.file("edge.png"), edge);
+    ASSERT_FALSE(std::filesystem::exists(dir.path() / "models"));
+    const RunResult r =
+        run("filter --method cnn --json edge.png out.png", dir, "cd '" + dir.path().string() + "' &&");
+    ASSERT_EQ(r.exitCode, 0) << r.err;
+    EXPECT_NE(nlohmann::json::parse(r.out)["model"].get<std::string>().find("dejag-fast.safetensors"),
+              std::string::npos);
+    EXPECT_EQ(readImage(dir.file("out.png")).width, 40);
+    // A relative model path outside models/ is taken as given.
+    expectOneLineError(run("filter --method cnn --model nowhere/dejag-fast.safetensors edge.png t.png", dir,
+                           "cd '" + dir.path().string() + "' &&"),
+                       "nowhere/dejag-fast.safetensors");
+}
+
 TEST(Cli, FilterTaaRunsOverARenderedSequence) {
     testing::TempDir dir;
     const std::string frames = dir.file("frames"), out = dir.file("out");
