@@ -7,6 +7,7 @@
 #include <memory>
 #include <nlohmann/json.hpp>
 #include <optional>
+#include <set>
 #include <sstream>
 
 #include "app/cli.h"
@@ -32,6 +33,9 @@ struct FilterArguments {
     int tile = 2048;
     int preset = 39;
     bool greenLuma = false, json = false, noSharpen = false, quiet = false;
+    bool motionBlur = false;
+    float motionBlurScale = 1.0f;
+    std::string cuts;  // TAA: frame numbers that start a new shot
     RuntimeOptions runtime;
 };
 
@@ -262,6 +266,14 @@ void runTaaChain(const FilterArguments& args, const std::string& taaMethod, std:
         const nlohmann::json j = nlohmann::json::parse(sidecar, nullptr, false);
         if (j.is_object() && j.contains("depth_far")) far = j["depth_far"].get<double>();
     }
+    std::set<long> cuts;
+    for (const std::string& item : splitList(args.cuts)) {
+        char* end = nullptr;
+        const long n = std::strtol(item.c_str(), &end, 10);
+        if (!end || *end != '\0' || n < 0)
+            throw Error("--cuts '" + args.cuts + "' is not a list of frame numbers (e.g. 24,96)");
+        cuts.insert(n);
+    }
     std::error_code ec;
     fs::create_directories(args.output, ec);
     if (ec || !fs::is_directory(args.output))
@@ -269,12 +281,27 @@ void runTaaChain(const FilterArguments& args, const std::string& taaMethod, std:
     infer::TaaOptions options;
     options.improved = taaMethod == "taa-sobel";
     options.sharpen = !args.noSharpen;
+    options.motionBlur = args.motionBlur, options.motionBlurScale = args.motionBlurScale;
     infer::Taa taa(options);
+    // The history restarts at a cut: a frame listed in --cuts, or a gap in the numbering (the motion
+    // vectors point into the previous frame number, which is not the frame before).
+    auto frameNumber = [](const std::string& path) -> long {
+        const std::string stem = fs::path(path).stem().string();  // frame_NNNN
+        char* end = nullptr;
+        const long n = std::strtol(stem.c_str() + 6, &end, 10);
+        return end && *end == '\0' && end != stem.c_str() + 6 ? n : -1;
+    };
+    long previousNumber = -2;
     Progress progress("filter " + (args.chain.empty() ? args.method : args.chain), int64_t(frames.size()),
                       args.json || args.quiet);
     std::vector<float> out;
     nlohmann::json timings = nlohmann::json::array();
     for (const std::string& path : frames) {
+        const long number = frameNumber(path);
+        const bool cut = path != frames.front() && (cuts.count(number) > 0 || number < 0 ||
+                                                    previousNumber < 0 || number != previousNumber + 1);
+        if (cut) taa.reset();
+        previousNumber = number;
         const Image frame = readImage(path);
         const std::vector<float> colour = channelsOf(frame, {"R", "G", "B"}, path, true);
         std::vector<float> depth = channelsOf(frame, {"depth.Z"}, path);
@@ -311,7 +338,7 @@ void runTaaChain(const FilterArguments& args, const std::string& taaMethod, std:
         result.pixels = out;
         const std::string name = fs::path(path).stem().string() + ".png";
         writeImage((fs::path(args.output) / name).string(), result);
-        timings.push_back({{"frame", name}, {"ms", ms}, {"stages", stageTimes}});
+        timings.push_back({{"frame", name}, {"ms", ms}, {"stages", stageTimes}, {"history_reset", cut}});
         progress.advance(1);
     }
     progress.finish();
@@ -365,6 +392,16 @@ void registerFilterCommand(CLI::App& app) {
     command->add_option("--preset", args->preset, "FXAA quality preset: 12, 23 or 39")->capture_default_str();
     command->add_flag("--green-luma", args->greenLuma, "FXAA: use green as luma");
     command->add_flag("--no-sharpen", args->noSharpen, "TAA: skip the final sharpen (see docs/infer.md)");
+    command->add_flag("--motion-blur", args->motionBlur,
+                      "TAA: blur the output along the motion vectors (spec/taa.md step 7; off by default)");
+    command
+        ->add_option("--motion-blur-scale", args->motionBlurScale,
+                     "TAA: motion blur length, the frame rate over the target frame rate")
+        ->check(CLI::Range(0.0f, 100.0f))
+        ->capture_default_str();
+    command->add_option(
+        "--cuts", args->cuts,
+        "TAA: frame numbers that start a new shot (history restarts; also at a gap in the numbering)");
     command->add_option("input", args->input, "image, folder of images, or sequence pattern (frame_%04d.png)")
         ->required();
     command
@@ -387,7 +424,9 @@ void registerFilterCommand(CLI::App& app) {
         "only on tiles with a luma step above the gate (auto = 0.04); skipped tiles pass through unchanged.\n"
         "TAA (taa = the baseline U-TAA, taa-sobel = T-TAA of spec/taa.md): INPUT is a folder written by\n"
         "dejag render --jitter halton16 --buffers color,albedo,depth,motion,id,prevdepth; OUTPUT a folder\n"
-        "of sRGB PNGs, one per frame. History starts with the first frame. In a chain TAA comes first.");
+        "of sRGB PNGs, one per frame. History starts with the first frame and restarts at each --cuts frame "
+        "and\n"
+        "where the frame numbers skip. In a chain TAA comes first.");
     command->callback([args] {
         args->model = shippedModelPath(args->model);  // the shipped network from any directory
         runFilter(*args);

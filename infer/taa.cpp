@@ -1,6 +1,7 @@
 #include "infer/taa.h"
 
 #include <algorithm>
+#include <cmath>
 
 #include "base/error.h"
 #include "base/thread_pool.h"
@@ -11,6 +12,9 @@ namespace dejag::infer {
 Taa::Taa(const TaaOptions& options) : options_(options) {
     if (!(options.feedbackMin >= 0 && options.feedbackMin <= options.feedbackMax && options.feedbackMax < 1))
         throw Error("TAA feedback must satisfy 0 <= min <= max < 1");
+    if (!(options.motionBlurScale >= 0 && options.motionBlurScale <= 100) ||
+        options.motionBlurMaxSamples < 1 || options.motionBlurMaxSamples > 256)
+        throw Error("TAA motion blur: the scale must be in [0, 100] and the samples in 1..256");
 }
 
 void Taa::apply(const TaaFrame& f, float* out) {
@@ -57,6 +61,57 @@ void Taa::apply(const TaaFrame& f, float* out) {
     });
     std::swap(history_, nextHistory_);
     if (improved) std::swap(sobel_, nextSobel_);
+    if (options_.motionBlur) blurAlongMotion(f, out);
+}
+
+void Taa::blurAlongMotion(const TaaFrame& f, float* out) {
+    const int W = f.width, H = f.height;
+    const size_t floats = size_t(W) * size_t(H) * 3;
+    if (unblurred_.size() != floats) unblurred_.assign(floats, 0.0f);  // on a size change only
+    parallelFor(0, H, 16, [&](int64_t first, int64_t last) {
+        std::copy(out + size_t(first) * size_t(W) * 3, out + size_t(last) * size_t(W) * 3,
+                  unblurred_.begin() + std::ptrdiff_t(size_t(first) * size_t(W) * 3));
+    });
+    const float* source = unblurred_.data();
+    // Bilinear, clamp to edge, at pixel coordinates (pixel (i, j)'s centre at (i + 0.5, j + 0.5)).
+    auto sample = [&](float px, float py, float rgb[3]) {
+        // (Positions far outside read the border; clamped first so the conversions stay in range.)
+        const float fx = std::clamp(px, -1.0f, float(W) + 1.0f) - 0.5f,
+                    fy = std::clamp(py, -1.0f, float(H) + 1.0f) - 0.5f;
+        const float x0f = std::floor(fx), y0f = std::floor(fy);
+        const float tx = fx - x0f, ty = fy - y0f;
+        const int x0 = int(x0f), y0 = int(y0f);
+        const int xa = std::clamp(x0, 0, W - 1), xb = std::clamp(x0 + 1, 0, W - 1);
+        const int ya = std::clamp(y0, 0, H - 1), yb = std::clamp(y0 + 1, 0, H - 1);
+        const float* a = source + (size_t(ya) * size_t(W) + size_t(xa)) * 3;
+        const float* b = source + (size_t(ya) * size_t(W) + size_t(xb)) * 3;
+        const float* c = source + (size_t(yb) * size_t(W) + size_t(xa)) * 3;
+        const float* d = source + (size_t(yb) * size_t(W) + size_t(xb)) * 3;
+        for (int k = 0; k < 3; ++k) {
+            const float top = a[k] + tx * (b[k] - a[k]), bottom = c[k] + tx * (d[k] - c[k]);
+            rgb[k] = top + ty * (bottom - top);
+        }
+    };
+    const float scale = options_.motionBlurScale;
+    const int maxSamples = options_.motionBlurMaxSamples;
+    parallelFor(0, H, 4, [&](int64_t first, int64_t last) {
+        for (int64_t y = first; y < last; ++y)
+            for (int x = 0; x < W; ++x) {
+                const size_t i = size_t(y) * size_t(W) + size_t(x);
+                const float vx = f.motion[2 * i] * scale, vy = f.motion[2 * i + 1] * scale;
+                const float speed = std::sqrt(vx * vx + vy * vy);
+                if (!(speed >= 2.0f && std::isfinite(speed))) continue;  // one sample: the pixel as it is
+                const int samples = speed < float(maxSamples) ? int(speed) : maxSamples;
+                if (samples < 2) continue;
+                float sum[3] = {source[3 * i], source[3 * i + 1], source[3 * i + 2]}, rgb[3];
+                for (int k = 1; k < samples; ++k) {
+                    const float t = float(k) / float(samples - 1) - 0.5f;
+                    sample(float(x) + 0.5f + vx * t, float(y) + 0.5f + vy * t, rgb);
+                    for (int c = 0; c < 3; ++c) sum[c] += rgb[c];
+                }
+                for (int c = 0; c < 3; ++c) out[3 * i + size_t(c)] = sum[c] / float(samples);
+            }
+    });
 }
 
 }  // namespace dejag::infer

@@ -20,6 +20,14 @@ struct TaaOptions {
     float feedbackMax = 0.979f;     // ... and where they agree (spec/taa.md, from the thesis' code)
     float depthThreshold = 0.002f;  // pseudo-variances vanish below this 3x3 depth spread
     bool sharpen = true;
+    // Step 7 of spec/taa.md, off by default: the output (not the history) blurred along each pixel's
+    // motion as Chapman's per-object motion blur does, which the thesis used to hide ghosting. The motion
+    // is scaled by motionBlurScale (the frame rate over the target frame rate: the shutter), a pixel
+    // moving s pixels averages clamp(int(s), 1, motionBlurMaxSamples) bilinear samples spread over
+    // -1/2 .. +1/2 of its scaled motion.
+    bool motionBlur = false;
+    float motionBlurScale = 1.0f;
+    int motionBlurMaxSamples = 32;
 };
 
 // One frame's inputs, all (height, width, k) interleaved floats; improved needs every buffer.
@@ -44,12 +52,15 @@ class Taa {
     void reset() { width_ = height_ = 0; }
 
   private:
+    void blurAlongMotion(const TaaFrame& frame, float* out);
+
     TaaOptions options_;
     int width_ = 0, height_ = 0;
     size_t stride_ = 0;                         // floats per row of the history planes
     std::vector<float> history_, nextHistory_;  // 3 planes each, unsharpened
     std::vector<float> sobel_, nextSobel_;      // T-TAA's stabilised Sobel, 1 plane each
     std::vector<float> scratch_;                // one block of rows per band
+    std::vector<float> unblurred_;              // the output before the motion blur (when on)
     int bands_ = 0;
 };
 

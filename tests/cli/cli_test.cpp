@@ -385,6 +385,37 @@ TEST(Cli, FilterTaaRunsOverARenderedSequence) {
         EXPECT_EQ(last.width, 64);
         EXPECT_EQ(last.storage, PixelType::UInt8);
     }
+    // A cut restarts the history: with --cuts 3 frame 3 comes out as if the sequence began there, and
+    // a gap in the numbering is a cut too.
+    const RunResult cut = run("filter --method taa --cuts 3 --json '" + frames + "' '" + out + "cut'", dir);
+    ASSERT_EQ(cut.exitCode, 0) << cut.err;
+    const nlohmann::json cutFrames = nlohmann::json::parse(cut.out)["frames"];
+    for (size_t i = 0; i < cutFrames.size(); ++i)
+        EXPECT_EQ(cutFrames[i]["history_reset"].get<bool>(), i == 3) << i;
+    std::filesystem::create_directories(dir.file("from3"));
+    for (const char* name : {"frame_0003.exr", "frame_0004.exr", "render.json"})
+        std::filesystem::copy_file(frames + "/" + name, dir.file("from3") + "/" + name);
+    ASSERT_EQ(run("filter --method taa --quiet '" + dir.file("from3") + "' '" + out + "from3'", dir).exitCode,
+              0);
+    EXPECT_EQ(slurp(out + "cut/frame_0003.png"), slurp(out + "from3/frame_0003.png"));
+    EXPECT_NE(slurp(out + "cut/frame_0003.png"), slurp(out + "taa/frame_0003.png"));
+    std::filesystem::remove(dir.file("from3") + "/frame_0004.exr");
+    std::filesystem::copy_file(frames + "/frame_0001.exr", dir.file("from3") + "/frame_0001.exr");
+    const RunResult gap = run("filter --method taa --json '" + dir.file("from3") + "' '" + out + "gap'", dir);
+    ASSERT_EQ(gap.exitCode, 0) << gap.err;
+    const nlohmann::json gapFrames = nlohmann::json::parse(gap.out)["frames"];
+    ASSERT_EQ(gapFrames.size(), 2u);
+    EXPECT_FALSE(gapFrames[0]["history_reset"].get<bool>());
+    EXPECT_TRUE(gapFrames[1]["history_reset"].get<bool>());  // 1 then 3
+    expectOneLineError(run("filter --method taa --cuts 2,x '" + frames + "' '" + out + "bad'", dir),
+                       "--cuts");
+    EXPECT_FALSE(std::filesystem::exists(out + "bad"));
+    // The optional motion blur runs over the sequence.
+    const RunResult blur = run(
+        "filter --method taa --motion-blur --motion-blur-scale 2 --json '" + frames + "' '" + out + "blur'",
+        dir);
+    ASSERT_EQ(blur.exitCode, 0) << blur.err;
+    EXPECT_EQ(nlohmann::json::parse(blur.out)["frames"].size(), 5u);
     // T-TAA needs every buffer.
     const std::string colourOnly = dir.file("colour");
     ASSERT_EQ(run("render --scene corridor --size 64x48 --frames 2 --quiet --out '" + colourOnly + "'", dir)

@@ -257,6 +257,88 @@ TEST(Taa, RefusesMissingBuffers) {
     EXPECT_THROW(taa.apply(f, out.data()), Error);
     options.feedbackMin = 0.99f;
     EXPECT_THROW(Taa{options}, Error);
+    TaaOptions blur;
+    blur.motionBlurMaxSamples = 0;
+    EXPECT_THROW(Taa{blur}, Error);
+    blur.motionBlurMaxSamples = 32, blur.motionBlurScale = -1.0f;
+    EXPECT_THROW(Taa{blur}, Error);
+}
+
+// A frame of a vertical step (0 left of column 32, 1 from it) moving `motion` pixels along x.
+Buffers stepFrame(float motion) {
+    Buffers b;
+    b.width = 64, b.height = 6;
+    const size_t n = size_t(b.width) * size_t(b.height);
+    b.colour.resize(n * 3), b.albedo.resize(n * 3, 0.5f), b.depth.resize(n, 0.5f), b.motion.resize(n * 2);
+    b.ids.resize(n, 1.0f), b.previousDepth.resize(n, 0.5f);
+    for (size_t i = 0; i < n; ++i) {
+        for (int c = 0; c < 3; ++c) b.colour[3 * i + size_t(c)] = i % 64 >= 32 ? 1.0f : 0.0f;
+        b.motion[2 * i] = motion;
+    }
+    return b;
+}
+
+TEST(Taa, MotionBlurIsOffByDefaultAndLeavesStillPixelsAlone) {
+    EXPECT_FALSE(TaaOptions{}.motionBlur);
+    for (const bool improved : {false, true}) {
+        TaaOptions plain, blurred;
+        plain.improved = blurred.improved = improved;
+        blurred.motionBlur = true;
+        Taa a(plain), b(blurred);
+        std::vector<float> outA(size_t(64 * 6 * 3)), outB(outA.size());
+        for (const float motion : {0.0f, 1.5f}) {  // under 2 pixels: one sample
+            const Buffers frame = stepFrame(motion);
+            a.apply(frame.frame(), outA.data());
+            b.apply(frame.frame(), outB.data());
+            EXPECT_EQ(outA, outB) << improved << " " << motion;
+        }
+    }
+}
+
+// Every pixel of a step moving 8 pixels averages itself and 7 bilinear samples spread over half the
+// motion each way (Chapman's per-object blur), computed here from the unblurred output; the history is
+// not blurred, so a next still frame is the same with the blur on or off.
+TEST(Taa, MotionBlurAveragesAlongTheMotionAndKeepsTheHistory) {
+    TaaOptions plain, blurred;
+    blurred.motionBlur = true;
+    Taa a(plain), b(blurred);
+    const Buffers moving = stepFrame(8.0f);
+    std::vector<float> sharp(size_t(64 * 6 * 3)), out(sharp.size());
+    a.apply(moving.frame(), sharp.data());
+    b.apply(moving.frame(), out.data());
+    auto at = [&](float p) {  // the unblurred row (every row alike), bilinear at position p, clamped
+        const float f = p - 0.5f;
+        const int i0 = int(std::floor(f));
+        const float t = f - float(i0);
+        auto v = [&](int i) { return sharp[3 * size_t(std::clamp(i, 0, 63))]; };
+        return v(i0) + t * (v(i0 + 1) - v(i0));
+    };
+    float worst = 0;
+    bool blurredSome = false;
+    for (int x = 0; x < 64; ++x) {
+        float expected = sharp[3 * size_t(x)];
+        for (int k = 1; k < 8; ++k) expected += at(float(x) + 0.5f + 8.0f * (float(k) / 7.0f - 0.5f));
+        expected /= 8.0f;
+        for (int y = 0; y < 6; ++y)
+            for (int c = 0; c < 3; ++c)
+                worst =
+                    std::max(worst, std::abs(out[3 * (size_t(y) * 64 + size_t(x)) + size_t(c)] - expected));
+        blurredSome = blurredSome || std::abs(expected - sharp[3 * size_t(x)]) > 0.1f;
+    }
+    EXPECT_LE(worst, 1e-6f);
+    EXPECT_TRUE(blurredSome);
+    EXPECT_EQ(out[0], sharp[0]);  // far from the step: unchanged
+    const Buffers still = stepFrame(0.0f);
+    a.apply(still.frame(), sharp.data());
+    b.apply(still.frame(), out.data());
+    EXPECT_EQ(sharp, out);
+    // A scale of 0 (an infinitely short shutter) blurs nothing.
+    blurred.motionBlurScale = 0.0f;
+    Taa c(blurred);
+    c.apply(moving.frame(), out.data());
+    Taa d(plain);
+    d.apply(moving.frame(), sharp.data());
+    EXPECT_EQ(sharp, out);
 }
 
 }  // namespace
