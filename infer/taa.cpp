@@ -72,45 +72,12 @@ void Taa::blurAlongMotion(const TaaFrame& f, float* out) {
         std::copy(out + size_t(first) * size_t(W) * 3, out + size_t(last) * size_t(W) * 3,
                   unblurred_.begin() + std::ptrdiff_t(size_t(first) * size_t(W) * 3));
     });
-    const float* source = unblurred_.data();
-    // Bilinear, clamp to edge, at pixel coordinates (pixel (i, j)'s centre at (i + 0.5, j + 0.5)).
-    auto sample = [&](float px, float py, float rgb[3]) {
-        // (Positions far outside read the border; clamped first so the conversions stay in range.)
-        const float fx = std::clamp(px, -1.0f, float(W) + 1.0f) - 0.5f,
-                    fy = std::clamp(py, -1.0f, float(H) + 1.0f) - 0.5f;
-        const float x0f = std::floor(fx), y0f = std::floor(fy);
-        const float tx = fx - x0f, ty = fy - y0f;
-        const int x0 = int(x0f), y0 = int(y0f);
-        const int xa = std::clamp(x0, 0, W - 1), xb = std::clamp(x0 + 1, 0, W - 1);
-        const int ya = std::clamp(y0, 0, H - 1), yb = std::clamp(y0 + 1, 0, H - 1);
-        const float* a = source + (size_t(ya) * size_t(W) + size_t(xa)) * 3;
-        const float* b = source + (size_t(ya) * size_t(W) + size_t(xb)) * 3;
-        const float* c = source + (size_t(yb) * size_t(W) + size_t(xa)) * 3;
-        const float* d = source + (size_t(yb) * size_t(W) + size_t(xb)) * 3;
-        for (int k = 0; k < 3; ++k) {
-            const float top = a[k] + tx * (b[k] - a[k]), bottom = c[k] + tx * (d[k] - c[k]);
-            rgb[k] = top + ty * (bottom - top);
-        }
-    };
-    const float scale = options_.motionBlurScale;
-    const int maxSamples = options_.motionBlurMaxSamples;
+    TaaBlurInputs in;
+    in.width = W, in.height = H;
+    in.source = unblurred_.data(), in.motion = f.motion, in.out = out;
+    in.scale = options_.motionBlurScale, in.maxSamples = options_.motionBlurMaxSamples;
     parallelFor(0, H, 4, [&](int64_t first, int64_t last) {
-        for (int64_t y = first; y < last; ++y)
-            for (int x = 0; x < W; ++x) {
-                const size_t i = size_t(y) * size_t(W) + size_t(x);
-                const float vx = f.motion[2 * i] * scale, vy = f.motion[2 * i + 1] * scale;
-                const float speed = std::sqrt(vx * vx + vy * vy);
-                if (!(speed >= 2.0f && std::isfinite(speed))) continue;  // one sample: the pixel as it is
-                const int samples = speed < float(maxSamples) ? int(speed) : maxSamples;
-                if (samples < 2) continue;
-                float sum[3] = {source[3 * i], source[3 * i + 1], source[3 * i + 2]}, rgb[3];
-                for (int k = 1; k < samples; ++k) {
-                    const float t = float(k) / float(samples - 1) - 0.5f;
-                    sample(float(x) + 0.5f + vx * t, float(y) + 0.5f + vy * t, rgb);
-                    for (int c = 0; c < 3; ++c) sum[c] += rgb[c];
-                }
-                for (int c = 0; c < 3; ++c) out[3 * i + size_t(c)] = sum[c] / float(samples);
-            }
+        DEJAG_SIMD_CALL(taaMotionBlurRows, in, int(first), int(last));
     });
 }
 

@@ -453,11 +453,90 @@ class Band {
     }
 };
 
+inline int largestLane(VInt v) {
+#if defined(DEJAG_SIMD_LEVEL_scalar)
+    return v;
+#else
+    int largest = v[0];
+    for (int i = 1; i < L; ++i) largest = std::max(largest, int(v[i]));
+    return largest;
+#endif
+}
+
+// Motion blur of the pixels x .. x + L - 1 of row y whose motion is (vx, vy) (`count` of them real; the
+// rest have no motion), Chapman's way: a pixel moving s pixels averages itself and n - 1 bilinear
+// samples at t = k / (n - 1) - 1/2 of its motion, k = 1 .. n - 1, n = clamp(int(s), 1, maxSamples);
+// pixels under 2 pixels of motion (or a non-finite one) keep their colour.
+void blurPixels(const TaaBlurInputs& a, int x, int y, VFloat vx, VFloat vy, int count) {
+    const int W = a.width, H = a.height;
+    vx = vx * a.scale, vy = vy * a.scale;
+    const VFloat speed = vsqrt(vx * vx + vy * vy);
+    const VMask moving = (speed >= splat<VFloat>(2.0f)) & (speed <= splat<VFloat>(3.0e38f));
+    if (!any(moving)) return;
+    const VInt samples =
+        truncateToInt(vmin(select(moving, speed, splat<VFloat>(1.0f)), splat<VFloat>(float(a.maxSamples))));
+    const int most = largestLane(samples);
+    const float* centre = a.source + (size_t(y) * size_t(W) + size_t(x)) * 3;
+    // The pixels' own colours: the first of the samples.
+    float lanes[3][L] = {};
+    for (int i = 0; i < count; ++i)
+        for (int c = 0; c < 3; ++c) lanes[c][i] = centre[3 * i + c];
+    VFloat sum[3] = {loadu<VFloat>(lanes[0]), loadu<VFloat>(lanes[1]), loadu<VFloat>(lanes[2])};
+    const VInt zero = splatInt(0), lastX = splatInt(W - 1), lastY = splatInt(H - 1), three = splatInt(3);
+    const VFloat steps = toFloat(select(moving, samples - 1, splatInt(1)));
+    const VFloat columns = toFloat(splatInt(x) + laneIndex()) + 0.5f, row = splat<VFloat>(float(y) + 0.5f);
+    for (int k = 1; k < most; ++k) {
+        const VMask active = moving & (splatInt(k) < samples);
+        const VFloat t = splat<VFloat>(float(k)) / steps - 0.5f;
+        // (Positions far outside read the border; clamped first so the conversions stay in range.)
+        const VFloat fx =
+            vclamp(columns + vx * t, splat<VFloat>(-1.0f), splat<VFloat>(float(W) + 1.0f)) - 0.5f;
+        const VFloat fy = vclamp(row + vy * t, splat<VFloat>(-1.0f), splat<VFloat>(float(H) + 1.0f)) - 0.5f;
+        const VInt x0 = floorToInt(fx), y0 = floorToInt(fy);
+        const VFloat tx = fx - toFloat(x0), ty = fy - toFloat(y0);
+        const VInt xa = vclamp(x0, zero, lastX), xb = vclamp(x0 + 1, zero, lastX);
+        const VInt ra = vclamp(y0, zero, lastY) * splatInt(W), rb = vclamp(y0 + 1, zero, lastY) * splatInt(W);
+        const VInt ia = (ra + xa) * three, ib = (ra + xb) * three, ic = (rb + xa) * three,
+                   id = (rb + xb) * three;
+        for (int c = 0; c < 3; ++c) {
+            const float* base = a.source + c;
+            const VFloat pa = gather(base, ia), pb = gather(base, ib), pc = gather(base, ic),
+                         pd = gather(base, id);
+            const VFloat top = pa + tx * (pb - pa), bottom = pc + tx * (pd - pc);
+            sum[c] = sum[c] + select(active, top + ty * (bottom - top), splat<VFloat>(0.0f));
+        }
+    }
+    const VFloat n = toFloat(samples);
+    float* out = a.out + (size_t(y) * size_t(W) + size_t(x)) * 3;
+    for (int c = 0; c < 3; ++c) storeu(lanes[c], sum[c] / n);
+    for (int i = 0; i < count; ++i)
+        for (int c = 0; c < 3; ++c) out[3 * i + c] = lanes[c][i];
+}
+
 }  // namespace
 
 void taaBand(const TaaBandInputs& in, int y0, int y1, float* scratch) {
     Band band(in, y0, y1, scratch);
     band.run();
+}
+
+void taaMotionBlurRows(const TaaBlurInputs& in, int y0, int y1) {
+    const int W = in.width;
+    for (int y = y0; y < y1; ++y) {
+        const float* motion = in.motion + size_t(y) * size_t(W) * 2;
+        int x = 0;
+        for (; x + L <= W; x += L) {
+            VFloat vx, vy;
+            loadPairs(motion + 2 * x, vx, vy);
+            blurPixels(in, x, y, vx, vy, L);
+        }
+        if (x < W) {
+            float lanes[2][L] = {};
+            for (int i = 0; i < W - x; ++i)
+                lanes[0][i] = motion[2 * (x + i)], lanes[1][i] = motion[2 * (x + i) + 1];
+            blurPixels(in, x, y, loadu<VFloat>(lanes[0]), loadu<VFloat>(lanes[1]), W - x);
+        }
+    }
 }
 
 }  // namespace dejag::infer::DEJAG_SIMD_NAMESPACE

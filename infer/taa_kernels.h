@@ -45,6 +45,18 @@ inline size_t taaScratchFloats(int width) {
     return size_t(kTaaRingRows) * kTaaScratchPlanes * taaRowFloats(width);
 }
 
-DEJAG_SIMD_DECLARE(void taaBand(const TaaBandInputs& in, int y0, int y1, float* scratch);)
+// The optional motion blur of TAA's output (infer/taa.h, TaaOptions::motionBlur): rows [y0, y1) of out
+// from source (the unblurred output, interleaved RGB) and the motion (2 channels, pixels).
+struct TaaBlurInputs {
+    int width = 0, height = 0;
+    const float* source = nullptr;
+    const float* motion = nullptr;
+    float* out = nullptr;
+    float scale = 1.0f;
+    int maxSamples = 32;
+};
+
+DEJAG_SIMD_DECLARE(void taaBand(const TaaBandInputs& in, int y0, int y1, float* scratch);
+                   void taaMotionBlurRows(const TaaBlurInputs& in, int y0, int y1);)
 
 }  // namespace dejag::infer

@@ -264,18 +264,26 @@ TEST(Taa, RefusesMissingBuffers) {
     EXPECT_THROW(Taa{blur}, Error);
 }
 
-// A frame of a vertical step (0 left of column 32, 1 from it) moving `motion` pixels along x.
-Buffers stepFrame(float motion) {
+// A frame of a vertical step (0 left of column 32, 1 from it), 61 x 6 (a partial last vector), whose
+// pixels move by motion(x, y).
+template <class Motion>
+Buffers stepFrame(const Motion& motion) {
     Buffers b;
-    b.width = 64, b.height = 6;
+    b.width = 61, b.height = 6;
     const size_t n = size_t(b.width) * size_t(b.height);
     b.colour.resize(n * 3), b.albedo.resize(n * 3, 0.5f), b.depth.resize(n, 0.5f), b.motion.resize(n * 2);
     b.ids.resize(n, 1.0f), b.previousDepth.resize(n, 0.5f);
-    for (size_t i = 0; i < n; ++i) {
-        for (int c = 0; c < 3; ++c) b.colour[3 * i + size_t(c)] = i % 64 >= 32 ? 1.0f : 0.0f;
-        b.motion[2 * i] = motion;
-    }
+    for (int y = 0; y < b.height; ++y)
+        for (int x = 0; x < b.width; ++x) {
+            const size_t i = size_t(y) * size_t(b.width) + size_t(x);
+            for (int c = 0; c < 3; ++c) b.colour[3 * i + size_t(c)] = x >= 32 ? 1.0f : 0.0f;
+            const auto [vx, vy] = motion(x, y);
+            b.motion[2 * i] = vx, b.motion[2 * i + 1] = vy;
+        }
     return b;
+}
+Buffers stepFrame(float vx) {
+    return stepFrame([vx](int, int) { return std::pair{vx, 0.0f}; });
 }
 
 TEST(Taa, MotionBlurIsOffByDefaultAndLeavesStillPixelsAlone) {
@@ -285,7 +293,7 @@ TEST(Taa, MotionBlurIsOffByDefaultAndLeavesStillPixelsAlone) {
         plain.improved = blurred.improved = improved;
         blurred.motionBlur = true;
         Taa a(plain), b(blurred);
-        std::vector<float> outA(size_t(64 * 6 * 3)), outB(outA.size());
+        std::vector<float> outA(size_t(61 * 6 * 3)), outB(outA.size());
         for (const float motion : {0.0f, 1.5f}) {  // under 2 pixels: one sample
             const Buffers frame = stepFrame(motion);
             a.apply(frame.frame(), outA.data());
@@ -295,48 +303,77 @@ TEST(Taa, MotionBlurIsOffByDefaultAndLeavesStillPixelsAlone) {
     }
 }
 
-// Every pixel of a step moving 8 pixels averages itself and 7 bilinear samples spread over half the
-// motion each way (Chapman's per-object blur), computed here from the unblurred output; the history is
-// not blurred, so a next still frame is the same with the blur on or off.
+// Each pixel averages itself and n - 1 bilinear samples spread over half its motion each way, n its
+// speed in whole pixels (Chapman's per-object blur), computed here directly from the unblurred output,
+// on every SIMD path, for one motion and for a different motion per pixel; the history is not blurred,
+// so a next still frame is the same with the blur on or off.
 TEST(Taa, MotionBlurAveragesAlongTheMotionAndKeepsTheHistory) {
-    TaaOptions plain, blurred;
-    blurred.motionBlur = true;
-    Taa a(plain), b(blurred);
-    const Buffers moving = stepFrame(8.0f);
-    std::vector<float> sharp(size_t(64 * 6 * 3)), out(sharp.size());
-    a.apply(moving.frame(), sharp.data());
-    b.apply(moving.frame(), out.data());
-    auto at = [&](float p) {  // the unblurred row (every row alike), bilinear at position p, clamped
-        const float f = p - 0.5f;
-        const int i0 = int(std::floor(f));
-        const float t = f - float(i0);
-        auto v = [&](int i) { return sharp[3 * size_t(std::clamp(i, 0, 63))]; };
-        return v(i0) + t * (v(i0 + 1) - v(i0));
-    };
-    float worst = 0;
-    bool blurredSome = false;
-    for (int x = 0; x < 64; ++x) {
-        float expected = sharp[3 * size_t(x)];
-        for (int k = 1; k < 8; ++k) expected += at(float(x) + 0.5f + 8.0f * (float(k) / 7.0f - 0.5f));
-        expected /= 8.0f;
-        for (int y = 0; y < 6; ++y)
-            for (int c = 0; c < 3; ++c)
-                worst =
-                    std::max(worst, std::abs(out[3 * (size_t(y) * 64 + size_t(x)) + size_t(c)] - expected));
-        blurredSome = blurredSome || std::abs(expected - sharp[3 * size_t(x)]) > 0.1f;
+    const SimdLevel original = activeSimdLevel();
+    uint64_t state = 5;
+    auto uniform = [&] { return float(unitInterval(state = splitMix64(state), -6.0, 6.0)); };
+    std::vector<std::pair<float, float>> field(61 * 6);
+    for (auto& v : field) v = {uniform(), uniform()};
+    for (int level = 0; level <= int(cpuSimdLevel()); ++level) {
+        setSimdLevel(SimdLevel(level));
+        for (const bool perPixel : {false, true}) {
+            const Buffers moving = perPixel
+                                       ? stepFrame([&](int x, int y) { return field[size_t(y * 61 + x)]; })
+                                       : stepFrame([](int, int) {
+                                             return std::pair{8.0f, 3.0f};
+                                         });
+            TaaOptions plain, blurred;
+            blurred.motionBlur = true;
+            Taa a(plain), b(blurred);
+            std::vector<float> sharp(size_t(61 * 6 * 3)), out(sharp.size());
+            a.apply(moving.frame(), sharp.data());
+            b.apply(moving.frame(), out.data());
+            auto bilinear = [&](float px, float py, int c) {  // clamp to edge
+                const float fx = px - 0.5f, fy = py - 0.5f;
+                const int x0 = int(std::floor(fx)), y0 = int(std::floor(fy));
+                const float tx = fx - float(x0), ty = fy - float(y0);
+                auto v = [&](int x, int y) {
+                    return sharp[3 * (size_t(std::clamp(y, 0, 5)) * 61 + size_t(std::clamp(x, 0, 60))) +
+                                 size_t(c)];
+                };
+                const float top = v(x0, y0) + tx * (v(x0 + 1, y0) - v(x0, y0));
+                const float bottom = v(x0, y0 + 1) + tx * (v(x0 + 1, y0 + 1) - v(x0, y0 + 1));
+                return top + ty * (bottom - top);
+            };
+            float worst = 0;
+            int blurredPixels = 0;
+            for (int y = 0; y < 6; ++y)
+                for (int x = 0; x < 61; ++x) {
+                    const size_t i = size_t(y) * 61 + size_t(x);
+                    const float vx = moving.motion[2 * i], vy = moving.motion[2 * i + 1];
+                    const float speed = std::sqrt(vx * vx + vy * vy);
+                    const int n = speed < 2.0f ? 1 : std::min(int(speed), 32);
+                    for (int c = 0; c < 3; ++c) {
+                        float expected = sharp[3 * i + size_t(c)];
+                        for (int k = 1; k < n; ++k) {
+                            const float t = float(k) / float(n - 1) - 0.5f;
+                            expected += bilinear(float(x) + 0.5f + vx * t, float(y) + 0.5f + vy * t, c);
+                        }
+                        expected /= float(n);
+                        worst = std::max(worst, std::abs(out[3 * i + size_t(c)] - expected));
+                        if (c == 0 && std::abs(expected - sharp[3 * i]) > 0.05f) ++blurredPixels;
+                    }
+                }
+            EXPECT_LE(worst, 1e-5f) << simdLevelName(SimdLevel(level)) << " per pixel " << perPixel;
+            EXPECT_GT(blurredPixels, 10) << simdLevelName(SimdLevel(level));
+            const Buffers still = stepFrame(0.0f);
+            a.apply(still.frame(), sharp.data());
+            b.apply(still.frame(), out.data());
+            EXPECT_EQ(sharp, out);
+        }
     }
-    EXPECT_LE(worst, 1e-6f);
-    EXPECT_TRUE(blurredSome);
-    EXPECT_EQ(out[0], sharp[0]);  // far from the step: unchanged
-    const Buffers still = stepFrame(0.0f);
-    a.apply(still.frame(), sharp.data());
-    b.apply(still.frame(), out.data());
-    EXPECT_EQ(sharp, out);
+    setSimdLevel(original);
     // A scale of 0 (an infinitely short shutter) blurs nothing.
-    blurred.motionBlurScale = 0.0f;
-    Taa c(blurred);
+    TaaOptions plain, blurred;
+    blurred.motionBlur = true, blurred.motionBlurScale = 0.0f;
+    Taa c(blurred), d(plain);
+    const Buffers moving = stepFrame(8.0f);
+    std::vector<float> sharp(size_t(61 * 6 * 3)), out(sharp.size());
     c.apply(moving.frame(), out.data());
-    Taa d(plain);
     d.apply(moving.frame(), sharp.data());
     EXPECT_EQ(sharp, out);
 }
