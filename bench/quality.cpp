@@ -155,7 +155,12 @@ StillMethods::StillMethods(const Options& options) : impl_(std::make_unique<Impl
             impl_->notes.push_back("model " + path + " not found: skipped (make models trains it)");
             continue;
         }
-        const std::string name = fs::path(path).stem().string();
+        // Named by the file's stem; two models of the same stem (e.g. a model against its new version)
+        // are named by their folder too, so their rows stay apart.
+        std::string name = fs::path(path).stem().string();
+        for (const std::string& other : options.models)
+            if (other != path && fs::path(other).stem() == fs::path(path).stem())
+                name = (fs::path(path).parent_path().filename() / fs::path(path).stem()).string();
         const bool rgb = nn::loadModel(path).inputChannels() == 3;
         for (int variant = 0; variant < 3; ++variant) {
             const bool gate = variant != 1, chain = variant == 2;

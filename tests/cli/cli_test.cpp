@@ -605,11 +605,14 @@ std::string writeTinyModel(const std::string& path, uint64_t seed) {
 TEST(Cli, DemoRunsEveryMethodAndWritesTheReport) {
     testing::TempDir dir;
     const std::string model = writeTinyModel(dir.file("tiny.safetensors"), 1);
+    // A second model of the same file name (a new version, say): its rows stay apart, named by folder.
+    std::filesystem::create_directories(dir.file("v2"));
+    const std::string version2 = writeTinyModel(dir.file("v2/tiny.safetensors"), 2);
     const std::string out = dir.file("demo");
     const RunResult r =
         run("demo --out '" + out +
                 "' --size 96x64 --truth 8 --scenes pipe,flowers --repeat 1 --quiet --json --models '" +
-                model + "," + dir.file("missing.safetensors") + "'",
+                model + "," + version2 + "," + dir.file("missing.safetensors") + "'",
             dir);
     ASSERT_EQ(r.exitCode, 0) << r.err;
     EXPECT_NE(r.err.find("missing.safetensors not found"), std::string::npos) << r.err;
@@ -625,11 +628,12 @@ TEST(Cli, DemoRunsEveryMethodAndWritesTheReport) {
             EXPECT_LT(j["psnr_whole"].get<double>(), 60.0);
         }
     }
-    EXPECT_EQ(methods, (std::set<std::string>{"no AA", "FXAA", "U-TAA", "T-TAA", "T-TAA unsharpened", "tiny",
-                                              "tiny (ungated)"}));
-    EXPECT_EQ(rows, 3 * 7);
+    const std::string first = dir.path().filename().string() + "/tiny";
+    EXPECT_EQ(methods, (std::set<std::string>{"no AA", "FXAA", "U-TAA", "T-TAA", "T-TAA unsharpened", first,
+                                              first + " (ungated)", "v2/tiny", "v2/tiny (ungated)"}));
+    EXPECT_EQ(rows, 3 * 9);
     for (const char* f : {"report.html", "mosaic.png", "pareto.png", "results.csv", "results.json",
-                          "images/pipe_FXAA_crop.png", "images/flowers_tiny_ssim.png"})
+                          "images/pipe_FXAA_crop.png", "images/flowers_v2-tiny_ssim.png"})
         EXPECT_TRUE(std::filesystem::exists(out + "/" + f)) << f;
     expectOneLineError(run("demo --out '" + dir.file("d2") + "' --scenes teapot", dir), "teapot");
     std::ofstream(dir.file("bad.safetensors")) << "garbage";
