@@ -49,8 +49,8 @@ dataset: build
 RUNS ?= out/runs
 SEED_RECIPE = --arch seed2020 --families shapes --loss ssim --steps 6000 --batch 8 --patch 128 --lr 2e-3 \
 	--eval-every 500 --checkpoint-every 500 --val-images 0 --threads 1
-FAST_RECIPE = --arch kpn:8x3 --loss '0.84*ssim+0.16*l1' --steps 10000 --batch 12 --patch 128 --lr 2e-3 \
-	--eval-every 1000 --checkpoint-every 1000 --val-images 48 --threads 1
+FAST_RECIPE = --arch kpn:8x3 --loss '0.84*ssim+0.16*l1' --steps 24000 --batch 12 --patch 128 --lr 2e-3 \
+	--eval-every 1000 --checkpoint-every 1000 --val-images 48 --threads 2
 models: dataset
 	$(BUILD_DIR)/dejag train --data $(DATASET) --out $(RUNS)/seed2020-gray $(SEED_RECIPE) --resume
 	$(BUILD_DIR)/dejag train export $(RUNS)/seed2020-gray models/seed2020-gray.safetensors
