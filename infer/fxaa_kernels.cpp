@@ -46,21 +46,7 @@ struct Sampler {
         return top + ty * (bottom - top);
     }
     void colourBilinear(VFloat x, VFloat y, VFloat rgb[3]) const {
-        const VFloat fx = x - 0.5f, fy = y - 0.5f;
-        const VInt x0 = floorToInt(fx), y0 = floorToInt(fy);
-        const VFloat tx = fx - toFloat(x0), ty = fy - toFloat(y0);
-        const VInt xa = vclamp(x0, zero, lastX), xb = vclamp(x0 + 1, zero, lastX);
-        const VInt ra = vclamp(y0, zero, lastY) * width, rb = vclamp(y0 + 1, zero, lastY) * width;
-        const VInt channels = splatInt(a.channels);
-        const VInt ia = (ra + xa) * channels, ib = (ra + xb) * channels;
-        const VInt ic = (rb + xa) * channels, id = (rb + xb) * channels;
-        for (int k = 0; k < 3; ++k) {
-            const float* base = a.frame + k;
-            const VFloat pa = gather(base, ia), pb = gather(base, ib);
-            const VFloat pc = gather(base, ic), pd = gather(base, id);
-            const VFloat top = pa + tx * (pb - pa), bottom = pc + tx * (pd - pc);
-            rgb[k] = top + ty * (bottom - top);
-        }
+        bilinearRgb(a.frame, a.width, a.height, a.channels, x, y, rgb);
     }
 };
 

@@ -248,4 +248,28 @@ inline void loadPairs(const float* p, VFloat& a, VFloat& b) {
 #endif
 }
 
+// R, G, B of an interleaved frame (`channels` floats per pixel, rows `width` pixels) read bilinearly at
+// pixel coordinates (x, y) of the lanes (pixel (i, j)'s centre at (i + 0.5, j + 0.5)), clamp to edge as a
+// texture unit does; x and y must be within the int range.
+inline void bilinearRgb(const float* frame, int width, int height, int channels, VFloat x, VFloat y,
+                        VFloat rgb[3]) {
+    const VFloat fx = x - 0.5f, fy = y - 0.5f;
+    const VInt x0 = floorToInt(fx), y0 = floorToInt(fy);
+    const VFloat tx = fx - toFloat(x0), ty = fy - toFloat(y0);
+    const VInt zero = splatInt(0), lastX = splatInt(width - 1), lastY = splatInt(height - 1);
+    const VInt xa = vclamp(x0, zero, lastX), xb = vclamp(x0 + 1, zero, lastX);
+    const VInt ra = vclamp(y0, zero, lastY) * splatInt(width),
+               rb = vclamp(y0 + 1, zero, lastY) * splatInt(width);
+    const VInt stride = splatInt(channels);
+    const VInt ia = (ra + xa) * stride, ib = (ra + xb) * stride;
+    const VInt ic = (rb + xa) * stride, id = (rb + xb) * stride;
+    for (int k = 0; k < 3; ++k) {
+        const float* base = frame + k;
+        const VFloat pa = gather(base, ia), pb = gather(base, ib);
+        const VFloat pc = gather(base, ic), pd = gather(base, id);
+        const VFloat top = pa + tx * (pb - pa), bottom = pc + tx * (pd - pc);
+        rgb[k] = top + ty * (bottom - top);
+    }
+}
+
 }  // namespace dejag::DEJAG_SIMD_NAMESPACE

@@ -482,29 +482,17 @@ void blurPixels(const TaaBlurInputs& a, int x, int y, VFloat vx, VFloat vy, int 
     for (int i = 0; i < count; ++i)
         for (int c = 0; c < 3; ++c) lanes[c][i] = centre[3 * i + c];
     VFloat sum[3] = {loadu<VFloat>(lanes[0]), loadu<VFloat>(lanes[1]), loadu<VFloat>(lanes[2])};
-    const VInt zero = splatInt(0), lastX = splatInt(W - 1), lastY = splatInt(H - 1), three = splatInt(3);
     const VFloat steps = toFloat(select(moving, samples - 1, splatInt(1)));
     const VFloat columns = toFloat(splatInt(x) + laneIndex()) + 0.5f, row = splat<VFloat>(float(y) + 0.5f);
     for (int k = 1; k < most; ++k) {
         const VMask active = moving & (splatInt(k) < samples);
         const VFloat t = splat<VFloat>(float(k)) / steps - 0.5f;
         // (Positions far outside read the border; clamped first so the conversions stay in range.)
-        const VFloat fx =
-            vclamp(columns + vx * t, splat<VFloat>(-1.0f), splat<VFloat>(float(W) + 1.0f)) - 0.5f;
-        const VFloat fy = vclamp(row + vy * t, splat<VFloat>(-1.0f), splat<VFloat>(float(H) + 1.0f)) - 0.5f;
-        const VInt x0 = floorToInt(fx), y0 = floorToInt(fy);
-        const VFloat tx = fx - toFloat(x0), ty = fy - toFloat(y0);
-        const VInt xa = vclamp(x0, zero, lastX), xb = vclamp(x0 + 1, zero, lastX);
-        const VInt ra = vclamp(y0, zero, lastY) * splatInt(W), rb = vclamp(y0 + 1, zero, lastY) * splatInt(W);
-        const VInt ia = (ra + xa) * three, ib = (ra + xb) * three, ic = (rb + xa) * three,
-                   id = (rb + xb) * three;
-        for (int c = 0; c < 3; ++c) {
-            const float* base = a.source + c;
-            const VFloat pa = gather(base, ia), pb = gather(base, ib), pc = gather(base, ic),
-                         pd = gather(base, id);
-            const VFloat top = pa + tx * (pb - pa), bottom = pc + tx * (pd - pc);
-            sum[c] = sum[c] + select(active, top + ty * (bottom - top), splat<VFloat>(0.0f));
-        }
+        const VFloat px = vclamp(columns + vx * t, splat<VFloat>(-1.0f), splat<VFloat>(float(W) + 1.0f));
+        const VFloat py = vclamp(row + vy * t, splat<VFloat>(-1.0f), splat<VFloat>(float(H) + 1.0f));
+        VFloat rgb[3];
+        bilinearRgb(a.source, W, H, 3, px, py, rgb);
+        for (int c = 0; c < 3; ++c) sum[c] = sum[c] + select(active, rgb[c], splat<VFloat>(0.0f));
     }
     const VFloat n = toFloat(samples);
     float* out = a.out + (size_t(y) * size_t(W) + size_t(x)) * 3;
