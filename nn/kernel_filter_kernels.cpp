@@ -149,7 +149,7 @@ void logitsFactor2(const KernelLogitsRowArgs& a, int64_t& s) {
 void kernelLogitsRow(const KernelLogitsRowArgs& a) {
     int64_t s = 0;
 #if !defined(DEJAG_SIMD_LEVEL_scalar)
-    if (a.factor == 2 && a.taps == 9) logitsFactor2<9>(a, s);  // a 3x3 kernel (the kpn family's)
+    if (a.factor == 2 && a.taps == 9 && a.inChannels <= 16) logitsFactor2<9>(a, s);  // the kpn family's
 #endif
     for (; s < a.width / a.factor; ++s)
         for (int j = 0; j < a.taps; ++j)
