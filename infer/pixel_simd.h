@@ -209,7 +209,18 @@ inline void loadRgb(const float* p, VFloat& r, VFloat& g, VFloat& b) {
 #elif defined(DEJAG_SIMD_LEVEL_scalar)
     r = p[0], g = p[1], b = p[2];
 #else
-    for (int i = 0; i < kFloatLanes; ++i) r[i] = p[3 * i], g[i] = p[3 * i + 1], b[i] = p[3 * i + 2];
+    // Each 128-bit half deinterleaves 4 pixels: pixels 0-3 from the first 12 floats, 4-7 from the next.
+    // Per half: q0 = r0 g0 b0 r1, q1 = g1 b1 r2 g2, q2 = b2 r3 g3 b3.
+    const __m256 q0 = _mm256_insertf128_ps(_mm256_castps128_ps256(_mm_loadu_ps(p)), _mm_loadu_ps(p + 12), 1);
+    const __m256 q1 =
+        _mm256_insertf128_ps(_mm256_castps128_ps256(_mm_loadu_ps(p + 4)), _mm_loadu_ps(p + 16), 1);
+    const __m256 q2 =
+        _mm256_insertf128_ps(_mm256_castps128_ps256(_mm_loadu_ps(p + 8)), _mm_loadu_ps(p + 20), 1);
+    const __m256 rg = _mm256_shuffle_ps(q1, q2, _MM_SHUFFLE(2, 1, 3, 2));  // r2 g2 r3 g3
+    const __m256 gb = _mm256_shuffle_ps(q0, q1, _MM_SHUFFLE(1, 0, 2, 1));  // g0 b0 g1 b1
+    r = VFloat(_mm256_shuffle_ps(q0, rg, _MM_SHUFFLE(2, 0, 3, 0)));
+    g = VFloat(_mm256_shuffle_ps(gb, rg, _MM_SHUFFLE(3, 1, 2, 0)));
+    b = VFloat(_mm256_shuffle_ps(gb, q2, _MM_SHUFFLE(3, 0, 3, 1)));
 #endif
 }
 
@@ -229,7 +240,17 @@ inline void storeRgb(float* p, VFloat r, VFloat g, VFloat b) {
 #elif defined(DEJAG_SIMD_LEVEL_scalar)
     p[0] = r, p[1] = g, p[2] = b;
 #else
-    for (int i = 0; i < kFloatLanes; ++i) p[3 * i] = r[i], p[3 * i + 1] = g[i], p[3 * i + 2] = b[i];
+    // loadRgb backwards: per 128-bit half, pixels 0-3 (or 4-7) interleaved into q0 q1 q2.
+    const __m256 vr = __m256(r), vg = __m256(g), vb = __m256(b);
+    const __m256 rg = _mm256_shuffle_ps(vr, vg, _MM_SHUFFLE(2, 0, 2, 0));  // r0 r2 g0 g2
+    const __m256 gb = _mm256_shuffle_ps(vg, vb, _MM_SHUFFLE(3, 1, 3, 1));  // g1 g3 b1 b3
+    const __m256 br = _mm256_shuffle_ps(vb, vr, _MM_SHUFFLE(3, 1, 2, 0));  // b0 b2 r1 r3
+    const __m256 q0 = _mm256_shuffle_ps(rg, br, _MM_SHUFFLE(2, 0, 2, 0));  // r0 g0 b0 r1
+    const __m256 q1 = _mm256_shuffle_ps(gb, rg, _MM_SHUFFLE(3, 1, 2, 0));  // g1 b1 r2 g2
+    const __m256 q2 = _mm256_shuffle_ps(br, gb, _MM_SHUFFLE(3, 1, 3, 1));  // b2 r3 g3 b3
+    _mm256_storeu_ps(p, _mm256_permute2f128_ps(q0, q1, 0x20));
+    _mm256_storeu_ps(p + 8, _mm256_permute2f128_ps(q2, q0, 0x30));
+    _mm256_storeu_ps(p + 16, _mm256_permute2f128_ps(q1, q2, 0x31));
 #endif
 }
 
@@ -244,7 +265,13 @@ inline void loadPairs(const float* p, VFloat& a, VFloat& b) {
 #elif defined(DEJAG_SIMD_LEVEL_scalar)
     a = p[0], b = p[1];
 #else
-    for (int i = 0; i < kFloatLanes; ++i) a[i] = p[2 * i], b[i] = p[2 * i + 1];
+    // Per 128-bit half the even and odd floats of both loads (a0 a1 a4 a5 | a2 a3 a6 a7), then the
+    // 64-bit quarters in order.
+    const __m256 p0 = _mm256_loadu_ps(p), p1 = _mm256_loadu_ps(p + 8);
+    a = VFloat(_mm256_castpd_ps(_mm256_permute4x64_pd(
+        _mm256_castps_pd(_mm256_shuffle_ps(p0, p1, _MM_SHUFFLE(2, 0, 2, 0))), _MM_SHUFFLE(3, 1, 2, 0))));
+    b = VFloat(_mm256_castpd_ps(_mm256_permute4x64_pd(
+        _mm256_castps_pd(_mm256_shuffle_ps(p0, p1, _MM_SHUFFLE(3, 1, 3, 1))), _MM_SHUFFLE(3, 1, 2, 0))));
 #endif
 }
 
