@@ -137,12 +137,6 @@ inline int32_t laneMax(VInt m) {
     m = vmax(m, __builtin_shufflevector(m, m, 1, 0, 3, 2, 5, 4, 7, 6, 9, 8, 11, 10, 13, 12, 15, 14));
     return m[0];
 }
-// Whether every lane of lo and hi lies in [first, first + 32): the span two loads and a 32-entry permute
-// can read (no lane reductions: one subtraction each, an or and a test).
-inline bool withinWindow32(VInt lo, VInt hi, int32_t first) {
-    const VInt offsets = (lo - first) | (hi - first);  // a lane below first is negative: high bits set
-    return _mm512_test_epi32_mask(__m512i(offsets), _mm512_set1_epi32(~31)) == 0;
-}
 // base[index] and base[index + 1] per lane: 64-bit gathers, half as many elements as two 32-bit ones.
 inline void gatherPairs(const float* base, VInt index, VFloat& first, VFloat& second) {
     typedef int32_t VInt8 __attribute__((vector_size(32)));
@@ -180,6 +174,38 @@ inline void gatherPairs(const float* base, VInt index, VFloat& first, VFloat& se
     first = gather(base, index), second = gather(base + 1, index);
 }
 #endif
+
+// A window of kWindowFloats consecutive floats read with two loads, from which a permute gives each lane
+// the float its index names: where the lanes read nearby pixels of one row (a still or smoothly moving
+// camera), this replaces a gather (AVX-512: one 32-entry permute; AVX2: two 8-entry permutes and a blend).
+inline constexpr int kWindowFloats = 2 * kFloatLanes;
+struct Window {
+    VFloat low, high;
+};
+inline Window loadWindow(const float* p) {
+    return {loadu<VFloat>(p), loadu<VFloat>(p + kFloatLanes)};
+}
+// Lane i: window[index[i]], index in [0, kWindowFloats).
+inline VFloat fromWindow(const Window& w, VInt index) {
+#if defined(DEJAG_SIMD_LEVEL_avx512)
+    return VFloat(_mm512_permutex2var_ps(__m512(w.low), __m512i(index), __m512(w.high)));
+#else
+    const __m256 low = _mm256_permutevar8x32_ps(__m256(w.low), __m256i(index));
+    const __m256 high = _mm256_permutevar8x32_ps(__m256(w.high), __m256i(index));
+    // (vpermps reads the low 3 bits of each index; bit 3 picks the second vector, moved to the sign bit)
+    return VFloat(_mm256_blendv_ps(low, high, _mm256_castsi256_ps(_mm256_slli_epi32(__m256i(index), 28))));
+#endif
+}
+// Whether every lane of lo and hi lies in [first, first + kWindowFloats) (no lane reductions: one
+// subtraction each, an or and a test).
+inline bool withinWindow(VInt lo, VInt hi, int32_t first) {
+    const VInt offsets = (lo - first) | (hi - first);  // a lane below first is negative: high bits set
+#if defined(DEJAG_SIMD_LEVEL_avx512)
+    return _mm512_test_epi32_mask(__m512i(offsets), _mm512_set1_epi32(~(kWindowFloats - 1))) == 0;
+#else
+    return _mm256_testz_si256(__m256i(offsets), _mm256_set1_epi32(~(kWindowFloats - 1))) != 0;
+#endif
+}
 #endif
 
 // floor(v) as an int (v within the int range).

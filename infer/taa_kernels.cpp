@@ -196,31 +196,27 @@ class Band {
         // the weights 1, 0, 0, 0 give.
         const bool whole = all((tx == splat<VFloat>(0.0f)) & (ty == splat<VFloat>(0.0f)));
         VFloat a[planes], b[planes], c[planes], d[planes];
-#if defined(DEJAG_SIMD_LEVEL_avx512)
-        // Where the lanes read two rows and a span of at most 32 pixels (smooth motion: the usual case),
-        // two loads per row and a 32-entry permute replace each gather. The window starts 8 pixels left of
-        // lane 0's tap, so motion that shrinks or grows across the lanes stays inside it.
-        const int first = std::max(0, xa[0] - 8);
+#if !defined(DEJAG_SIMD_LEVEL_scalar)
+        // Where the lanes read two rows and a span of at most kWindowFloats pixels (smooth motion: the
+        // usual case), two loads per row and a permute replace each gather. The window starts half a
+        // vector left of lane 0's tap, so motion that shrinks or grows across the lanes stays inside it.
+        const int first = std::max(0, xa[0] - L / 2);
         const int rowA = ya[0], rowB = yb[0];
-        if (withinWindow32(xa, xb, first) && all((ya == splatInt(rowA)) & (yb == splatInt(rowB)))) {
-            const __m512i ia = __m512i(xa - first), ib = __m512i(xb - first);
+        if (withinWindow(xa, xb, first) && all((ya == splatInt(rowA)) & (yb == splatInt(rowB)))) {
+            const VInt ia = xa - first, ib = xb - first;
             if (whole) {
                 for (int k = 0; k < planes; ++k) {
                     const float* pa = plane + size_t(k) * in_.planeFloats + size_t(rowA) * in_.stride + first;
-                    result[k] =
-                        VFloat(_mm512_permutex2var_ps(_mm512_loadu_ps(pa), ia, _mm512_loadu_ps(pa + 16)));
+                    result[k] = fromWindow(loadWindow(pa), ia);
                 }
                 return;
             }
             for (int k = 0; k < planes; ++k) {
                 const float* pa = plane + size_t(k) * in_.planeFloats + size_t(rowA) * in_.stride + first;
                 const float* pb = plane + size_t(k) * in_.planeFloats + size_t(rowB) * in_.stride + first;
-                const __m512 a0 = _mm512_loadu_ps(pa), a1 = _mm512_loadu_ps(pa + 16);
-                const __m512 b0 = _mm512_loadu_ps(pb), b1 = _mm512_loadu_ps(pb + 16);
-                a[k] = VFloat(_mm512_permutex2var_ps(a0, ia, a1)),
-                b[k] = VFloat(_mm512_permutex2var_ps(a0, ib, a1));
-                c[k] = VFloat(_mm512_permutex2var_ps(b0, ia, b1)),
-                d[k] = VFloat(_mm512_permutex2var_ps(b0, ib, b1));
+                const Window top = loadWindow(pa), bottom = loadWindow(pb);
+                a[k] = fromWindow(top, ia), b[k] = fromWindow(top, ib);
+                c[k] = fromWindow(bottom, ia), d[k] = fromWindow(bottom, ib);
             }
         } else
 #endif
@@ -245,16 +241,15 @@ class Band {
     }
 
     // The previous frame's depth at whole pixels (x, y) of the lanes: where the lanes share a row and
-    // lie within 32 pixels (a still or smoothly moving camera), two loads and a permute replace the
-    // gather (AVX-512), unless the window would run past the end of the buffer.
+    // lie within a window (a still or smoothly moving camera), two loads and a permute replace the
+    // gather, unless the window would run past the end of the buffer.
     VFloat previousDepthAt(VInt x, VInt y) const {
-#if defined(DEJAG_SIMD_LEVEL_avx512)
-        const int first = std::max(0, x[0] - 8), row = y[0];
-        if (withinWindow32(x, x, first) && all(y == splatInt(row)) &&
-            (size_t(row) * size_t(W_) + size_t(first) + 32 <= size_t(W_) * size_t(H_))) {
+#if !defined(DEJAG_SIMD_LEVEL_scalar)
+        const int first = std::max(0, x[0] - L / 2), row = y[0];
+        if (withinWindow(x, x, first) && all(y == splatInt(row)) &&
+            (size_t(row) * size_t(W_) + size_t(first) + kWindowFloats <= size_t(W_) * size_t(H_))) {
             const float* p = in_.previousDepth + size_t(row) * size_t(W_) + size_t(first);
-            return VFloat(
-                _mm512_permutex2var_ps(_mm512_loadu_ps(p), __m512i(x - first), _mm512_loadu_ps(p + 16)));
+            return fromWindow(loadWindow(p), x - first);
         }
 #endif
         return gather(in_.previousDepth, y * splatInt(W_) + x);

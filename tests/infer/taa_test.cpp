@@ -180,6 +180,27 @@ Buffers randomFrame(int W, int H, uint64_t seed, Motion motion) {
     return b;
 }
 
+// One object over a depth ramp with nearly flat colours and a noisy previous depth: T-TAA's box is then
+// sized by the previous depth's pseudo-variance (not saturated by IDs or a strong Sobel), so a wrong read
+// of the previous depth shows in the output.
+Buffers rampFrame(int W, int H, uint64_t seed, Motion motion) {
+    Buffers b = randomFrame(W, H, seed, motion);  // its motion
+    uint64_t state = seed ^ 0x9e3779b97f4a7c15ull;
+    auto uniform = [&] { return float(unitInterval(state = splitMix64(state))); };
+    for (int y = 0; y < H; ++y)
+        for (int x = 0; x < W; ++x) {
+            const size_t i = size_t(y) * size_t(W) + size_t(x);
+            for (int c = 0; c < 3; ++c) {
+                b.colour[3 * i + size_t(c)] = 0.5f + 0.02f * uniform();
+                b.albedo[3 * i + size_t(c)] = 0.4f + 0.01f * uniform();
+            }
+            b.depth[i] = 0.02f + 0.003f * float(x) + 0.002f * float(y);
+            b.previousDepth[i] = b.depth[i] + 0.006f * (uniform() - 0.5f);
+            b.ids[i] = 1.0f;
+        }
+    return b;
+}
+
 // The SIMD band kernel against the scalar reference (the first implementation, kept in tests/), frame by
 // frame with the history carried, on every SIMD path, at sizes that leave partial vectors.
 TEST(Taa, EverySimdPathMatchesTheScalarReference) {
@@ -196,11 +217,12 @@ TEST(Taa, EverySimdPathMatchesTheScalarReference) {
                 reference::ReferenceTaa oracle(options);
                 std::vector<float> out(size_t(W * H * 3)), expected(out.size());
                 float worst = 0;
-                for (int t = 0; t < 9; ++t) {
+                for (int t = 0; t < 12; ++t) {
                     const Motion motion = t % 3 == 0   ? Motion::Random
                                           : t % 3 == 1 ? Motion::Smooth
                                                        : Motion::WholePixels;
-                    const Buffers frame = randomFrame(W, H, uint64_t(100 * W + t), motion);
+                    const Buffers frame = t < 9 ? randomFrame(W, H, uint64_t(100 * W + t), motion)
+                                                : rampFrame(W, H, uint64_t(100 * W + t), motion);
                     taa.apply(frame.frame(), out.data());
                     oracle.apply(frame.frame(), expected.data());
                     for (size_t i = 0; i < out.size(); ++i)
