@@ -4,6 +4,7 @@
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <future>
 #include <memory>
 #include <nlohmann/json.hpp>
 #include <optional>
@@ -15,6 +16,7 @@
 #include "base/error.h"
 #include "base/files.h"
 #include "base/progress.h"
+#include "base/thread_pool.h"
 #include "base/timer.h"
 #include "data/image.h"
 #include "infer/cnn.h"
@@ -51,13 +53,35 @@ std::vector<float> channelsOf(const Image& image, const std::vector<std::string>
         index.push_back(c);
     }
     std::vector<float> out(image.pixelCount() * names.size());
-    for (size_t p = 0; p < image.pixelCount(); ++p)
-        for (size_t k = 0; k < names.size(); ++k) {
-            float v = image.pixels[p * size_t(image.channels()) + size_t(index[k])];
-            if (encode) v = std::clamp(linearToSrgb(std::max(v, 0.0f)), 0.0f, 1.0f);
-            out[p * names.size() + k] = v;
-        }
+    parallelFor(0, int64_t(image.pixelCount()), 1 << 14, [&](int64_t first, int64_t last) {
+        for (size_t p = size_t(first); p < size_t(last); ++p)
+            for (size_t k = 0; k < names.size(); ++k) {
+                float v = image.pixels[p * size_t(image.channels()) + size_t(index[k])];
+                if (encode) v = std::clamp(linearToSrgb(std::max(v, 0.0f)), 0.0f, 1.0f);
+                out[p * names.size() + k] = v;
+            }
+    });
     return out;
+}
+
+// R, G, B (the first three channels) of linear-light pixels encoded to sRGB in [0, 1] for the filters,
+// or decoded back; on the thread pool (each value on its own: the same result for any thread count).
+void encodeColour(Image& image) {
+    const size_t C = size_t(image.channels());
+    parallelFor(0, int64_t(image.pixelCount()), 1 << 14, [&](int64_t first, int64_t last) {
+        for (size_t p = size_t(first); p < size_t(last); ++p)
+            for (size_t c = 0; c < 3; ++c) {
+                float& v = image.pixels[p * C + c];
+                v = std::clamp(linearToSrgb(std::max(v, 0.0f)), 0.0f, 1.0f);
+            }
+    });
+}
+void decodeColour(Image& image) {
+    const size_t C = size_t(image.channels());
+    parallelFor(0, int64_t(image.pixelCount()), 1 << 14, [&](int64_t first, int64_t last) {
+        for (size_t p = size_t(first); p < size_t(last); ++p)
+            for (size_t c = 0; c < 3; ++c) image.pixels[p * C + c] = srgbToLinear(image.pixels[p * C + c]);
+    });
 }
 
 // One image filter of a chain: works in place on an sRGB-encoded frame (R G B first, other channels
@@ -179,13 +203,30 @@ void makeParentFolder(const std::string& path) {
         throw Error("cannot write to the output folder '" + parent.string() + "'");
 }
 
+// Sequences decode their files one frame ahead and encode them one frame behind, on threads of their
+// own, so the (mostly single-threaded) image codecs overlap the filters. Errors still come in frame
+// order: a frame that cannot be read stops the run once every frame before it is written, and files are
+// written atomically, so a stop leaves no partial file. (A future of std::async waits for its task when
+// destroyed, so an error thrown meanwhile still lets a started write finish.)
+std::future<Image> readAhead(const std::string& path) {
+    return std::async(std::launch::async, [path] { return readImage(path); });
+}
+std::future<void> writeBehind(const std::string& path, Image image) {
+    return std::async(std::launch::async, [path, image = std::move(image)] { writeImage(path, image); });
+}
+
 // Image filters (FXAA, CNN, chains of them) over single images, folders and numbered sequences.
 void runImageChain(const FilterArguments& args, std::vector<ImageStage>& stages) {
     const auto pairs = framePairs(args.input, args.output);
     Progress progress("filter", int64_t(pairs.size()), args.json || args.quiet || pairs.size() == 1);
     nlohmann::json frames = nlohmann::json::array();
-    for (const auto& [in, out] : pairs) {
-        Image image = readImage(in);
+    // (Frames read one ahead and written one behind: readAhead / writeBehind.)
+    std::future<Image> nextImage = readAhead(pairs.front().first);
+    std::future<void> lastWrite;
+    for (size_t index = 0; index < pairs.size(); ++index) {
+        const auto& [in, out] = pairs[index];
+        Image image = nextImage.get();
+        if (index + 1 < pairs.size()) nextImage = readAhead(pairs[index + 1].first);
         if (image.findChannel("R") != 0 || image.findChannel("G") != 1 || image.findChannel("B") != 2)
             throw Error("'" + in + "' has no R, G, B channels first (" + image.describe() + ")");
         if (auto bad = findNonFinite(image))
@@ -194,13 +235,7 @@ void runImageChain(const FilterArguments& args, std::vector<ImageStage>& stages)
         // The filters work on display-referred colour: half and float files hold linear light, so they are
         // encoded to sRGB for the filters and decoded back; 8- and 16-bit files are sRGB-encoded already.
         const bool linear = image.storage == PixelType::Half || image.storage == PixelType::Float;
-        const size_t C = size_t(image.channels());
-        if (linear)
-            for (size_t p = 0; p < image.pixelCount(); ++p)
-                for (size_t c = 0; c < 3; ++c) {
-                    float& v = image.pixels[p * C + c];
-                    v = std::clamp(linearToSrgb(std::max(v, 0.0f)), 0.0f, 1.0f);
-                }
+        if (linear) encodeColour(image);
         nlohmann::json stageTimes = nlohmann::json::array();
         const Stopwatch total;
         for (ImageStage& stage : stages) {
@@ -211,20 +246,19 @@ void runImageChain(const FilterArguments& args, std::vector<ImageStage>& stages)
                                   {"processed_fraction", stage.lastFraction}});
         }
         const double ms = total.elapsedMs();
-        if (linear)
-            for (size_t p = 0; p < image.pixelCount(); ++p)
-                for (size_t c = 0; c < 3; ++c)
-                    image.pixels[p * C + c] = srgbToLinear(image.pixels[p * C + c]);
-        makeParentFolder(out);
-        writeImage(out, image);
+        if (linear) decodeColour(image);
         frames.push_back({{"input", in},
                           {"output", out},
                           {"width", image.width},
                           {"height", image.height},
                           {"ms", ms},
                           {"stages", stageTimes}});
+        if (lastWrite.valid()) lastWrite.get();  // the previous frame's write error, if any, first
+        makeParentFolder(out);
+        lastWrite = writeBehind(out, std::move(image));
         progress.advance(1);
     }
+    lastWrite.get();
     progress.finish();
     if (args.json) {
         if (frames.size() == 1) {
@@ -296,13 +330,17 @@ void runTaaChain(const FilterArguments& args, const std::string& taaMethod, std:
                       args.json || args.quiet);
     std::vector<float> out;
     nlohmann::json timings = nlohmann::json::array();
-    for (const std::string& path : frames) {
+    std::future<Image> nextFrame = readAhead(frames.front());
+    std::future<void> lastWrite;
+    for (size_t index = 0; index < frames.size(); ++index) {
+        const std::string& path = frames[index];
+        const Image frame = nextFrame.get();
+        if (index + 1 < frames.size()) nextFrame = readAhead(frames[index + 1]);
         const long number = frameNumber(path);
         const bool cut = path != frames.front() && (cuts.count(number) > 0 || number < 0 ||
                                                     previousNumber < 0 || number != previousNumber + 1);
         if (cut) taa.reset();
         previousNumber = number;
-        const Image frame = readImage(path);
         const std::vector<float> colour = channelsOf(frame, {"R", "G", "B"}, path, true);
         std::vector<float> depth = channelsOf(frame, {"depth.Z"}, path);
         const std::vector<float> motion = channelsOf(frame, {"motion.X", "motion.Y"}, path);
@@ -337,10 +375,12 @@ void runTaaChain(const FilterArguments& args, const std::string& taaMethod, std:
         Image result(frame.width, frame.height, {"R", "G", "B"}, PixelType::UInt8);
         result.pixels = out;
         const std::string name = fs::path(path).stem().string() + ".png";
-        writeImage((fs::path(args.output) / name).string(), result);
+        if (lastWrite.valid()) lastWrite.get();
+        lastWrite = writeBehind((fs::path(args.output) / name).string(), std::move(result));
         timings.push_back({{"frame", name}, {"ms", ms}, {"stages", stageTimes}, {"history_reset", cut}});
         progress.advance(1);
     }
+    lastWrite.get();
     progress.finish();
     if (args.json)
         std::printf("%s\n", nlohmann::json{{"method", args.chain.empty() ? args.method : args.chain},
@@ -414,7 +454,10 @@ void registerFilterCommand(CLI::App& app) {
         "INPUT/OUTPUT: single images (PNG, JPEG, TIFF, EXR), folders (every image, same names), or "
         "printf-style\n"
         "sequences (frame_%04d.png, from index 0 or 1 until a frame is missing). Files are written "
-        "atomically.\n"
+        "atomically;\n"
+        "a sequence reads one frame ahead and writes one behind while it filters (the ms of --json share "
+        "the cores\n"
+        "with that file I/O; dejag bench quality times the filters alone).\n"
         "FXAA and the CNN run on sRGB-encoded colour: 8/16-bit inputs as they are, half/float (linear) "
         "inputs\n"
         "encoded for the filter and decoded back. FXAA constants: subpix 0.75, edge threshold 0.166, min "

@@ -699,5 +699,46 @@ TEST(Cli, FilterRunsFoldersSequencesAndChainsKeepingBitDepthAndAlpha) {
         "pattern");
 }
 
+// Sequences are read one frame ahead and written one behind on their own threads: the outputs equal
+// frame-by-frame runs, and a frame that cannot be read stops the run with every earlier frame written
+// whole and nothing of the later ones.
+TEST(Cli, FilterSequenceOverlapsFileIoAndStopsAtAnUnreadableFrame) {
+    testing::TempDir dir;
+    const std::string model = writeTinyModel(dir.file("tiny.safetensors"), 2);
+    std::filesystem::create_directories(dir.file("in"));
+    for (int i = 0; i < 5; ++i) {
+        Image frame(48, 20, {"R", "G", "B"}, PixelType::Float);  // linear light: encoded for the filters
+        for (int y = 0; y < 20; ++y)
+            for (int x = 0; x < 48; ++x)
+                for (int c = 0; c < 3; ++c) frame.at(x, y, c) = (x + 2 * i > y + c) ? 0.8f : 0.02f;
+        writeImage(dir.file("in/f_" + std::to_string(i) + ".exr"), frame);
+    }
+    RunResult r = run("filter --chain fxaa,cnn --model '" + model + "' --json '" + dir.file("in/f_%d.exr") +
+                          "' '" + dir.file("out/f_%d.exr") + "'",
+                      dir);
+    ASSERT_EQ(r.exitCode, 0) << r.err;
+    EXPECT_EQ(nlohmann::json::parse(r.out)["frames"].size(), 5u);
+    for (int i = 0; i < 5; ++i) {
+        const std::string n = std::to_string(i);
+        r = run("filter --chain fxaa,cnn --model '" + model + "' --quiet '" + dir.file("in/f_" + n + ".exr") +
+                    "' '" + dir.file("single_" + n + ".exr") + "'",
+                dir);
+        ASSERT_EQ(r.exitCode, 0) << r.err;
+        EXPECT_EQ(readImage(dir.file("out/f_" + n + ".exr")).pixels,
+                  readImage(dir.file("single_" + n + ".exr")).pixels)
+            << "frame " << i;
+    }
+    // Frame 2 truncated: frames 0 and 1 are written, 2 to 4 are not.
+    const std::string bad = dir.file("in/f_2.exr");
+    std::filesystem::resize_file(bad, std::filesystem::file_size(bad) / 2);
+    r = run("filter --method cnn --model '" + model + "' --quiet '" + dir.file("in/f_%d.exr") + "' '" +
+                dir.file("stopped/f_%d.exr") + "'",
+            dir);
+    expectOneLineError(r, "f_2.exr");
+    EXPECT_EQ(readImage(dir.file("stopped/f_1.exr")).width, 48);
+    EXPECT_TRUE(std::filesystem::exists(dir.file("stopped/f_0.exr")));
+    EXPECT_EQ(filesIn(dir.file("stopped")), 2u) << "only frames 0 and 1, and no temporary file";
+}
+
 }  // namespace
 }  // namespace dejag
