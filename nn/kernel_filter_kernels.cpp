@@ -93,10 +93,48 @@ inline float logitAt(const KernelLogitsRowArgs& a, int64_t source, int tapPhase)
     return value;
 }
 
+#if defined(DEJAG_SIMD_LEVEL_avx2)
+// column[c] = element c of the 8 consecutive 8-float rows at p (an 8x8 transpose: unpacks within 128-bit
+// halves, shuffles, then the halves exchanged), 24 shuffles instead of 8 gathers.
+inline void transpose8x8(const float* p, VFloat column[8]) {
+    __m256 r[8], t[8], u[8];
+    for (int i = 0; i < 8; ++i) r[i] = _mm256_loadu_ps(p + 8 * i);
+    for (int i = 0; i < 8; i += 2) {
+        t[i] = _mm256_unpacklo_ps(r[i], r[i + 1]);      // r_i0 r_j0 r_i1 r_j1 | r_i4 r_j4 r_i5 r_j5
+        t[i + 1] = _mm256_unpackhi_ps(r[i], r[i + 1]);  // r_i2 r_j2 r_i3 r_j3 | r_i6 r_j6 r_i7 r_j7
+    }
+    for (int i = 0; i < 8; i += 4)
+        for (int k = 0; k < 2; ++k) {
+            u[i + 2 * k] = _mm256_shuffle_ps(t[i + k], t[i + 2 + k], _MM_SHUFFLE(1, 0, 1, 0));
+            u[i + 2 * k + 1] = _mm256_shuffle_ps(t[i + k], t[i + 2 + k], _MM_SHUFFLE(3, 2, 3, 2));
+        }
+    // u[k] (k < 4) holds columns k and k + 4 of rows 0-3, u[k + 4] the same of rows 4-7.
+    for (int k = 0; k < 4; ++k) {
+        column[k] = VFloat(_mm256_permute2f128_ps(u[k], u[k + 4], 0x20));
+        column[k + 4] = VFloat(_mm256_permute2f128_ps(u[k], u[k + 4], 0x31));
+    }
+}
+#endif
+
 #if !defined(DEJAG_SIMD_LEVEL_scalar)
+// The kTaps weighted sums of column phase `phase` for the vector of source pixels whose channel c is
+// feature[c]: one dependency chain per sum, so they overlap.
+template <int kTaps>
+inline void phaseSums(const KernelLogitsRowArgs& a, const VFloat* feature, int phase, VFloat* sum) {
+#pragma GCC unroll 16
+    for (int j = 0; j < kTaps; ++j) sum[j] = splat<VFloat>(a.bias[2 * j + phase]);
+    for (int c = 0; c < a.inChannels; ++c) {
+        const float* w = a.weights + phase * a.inChannels + c;
+#pragma GCC unroll 16
+        for (int j = 0; j < kTaps; ++j) sum[j] = sum[j] + splat<VFloat>(w[2 * j * a.inChannels]) * feature[c];
+    }
+}
+
 // kFloatLanes source pixels at a time for a factor of 2 and kTaps taps, from source pixel s: each channel's
-// values gathered into a vector, all 2 kTaps weighted sums accumulated side by side (one dependency chain
-// each, so they overlap), then each tap's two column phases interleaved into 2 kFloatLanes columns.
+// values gathered into a vector once, the kTaps sums of each column phase accumulated in a pass of their
+// own (AVX2's 16 registers hold one phase's sums, not both: with both the compiler kept half of them on
+// the stack, every multiply-add a load and a store), then each tap's two phases interleaved into
+// 2 kFloatLanes columns.
 template <int kTaps>
 void logitsFactor2(const KernelLogitsRowArgs& a, int64_t& s) {
     const int64_t sources = a.width / 2;
@@ -107,37 +145,41 @@ void logitsFactor2(const KernelLogitsRowArgs& a, int64_t& s) {
     for (int c = 0; c < a.inChannels; ++c)
         channel[c] = a.features + (c / a.block) * a.blockStride + c % a.block;
     for (; s + kFloatLanes <= sources; s += kFloatLanes) {
-        VFloat sum[2 * kTaps];
-#pragma GCC unroll 32
-        for (int t = 0; t < 2 * kTaps; ++t) sum[t] = splat<VFloat>(a.bias[t]);
         // The gathers wait on memory unless the pixels two vectors ahead are on their way (the hardware
         // prefetcher does not follow gathers): a line per pixel for the first channel block.
         for (int l = 0; l < kFloatLanes; ++l)
             __builtin_prefetch(channel[0] + (s + 2 * kFloatLanes + l) * a.block);
-        for (int c = 0; c < a.inChannels; ++c) {
-            const float* base = channel[c] + s * a.block;
-#if defined(DEJAG_SIMD_LEVEL_avx512)
-            const VFloat feature =
-                VFloat(_mm512_mask_i32gather_ps(_mm512_setzero_ps(), 0xffff, __m512i(stride), base, 4));
-#else
-            const VFloat feature = VFloat(_mm256_i32gather_ps(base, __m256i(stride), 4));
+        VFloat feature[16];
+#if defined(DEJAG_SIMD_LEVEL_avx2)
+        if (a.block == 8 && a.inChannels == 8) {  // kpn:8xD: the 8 pixels' channels are 64 floats in a row
+            transpose8x8(a.features + s * 8, feature);
+        } else
 #endif
-            const float* w = a.weights + c;
-#pragma GCC unroll 32
-            for (int t = 0; t < 2 * kTaps; ++t)
-                sum[t] = sum[t] + splat<VFloat>(w[t * a.inChannels]) * feature;
+        {
+            for (int c = 0; c < a.inChannels; ++c) {
+                const float* base = channel[c] + s * a.block;
+#if defined(DEJAG_SIMD_LEVEL_avx512)
+                feature[c] =
+                    VFloat(_mm512_mask_i32gather_ps(_mm512_setzero_ps(), 0xffff, __m512i(stride), base, 4));
+#else
+                feature[c] = VFloat(_mm256_i32gather_ps(base, __m256i(stride), 4));
+#endif
+            }
         }
+        VFloat even[kTaps], odd[kTaps];
+        phaseSums<kTaps>(a, feature, 0, even);
+        phaseSums<kTaps>(a, feature, 1, odd);
 #pragma GCC unroll 16
         for (int j = 0; j < kTaps; ++j) {
             float* out = a.logits + j * a.width + 2 * s;
 #if defined(DEJAG_SIMD_LEVEL_avx512)
-            storeu(out, __builtin_shufflevector(sum[2 * j], sum[2 * j + 1], 0, 16, 1, 17, 2, 18, 3, 19, 4, 20,
-                                                5, 21, 6, 22, 7, 23));
-            storeu(out + 16, __builtin_shufflevector(sum[2 * j], sum[2 * j + 1], 8, 24, 9, 25, 10, 26, 11, 27,
-                                                     12, 28, 13, 29, 14, 30, 15, 31));
+            storeu(out, __builtin_shufflevector(even[j], odd[j], 0, 16, 1, 17, 2, 18, 3, 19, 4, 20, 5, 21, 6,
+                                                22, 7, 23));
+            storeu(out + 16, __builtin_shufflevector(even[j], odd[j], 8, 24, 9, 25, 10, 26, 11, 27, 12, 28,
+                                                     13, 29, 14, 30, 15, 31));
 #else
-            storeu(out, __builtin_shufflevector(sum[2 * j], sum[2 * j + 1], 0, 8, 1, 9, 2, 10, 3, 11));
-            storeu(out + 8, __builtin_shufflevector(sum[2 * j], sum[2 * j + 1], 4, 12, 5, 13, 6, 14, 7, 15));
+            storeu(out, __builtin_shufflevector(even[j], odd[j], 0, 8, 1, 9, 2, 10, 3, 11));
+            storeu(out + 8, __builtin_shufflevector(even[j], odd[j], 4, 12, 5, 13, 6, 14, 7, 15));
 #endif
         }
     }
