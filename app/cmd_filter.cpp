@@ -204,7 +204,7 @@ void makeParentFolder(const std::string& path) {
 }
 
 // Sequences decode their files one frame ahead and encode them one frame behind, on threads of their
-// own, so the (mostly single-threaded) image codecs overlap the filters. Errors still come in frame
+// own, so the image codecs (zlib, partly parallel at best) overlap the filters. Errors still come in frame
 // order: a frame that cannot be read stops the run once every frame before it is written, and files are
 // written atomically, so a stop leaves no partial file. (A future of std::async waits for its task when
 // destroyed, so an error thrown meanwhile still lets a started write finish.)
