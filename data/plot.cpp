@@ -5,6 +5,7 @@
 #include <cstdio>
 #include <limits>
 #include <opencv2/imgproc.hpp>
+#include <optional>
 
 #include "base/error.h"
 #include "data/image.h"
@@ -63,6 +64,39 @@ void writeCanvas(const std::string& path, const cv::Mat& canvas) {
 
 }  // namespace
 
+std::vector<PlotBox> placePointLabels(const std::vector<PlotBox>& markers,
+                                      const std::vector<std::pair<int, int>>& anchors,
+                                      const std::vector<std::pair<int, int>>& sizes, int width, int height) {
+    auto overlap = [](const PlotBox& a, const PlotBox& b) {
+        return a.x < b.x + b.width && b.x < a.x + a.width && a.y < b.y + b.height && b.y < a.y + a.height;
+    };
+    std::vector<PlotBox> taken = markers, placed;
+    for (size_t i = 0; i < anchors.size() && i < sizes.size(); ++i) {
+        const auto [x, y] = anchors[i];
+        const auto [w, h] = sizes[i];
+        // Top-left corners: right and up first (the text's baseline 5 px above the marker's centre),
+        // right and down, left of it, centred above and below, then one line further out.
+        const std::pair<int, int> corners[] = {
+            {x + 7, y - 5 - h},         {x + 7, y + 4},        {x - 7 - w, y - 5 - h}, {x - 7 - w, y + 4},
+            {x - w / 2, y - 9 - h},     {x - w / 2, y + 9},    {x + 7, y - 5 - 2 * h}, {x + 7, y + 4 + h},
+            {x - 7 - w, y - 5 - 2 * h}, {x - 7 - w, y + 4 + h}};
+        std::optional<PlotBox> chosen, onCanvas;
+        for (const auto& [cx, cy] : corners) {
+            const PlotBox box{cx, cy, w, h};
+            if (box.x < 2 || box.y < 2 || box.x + w > width - 2 || box.y + h > height - 2) continue;
+            if (!onCanvas) onCanvas = box;
+            if (std::none_of(taken.begin(), taken.end(), [&](const PlotBox& t) { return overlap(t, box); })) {
+                chosen = box;
+                break;
+            }
+        }
+        const PlotBox box = chosen ? *chosen : onCanvas ? *onCanvas : PlotBox{x + 7, y - 5 - h, w, h};
+        taken.push_back(box);
+        placed.push_back(box);
+    }
+    return placed;
+}
+
 Rgb plotColour(int index) {
     // Tableau 10: distinct for the common kinds of colour blindness.
     static const Rgb palette[] = {{0.12f, 0.47f, 0.71f}, {1.00f, 0.50f, 0.05f}, {0.17f, 0.63f, 0.17f},
@@ -115,7 +149,15 @@ void writePlotPng(const std::string& path, const Plot& plot) {
                     cv::LINE_AA);
     }
     cv::rectangle(canvas, area, ink, 1);
-    // Series.
+    // Series: lines and markers first, point labels after (placed so that none overlaps another or a
+    // marker, nor leaves the canvas: two methods of nearly equal cost and error used to print on top of
+    // each other, and a label near the right edge was cut off).
+    struct PointLabel {
+        cv::Point at;
+        const std::string* text;
+    };
+    std::vector<PointLabel> pointLabels;
+    std::vector<PlotBox> markerBoxes;
     for (size_t k = 0; k < plot.series.size(); ++k) {
         const PlotSeries& s = plot.series[k];
         const cv::Scalar colour = bgr(plotColour(int(k)));
@@ -131,12 +173,27 @@ void writePlotPng(const std::string& path, const Plot& plot) {
             }
             const cv::Point p(int(std::lround(px(s.x[i]))), int(std::lround(py(s.y[i]))));
             run.push_back(p);
-            if (s.markers) cv::circle(canvas, p, 5, colour, cv::FILLED, cv::LINE_AA);
-            if (s.labels && i < s.pointLabels.size())
-                cv::putText(canvas, s.pointLabels[i], p + cv::Point(7, -5), font, 0.38, ink, 1, cv::LINE_AA);
+            if (s.markers) {
+                cv::circle(canvas, p, 5, colour, cv::FILLED, cv::LINE_AA);
+                markerBoxes.push_back({p.x - 6, p.y - 6, 13, 13});
+            }
+            if (s.labels && i < s.pointLabels.size()) pointLabels.push_back({p, &s.pointLabels[i]});
         }
         flush();
     }
+    std::vector<std::pair<int, int>> anchors, sizes;
+    std::vector<int> ascents;
+    for (const PointLabel& label : pointLabels) {
+        int base = 0;
+        const cv::Size size = cv::getTextSize(*label.text, font, 0.38, 1, &base);
+        anchors.emplace_back(label.at.x, label.at.y);
+        sizes.emplace_back(size.width, size.height + base);
+        ascents.push_back(size.height);
+    }
+    const std::vector<PlotBox> boxes = placePointLabels(markerBoxes, anchors, sizes, W, H);
+    for (size_t i = 0; i < pointLabels.size(); ++i)
+        cv::putText(canvas, *pointLabels[i].text, {boxes[i].x, boxes[i].y + ascents[i]}, font, 0.38, ink, 1,
+                    cv::LINE_AA);
     // Legend (top right inside the plot area), title and axis labels.
     int legendY = area.y + 18;
     for (size_t k = 0; k < plot.series.size(); ++k) {

@@ -30,6 +30,17 @@ struct Plot {
 // Throws dejag::Error if the file cannot be written.
 void writePlotPng(const std::string& path, const Plot& plot);
 
+// Where writePlotPng puts the point labels: label i (width, height in pixels) next to the marker at
+// anchor i, in order, each at the first free spot around its marker (right and up, right and down,
+// left, above, below, then further out) that overlaps no marker (blocked: a box per marker) and no label
+// placed before it and lies inside the width x height canvas; on the canvas, overlapping, if none is free.
+struct PlotBox {
+    int x = 0, y = 0, width = 0, height = 0;
+};
+std::vector<PlotBox> placePointLabels(const std::vector<PlotBox>& markers,
+                                      const std::vector<std::pair<int, int>>& anchors,
+                                      const std::vector<std::pair<int, int>>& sizes, int width, int height);
+
 // A grid of RGB images (sRGB-encoded, [0, 1]; every cell the same size) with a label above each column
 // and one left of each row: side-by-side comparisons. Throws dejag::Error on mismatched cells.
 void writeMosaicPng(const std::string& path, const std::vector<std::vector<Image>>& rows,

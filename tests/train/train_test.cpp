@@ -392,6 +392,33 @@ TEST(Plot, WritesAPngOfTheAskedSizeAndSkipsNonFinitePoints) {
     EXPECT_THROW(writePlotPng("/nonexistent-dir/p.png", plot), Error);
 }
 
+// Point labels of two nearly coincident markers (a model gated and ungated) and of one at the canvas's
+// right edge neither overlap each other or a marker nor leave the canvas.
+TEST(Plot, PointLabelsAvoidEachOtherTheMarkersAndTheCanvasEdge) {
+    const int W = 900, H = 540;
+    const std::vector<std::pair<int, int>> anchors = {{580, 60}, {583, 60}, {845, 220}, {120, 173}};
+    const std::vector<std::pair<int, int>> sizes = {{75, 12}, {130, 12}, {95, 12}, {40, 12}};
+    std::vector<PlotBox> markers;
+    for (const auto& [x, y] : anchors) markers.push_back({x - 6, y - 6, 13, 13});
+    const std::vector<PlotBox> boxes = placePointLabels(markers, anchors, sizes, W, H);
+    ASSERT_EQ(boxes.size(), anchors.size());
+    auto overlap = [](const PlotBox& a, const PlotBox& b) {
+        return a.x < b.x + b.width && b.x < a.x + a.width && a.y < b.y + b.height && b.y < a.y + a.height;
+    };
+    for (size_t i = 0; i < boxes.size(); ++i) {
+        EXPECT_EQ(boxes[i].width, sizes[i].first);
+        EXPECT_GE(boxes[i].x, 0);
+        EXPECT_LE(boxes[i].x + boxes[i].width, W) << "label " << i << " leaves the canvas";
+        for (const PlotBox& m : markers)
+            EXPECT_FALSE(overlap(boxes[i], m)) << "label " << i << " on a marker";
+        for (size_t j = 0; j < i; ++j)
+            EXPECT_FALSE(overlap(boxes[i], boxes[j])) << "labels " << j << ", " << i;
+    }
+    // A free spot is taken as before: right of the marker and above it.
+    EXPECT_EQ(boxes[3].x, 127);
+    EXPECT_EQ(boxes[3].y + boxes[3].height, 168);
+}
+
 }  // namespace
 }  // namespace dejag::train
 
