@@ -77,6 +77,14 @@ std::optional<SimdLevel> parseSimdLevel(std::string_view name) {
     return std::nullopt;
 }
 
+bool bf16Available() {
+    static const bool cpu = [] {
+        __builtin_cpu_init();
+        return __builtin_cpu_supports("avx512bf16") != 0;
+    }();
+    return cpu && activeSimdLevel() == SimdLevel::Avx512;
+}
+
 int simdFloatLanes(SimdLevel level) {
     switch (level) {
         case SimdLevel::Avx512:

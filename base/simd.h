@@ -19,6 +19,9 @@ void setSimdLevel(SimdLevel level);  // throws dejag::Error if the CPU lacks it
 const char* simdLevelName(SimdLevel level);
 std::optional<SimdLevel> parseSimdLevel(std::string_view name);
 int simdFloatLanes(SimdLevel level);  // 1, 8 or 16
+// AVX-512 BF16 (vdpbf16ps: two bf16 products per float lane): the CPU has it and the active level is
+// avx512. Inference may then run its convolutions on bf16 activations (nn/inference.h).
+bool bf16Available();
 
 }  // namespace dejag
 

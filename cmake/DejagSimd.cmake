@@ -6,7 +6,9 @@
 # and the DEJAG_SIMD environment variable, so one binary runs everywhere and tests can force each path.
 set(DEJAG_SIMD_FLAGS_scalar -fno-tree-vectorize -fno-tree-slp-vectorize -ffp-contract=off)
 set(DEJAG_SIMD_FLAGS_avx2 -mavx2 -mfma -mf16c -ffp-contract=fast)
-set(DEJAG_SIMD_FLAGS_avx512 -mavx512f -mavx512bw -mavx512dq -mavx512vl -mavx2 -mfma -mf16c
+# -mavx512bf16 only makes the bf16 intrinsics available (GCC 12 never emits them for plain code); they
+# run only where bf16Available() says the CPU has them (nn/fast_conv_kernels.cpp).
+set(DEJAG_SIMD_FLAGS_avx512 -mavx512f -mavx512bw -mavx512dq -mavx512vl -mavx512bf16 -mavx2 -mfma -mf16c
                             -mprefer-vector-width=512 -ffp-contract=fast)
 
 function(dejag_add_simd_kernels target)

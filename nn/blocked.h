@@ -7,6 +7,7 @@
 // nChw16c (nChw8c for AVX2); the border is dejag's addition (Open Image Denoise pads the same way).
 #pragma once
 
+#include <bit>
 #include <cstdint>
 
 #include "nn/tensor.h"
@@ -30,6 +31,16 @@ struct BlockedShape {
         return n * imageStride() + cb * planeStride() + (y + border) * rowStride() + (x + border) * block;
     }
 };
+
+// bfloat16: the upper half of a float's bits. Rounded to nearest even (as vcvtneps2bf16); NaN stays NaN.
+inline uint16_t toBf16(float value) {
+    const uint32_t bits = std::bit_cast<uint32_t>(value);
+    if ((bits & 0x7fffffffu) > 0x7f800000u) return uint16_t((bits >> 16) | 0x40u);
+    return uint16_t((bits + 0x7fffu + ((bits >> 16) & 1u)) >> 16);
+}
+inline float fromBf16(uint16_t value) {
+    return std::bit_cast<float>(uint32_t(value) << 16);
+}
 
 // A zeroed tensor holding a blocked activation.
 Tensor allocateBlocked(const BlockedShape& shape);

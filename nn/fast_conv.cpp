@@ -211,8 +211,37 @@ void BlockedConv::fuseMaxPool2x2() {
     pool_ = true;
 }
 
+bool BlockedConv::canReadBf16() const {
+    return block_ == 16 && inputBlock_ == block_ && passes_.size() > 0 && passes_[0].narrowWeights.empty();
+}
+
+bool BlockedConv::canWriteBf16() const {
+    return block_ == 16 && outputBlock_ == block_ && passes_.size() > 0 && passes_[0].narrowWeights.empty();
+}
+
+void BlockedConv::useBf16Input() {
+    if (!bf16Available()) throw Error("BlockedConv: bf16 activations need a CPU with AVX-512 BF16");
+    if (!canReadBf16()) throw Error("BlockedConv: this layer cannot read a bf16 input");
+    const int64_t B = block_;
+    for (Pass& p : passes_) {
+        // From the float packing [...][taps][B ci][B co] to [...][taps][B / 2 pairs][B co][2].
+        p.pairWeights.assign(p.weights.size(), 0);
+        for (size_t tap = 0; tap < p.weights.size() / size_t(B * B); ++tap) {
+            const float* w = p.weights.data() + tap * size_t(B * B);
+            uint16_t* pw = p.pairWeights.data() + tap * size_t(B * B);
+            for (int64_t ci = 0; ci < B; ++ci)
+                for (int64_t co = 0; co < B; ++co)
+                    pw[((ci / 2) * B + co) * 2 + ci % 2] = toBf16(w[ci * B + co]);
+        }
+    }
+    bf16Input_ = true;
+}
+
 void BlockedConv::forward(float* out, const BlockedShape& outShape, const float* in,
-                          const BlockedShape& inShape) const {
+                          const BlockedShape& inShape, bool inBf16, bool outBf16) const {
+    if ((inBf16 && !bf16Input_) || (outBf16 && !canWriteBf16()))
+        throw Error(inBf16 && !bf16Input_ ? "BlockedConv: a bf16 input needs useBf16Input() first"
+                                          : "BlockedConv: this layer cannot write a bf16 output");
     if (inShape.block != inputBlock_ || outShape.block != outputBlock_ ||
         block_ != simdFloatLanes(activeSimdLevel()))
         throw Error("BlockedConv: blocked layout of " + std::to_string(inShape.block) +
@@ -259,6 +288,7 @@ void BlockedConv::forward(float* out, const BlockedShape& outShape, const float*
             a.pool2x2 = pool_;
             a.bias = paddedBias_.data();
             a.activation = activation_;
+            a.inBf16 = inBf16, a.outBf16 = outBf16;
             const int64_t bands = items[p].bands;
             a.image = index / (blockGroups * bands);
             const int64_t group = (index / bands) % blockGroups;

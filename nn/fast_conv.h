@@ -37,8 +37,21 @@ class BlockedConv {
     BlockedShape inputShape(int border) const;
     BlockedShape outputShape(int border) const;
     // in: blocked input with border >= requiredInputBorder(); out: blocked output, border untouched.
-    void forward(float* out, const BlockedShape& outShape, const float* in,
-                 const BlockedShape& inShape) const;
+    // inBf16 / outBf16: the input / output holds bf16 elements (uint16_t, nn/blocked.h's toBf16) in the
+    // same layout, pointers cast to float*; for inference where bf16Available(). A bf16 input needs
+    // useBf16Input() first; a bf16 output is rounded after the activation.
+    void forward(float* out, const BlockedShape& outShape, const float* in, const BlockedShape& inShape,
+                 bool inBf16 = false, bool outBf16 = false) const;
+
+    // Packs the weights rounded to bf16 in input-channel pairs, for forward() with a bf16 input (the
+    // activations and weights in bf16, the sums in float: vdpbf16ps). Throws dejag::Error when
+    // bf16Available() is false, or for an input that is not blocked or a layer the narrow kernel runs.
+    void useBf16Input();
+    bool bf16Input() const { return bf16Input_; }
+    // Whether forward() can take a bf16 input or write a bf16 output for this layer (the wide kernel, a
+    // blocked input for the former; not a compact output).
+    bool canReadBf16() const;
+    bool canWriteBf16() const;
 
     // Training: ADDS the weight gradient (in the PyTorch layout of the forward's weights) and the bias
     // gradient, from the forward's blocked input and the blocked gradient of its output (before the
@@ -79,9 +92,10 @@ class BlockedConv {
         int64_t outY0 = 0, outStepY = 1, outX0 = 0, outStepX = 1;
         int64_t inY0 = 0, inStepY = 1, inX0 = 0, inStepX = 1;
         std::vector<Tap> taps;
-        std::vector<int64_t> kernelTaps;   // per tap: ky * kernelWidth + kx in the PyTorch weights
-        std::vector<float> weights;        // [Cout blocks][Cin blocks][taps][B ci][B co]
-        std::vector<float> narrowWeights;  // [Cin blocks][taps][Cout][B ci], for a few output channels
+        std::vector<int64_t> kernelTaps;    // per tap: ky * kernelWidth + kx in the PyTorch weights
+        std::vector<float> weights;         // [Cout blocks][Cin blocks][taps][B ci][B co]
+        std::vector<float> narrowWeights;   // [Cin blocks][taps][Cout][B ci], for a few output channels
+        std::vector<uint16_t> pairWeights;  // bf16 [Cout blocks][Cin blocks][taps][B / 2][B co][2]
         // The kernel's view of this pass, with tap offsets for one input layout.
         ConvPass view(const int64_t* tapOffsets) const {
             return {rows,
@@ -97,7 +111,8 @@ class BlockedConv {
                     int(taps.size()),
                     tapOffsets,
                     weights.data(),
-                    narrowWeights.empty() ? nullptr : narrowWeights.data()};
+                    narrowWeights.empty() ? nullptr : narrowWeights.data(),
+                    pairWeights.empty() ? nullptr : pairWeights.data()};
         }
     };
     void finish(const float* bias);
@@ -113,6 +128,7 @@ class BlockedConv {
     int64_t macs_ = 0;
     bool transposed_ = false;  // weights (Cin, Cout, kh, kw) instead of (Cout, Cin, kh, kw)
     bool pool_ = false;        // fused 2x2 max pooling
+    bool bf16Input_ = false;   // pairWeights packed
     int64_t kernelArea_ = 1;
     std::vector<Pass> passes_;
     std::vector<float> paddedBias_;

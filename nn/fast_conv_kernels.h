@@ -23,6 +23,9 @@ struct ConvPass {
     // For layers with at most narrowMaxOutputChannels() outputs and a blocked input (null otherwise):
     // [Cin blocks][taps][Cout][B ci], read by the kernel that puts input channels in the lanes.
     const float* narrowWeights = nullptr;
+    // For a bf16 input (inference on AVX-512 BF16): the weights rounded to bf16 in input-channel pairs,
+    // [Cout blocks][Cin blocks][taps][B / 2 pairs][B co][2], read by vdpbf16ps (null otherwise).
+    const uint16_t* pairWeights = nullptr;
 };
 
 struct ConvRowsArgs {
@@ -38,6 +41,10 @@ struct ConvRowsArgs {
     int64_t rowBegin = 0, rowEnd = 0;            // lattice rows of this work item (pooled rows if pool2x2)
     // Fused 2x2 max pooling (stride 2) of a stride-1 pass: the output holds the pooled lattice.
     bool pool2x2 = false;
+    // bf16 activations (AVX-512 BF16 only, bf16Available()): `in` and/or `out` then point to uint16_t
+    // elements in the same blocked layout (offsets count elements). A bf16 input needs pass.pairWeights
+    // and a blocked (block B) input; a bf16 output is rounded to nearest even after the activation.
+    bool inBf16 = false, outBf16 = false;
 };
 
 // Weight gradient of one (pass, tap, output block, input block): for every image and lattice point,
