@@ -18,23 +18,39 @@ namespace {
 // ---- Ops on the blocked layout (nn/blocked.h); each writes the interior of its output. ----------------
 
 // Zeroes the border of every plane (regions of the arena are reused, so a border may hold old data).
-void zeroBorder(float* data, const BlockedShape& s) {
+// elementBytes: 4 for float, 2 for a bf16 activation.
+void zeroBorder(float* data, const BlockedShape& s, size_t elementBytes = sizeof(float)) {
     if (s.border == 0) return;
+    char* bytes = reinterpret_cast<char*>(data);
     parallelFor(0, s.batch * s.channelBlocks(), 1, [&](int64_t first, int64_t last) {
         for (int64_t plane = first; plane < last; ++plane) {
             const int64_t n = plane / s.channelBlocks(), cb = plane % s.channelBlocks();
             for (int64_t y = -s.border; y < s.height + s.border; ++y) {
-                float* row = data + s.offset(n, cb, y, -s.border);
+                char* row = bytes + size_t(s.offset(n, cb, y, -s.border)) * elementBytes;
                 if (y < 0 || y >= s.height) {
-                    std::memset(row, 0, size_t(s.rowStride()) * sizeof(float));
+                    std::memset(row, 0, size_t(s.rowStride()) * elementBytes);
                 } else {
-                    std::memset(row, 0, size_t(s.border * s.block) * sizeof(float));
-                    std::memset(row + (s.border + s.width) * s.block, 0,
-                                size_t(s.border * s.block) * sizeof(float));
+                    std::memset(row, 0, size_t(s.border * s.block) * elementBytes);
+                    std::memset(row + size_t((s.border + s.width) * s.block) * elementBytes, 0,
+                                size_t(s.border * s.block) * elementBytes);
                 }
             }
         }
     });
+}
+
+// A value read from / written to a float or bf16 activation.
+inline float loadElement(const float* p) {
+    return *p;
+}
+inline float loadElement(const uint16_t* p) {
+    return fromBf16(*p);
+}
+inline void storeElement(float* p, float v) {
+    *p = v;
+}
+inline void storeElement(uint16_t* p, float v) {
+    *p = toBf16(v);
 }
 
 // Calls body(n, cb, y) for every interior row of every plane, in parallel.
@@ -173,7 +189,11 @@ struct InferencePlan::Impl {
         int concatBuffer = -1;       // conv2d, pixel_shuffle: the concat step whose buffer this writes
         int laneOffset = 0;          // pixel_shuffle: the first lane it writes in that buffer
         bool concatInPlace = false;  // concat: computed by its inputs
+        // InferencePrecision::BFloat16: this step reads its first input / writes its output as bf16.
+        bool inBf16 = false, outBf16 = false;
     };
+    InferencePrecision precision = InferencePrecision::Float32;
+    int bf16Activations = 0;
     Shape inputShape, outputShape;
     BlockedShape inputBlocked;
     int64_t inputOffset = 0;
@@ -208,14 +228,21 @@ struct InferencePlan::Impl {
     int64_t macs = 0;
     int block = 1;
 
+    std::vector<char> bf16Buffer;  // per node: its buffer holds bf16 (empty for Float32)
+    bool isBf16(int buffer) const { return buffer >= 0 && !bf16Buffer.empty() && bf16Buffer[size_t(buffer)]; }
+
     float* data(int index) { return arena.data() + (index < 0 ? inputOffset : steps[size_t(index)].offset); }
     const BlockedShape& shape(int index) const {
         return index < 0 ? inputBlocked : steps[size_t(index)].shape;
     }
 };
 
-InferencePlan::InferencePlan(const Model& model, const Shape& inputShape) : impl_(std::make_unique<Impl>()) {
+InferencePlan::InferencePlan(const Model& model, const Shape& inputShape, InferencePrecision precision)
+    : impl_(std::make_unique<Impl>()) {
     Impl& m = *impl_;
+    if (precision == InferencePrecision::BFloat16 && !bf16Available())
+        throw Error("inference: bf16 needs a CPU with AVX-512 BF16 and the avx512 SIMD level");
+    m.precision = precision;
     const std::vector<Shape> shapes = model.nodeShapes(inputShape);
     const std::vector<GraphNode> graph = model.graph();
     m.inputShape = inputShape;
@@ -404,6 +431,59 @@ InferencePlan::InferencePlan(const Model& model, const Shape& inputShape) : impl
         last.shape.block = last.conv->outputShape(border).block;
     }
 
+    // bf16 activations (InferencePrecision::BFloat16): a stored tensor is bf16 when everything that writes
+    // it can round its output to bf16 (the wide convolution kernel, a pixel shuffle into a concatenation
+    // in place) and everything that reads it can take bf16 (a blocked convolution the wide kernel runs, a
+    // pixel shuffle into a concatenation in place). The input, the output and the fused output stages'
+    // sources stay float.
+    if (precision == InferencePrecision::BFloat16) {
+        const int nodes = int(graph.size());
+        // The buffer a node's output lives in (a concatenation in place shares its inputs' buffer; a
+        // conv with fused pooling writes the pooling's).
+        auto bufferOf = [&](int node) {
+            const Impl::Step& step = m.steps[size_t(node)];
+            if (step.concatBuffer >= 0) return step.concatBuffer;
+            if (step.pooledInto >= 0) return step.pooledInto;
+            return node;
+        };
+        std::vector<char> bf16(size_t(nodes), 1);
+        auto keepFloat = [&](int node) {
+            if (node >= 0) bf16[size_t(bufferOf(node))] = 0;
+        };
+        keepFloat(m.outputStep);
+        keepFloat(m.residualSource);
+        keepFloat(m.kernelSource);
+        keepFloat(m.kernelFeatures);
+        for (int i = 0; i < nodes; ++i) {
+            const Impl::Step& step = m.steps[size_t(i)];
+            const GraphOp op = step.node.op;
+            const bool shuffleInPlace = op == GraphOp::PixelShuffle && step.concatBuffer >= 0;
+            if (step.fusedIntoConv || step.concatInPlace) continue;  // written by their inputs' steps
+            // Its output: bf16 only from a convolution that can round it, or a shuffle in place.
+            const bool convWrites = step.conv && step.conv->canWriteBf16() && !step.sigmoidAfterConv;
+            if (step.fusedIntoOutput || !(convWrites || shuffleInPlace)) keepFloat(i);
+            // Its inputs: bf16 only into a convolution that can read it, or a shuffle in place.
+            const bool convReads = step.conv && step.conv->canReadBf16() && !step.fusedIntoOutput;
+            for (int source : step.node.inputs)
+                if (!(convReads || shuffleInPlace)) keepFloat(source);
+        }
+        for (int i = 0; i < nodes; ++i) {
+            Impl::Step& step = m.steps[size_t(i)];
+            if (step.fusedIntoConv || step.concatInPlace || step.fusedIntoOutput) continue;
+            const int source = step.node.inputs.empty() ? -1 : step.node.inputs[0];
+            step.inBf16 = source >= 0 && bf16[size_t(bufferOf(source))];
+            step.outBf16 = bf16[size_t(bufferOf(i))];
+            if (step.conv && step.inBf16) step.conv->useBf16Input();
+        }
+        std::vector<int> written;  // distinct bf16 buffers
+        for (int i = 0; i < nodes; ++i)
+            if (m.steps[size_t(i)].outBf16 &&
+                std::find(written.begin(), written.end(), bufferOf(i)) == written.end())
+                written.push_back(bufferOf(i));
+        m.bf16Activations = int(written.size());
+        m.bf16Buffer = std::move(bf16);
+    }
+
     // Arena: a tensor lives from its producer to its last consumer; first-fit reuse of dead regions.
     const int count = int(graph.size());
     std::vector<int> lastUse(size_t(count) + 1, -1);  // index 0: the model input, i + 1: node i
@@ -438,6 +518,10 @@ InferencePlan::InferencePlan(const Model& model, const Shape& inputShape) : impl
         m.unpackedBytes += size_t(floats) * sizeof(float);
         return offset;
     };
+    // A bf16 buffer takes half the floats.
+    auto floatsOf = [&](int buffer, const BlockedShape& shape) {
+        return m.isBf16(buffer) ? (shape.floatCount() + 1) / 2 : shape.floatCount();
+    };
     m.inputOffset = place(0, m.inputBlocked.floatCount(), 0);
     for (int i = 0; i < count; ++i)  // a concatenation in place lives as long as its conv input's buffer
         if (const int cat = m.steps[size_t(i)].concatBuffer;
@@ -450,17 +534,17 @@ InferencePlan::InferencePlan(const Model& model, const Shape& inputShape) : impl
             continue;  // placed with its convolution or its concatenation's conv input, or never stored
         if (step.concatBuffer >= 0) {  // the conv's buffer is its concatenation's
             Impl::Step& cat = m.steps[size_t(step.concatBuffer)];
-            step.offset = cat.offset = place(i + 1, cat.shape.floatCount(), i);
+            step.offset = cat.offset = place(i + 1, floatsOf(step.concatBuffer, cat.shape), i);
             for (Impl::Step& other : m.steps)
                 if (other.concatBuffer == step.concatBuffer) other.offset = step.offset;
             continue;
         }
         if (step.pooledInto >= 0) {  // the conv writes the pooled tensor; its own is never stored
             Impl::Step& pool = m.steps[size_t(step.pooledInto)];
-            pool.offset = place(step.pooledInto + 1, pool.shape.floatCount(), i);
+            pool.offset = place(step.pooledInto + 1, floatsOf(step.pooledInto, pool.shape), i);
             continue;
         }
-        step.offset = place(i + 1, step.shape.floatCount(), i);
+        step.offset = place(i + 1, floatsOf(i, step.shape), i);
     }
     m.arena = Tensor({std::max<int64_t>(arenaFloats, 16)});
     m.output = Tensor(m.outputShape);
@@ -486,6 +570,14 @@ int64_t InferencePlan::macs() const {
     return impl_->macs;
 }
 
+InferencePrecision InferencePlan::precision() const {
+    return impl_->precision;
+}
+
+int InferencePlan::bf16Activations() const {
+    return impl_->bf16Activations;
+}
+
 const Tensor& InferencePlan::run(const Tensor& input) {
     if (const int64_t bad = input.findNonFinite(); bad >= 0)
         throw Error("the model input has a non-finite value at element " + std::to_string(bad));
@@ -509,11 +601,11 @@ const Tensor& InferencePlan::runUnchecked(const Tensor& input) {
         const BlockedShape& os = m.shape(target);
         const float* in = m.data(n.inputs[0]);
         const BlockedShape& is = m.shape(n.inputs[0]);
-        zeroBorder(out, os);
+        zeroBorder(out, os, step.outBf16 ? sizeof(uint16_t) : sizeof(float));
         switch (n.op) {
             case GraphOp::Conv2d:
             case GraphOp::ConvTranspose2d:
-                step.conv->forward(out, os, in, is);
+                step.conv->forward(out, os, in, is, step.inBf16, step.outBf16);
                 if (step.sigmoidAfterConv) blockedActivation(out, os, out, os, n.activation);
                 break;
             case GraphOp::MaxPool2d:
@@ -599,25 +691,35 @@ const Tensor& InferencePlan::runUnchecked(const Tensor& input) {
                 const int B = os.block;
                 forEachRow(os, [&](int64_t b, int64_t ob, int64_t y) {
                     if (ob * B + B <= first) return;  // the conv input's blocks
-                    float* o = out + os.offset(b, ob, y, 0);
                     const int from = int(std::max<int64_t>(0, first - ob * B));
                     const int valid = int(std::clamp<int64_t>(end - ob * B, from, B));
                     // Per column phase j = x % f, each lane's offset from the source row's pixel 0.
                     int64_t offset[16][16];  // factors and lanes up to 16
-                    const float* row = in + is.offset(b, 0, y / f, 0);
                     for (int64_t j = 0; j < f; ++j)
                         for (int l = from; l < valid; ++l) {
                             const int64_t k = ((ob * B + l - first) * f + y % f) * f + j;
                             offset[j][l] = is.offset(b, k / is.block, y / f, 0) - is.offset(b, 0, y / f, 0) +
                                            k % is.block;
                         }
-                    for (int64_t x = 0; x < os.width; ++x) {
-                        const int64_t* lane = offset[x % f];
-                        const float* pixel = row + (x / f) * is.block;
-                        float* dst = o + x * B;
-                        for (int l = from; l < valid; ++l) dst[l] = pixel[lane[l]];
-                        for (int l = valid; l < B; ++l) dst[l] = 0.0f;
-                    }
+                    // Float or bf16 on either side (a shuffle into a bf16 concatenation in place).
+                    auto shuffleRow = [&](const auto* source, auto* destination) {
+                        for (int64_t x = 0; x < os.width; ++x) {
+                            const int64_t* lane = offset[x % f];
+                            const auto* pixel = source + (x / f) * is.block;
+                            auto* dst = destination + x * B;
+                            for (int l = from; l < valid; ++l)
+                                storeElement(dst + l, loadElement(pixel + lane[l]));
+                            for (int l = valid; l < B; ++l) storeElement(dst + l, 0.0f);
+                        }
+                    };
+                    const int64_t rowOffset = is.offset(b, 0, y / f, 0), outOffset = os.offset(b, ob, y, 0);
+                    auto* in16 = reinterpret_cast<const uint16_t*>(in) + rowOffset;
+                    auto* out16 = reinterpret_cast<uint16_t*>(out) + outOffset;
+                    if (step.inBf16)
+                        step.outBf16 ? shuffleRow(in16, out16) : shuffleRow(in16, out + outOffset);
+                    else
+                        step.outBf16 ? shuffleRow(in + rowOffset, out16)
+                                     : shuffleRow(in + rowOffset, out + outOffset);
                 });
                 break;
             }

@@ -14,10 +14,19 @@
 
 namespace dejag::nn {
 
+// Float32: every activation in float. BFloat16 (CPUs with AVX-512 BF16 only: bf16Available()): the
+// activations that only convolutions and pixel shuffles read are stored as bf16 and the convolutions
+// reading them multiply bf16 pairs into float sums (vdpbf16ps), twice the multiply-adds per instruction
+// and half the memory traffic; the model's input, its output and whatever else reads an activation stay
+// float. Each bf16 value carries 8 significant bits (a relative error up to 2^-9 per rounding).
+enum class InferencePrecision { Float32, BFloat16 };
+
 class InferencePlan {
   public:
-    // inputShape: (N, Cin, H, W). Throws dejag::Error if the model cannot take it.
-    InferencePlan(const Model& model, const Shape& inputShape);
+    // inputShape: (N, Cin, H, W). Throws dejag::Error if the model cannot take it, or for BFloat16 on a
+    // CPU (or a forced SIMD level) without AVX-512 BF16.
+    InferencePlan(const Model& model, const Shape& inputShape,
+                  InferencePrecision precision = InferencePrecision::Float32);
     InferencePlan(InferencePlan&&) noexcept;
     InferencePlan& operator=(InferencePlan&&) noexcept;
     ~InferencePlan();
@@ -32,6 +41,8 @@ class InferencePlan {
     size_t arenaBytes() const;     // all activations together
     size_t unpackedBytes() const;  // what one buffer per activation would need
     int64_t macs() const;
+    InferencePrecision precision() const;
+    int bf16Activations() const;  // activations stored as bf16 (0 for Float32)
 
   private:
     struct Impl;

@@ -186,6 +186,80 @@ TEST(InferencePlanning, ArenaReusesMemoryAndThreadsDoNotChangeResults) {
     EXPECT_EQ(plan.macs(), model.macs(input.shape()));
 }
 
+// InferencePrecision::BFloat16 (AVX-512 BF16 CPUs): the convolutions' bf16 kernels are checked exactly
+// in bf16_conv_test.cpp; here, the plan's wiring — which activations are bf16, the shuffles and
+// concatenations in place that write them, the arena and the borders. Each network against its own
+// float plan: every activation rounded to 8 significant bits moves the output by well under 1 %, a bf16
+// tensor read as float (or a lane written to the wrong place) by far more.
+TEST(InferenceBf16, EveryArchitectureStaysCloseToTheFloatPlan) {
+    if (!bf16Available()) GTEST_SKIP() << "this CPU has no AVX-512 BF16";
+    struct Case {
+        Model model;
+        Shape shape;
+        int bf16Activations;
+    };
+    Case cases[] = {{Model::builtin("kpn", {8, 3}), {1, 3, 72, 88}, 6},  // dejag-fast's architecture
+                    {Model::builtin("kpn"), {1, 3, 48, 64}, 6},
+                    {Model::builtin("fast"), {1, 3, 48, 40}, 7},
+                    {Model::builtin("seed2020"), {2, 1, 36, 44}, 4},
+                    // Every activation here has a reader that takes float only: nothing is rounded.
+                    {Model::fromArchitecture(everyOpArchitecture()), {2, 3, 20, 24}, 0}};
+    for (Case& c : cases) {
+        SCOPED_TRACE(c.model.name());
+        c.model.initialize(21);
+        uint64_t state = 23;
+        for (const ParameterInfo& p : c.model.parameters())
+            if (p.isBias)
+                for (int64_t i = p.offset; i < p.offset + shapeNumel(p.shape); ++i)
+                    c.model.parameterData()[i] = float(unitInterval(state = splitMix64(state), -0.2, 0.2));
+        const Tensor input = randomTensor(c.shape, 24);
+        InferencePlan exact(c.model, c.shape);
+        const Tensor want = exact.run(input).clone();
+        InferencePlan plan(c.model, c.shape, InferencePrecision::BFloat16);
+        EXPECT_EQ(plan.precision(), InferencePrecision::BFloat16);
+        EXPECT_EQ(plan.bf16Activations(), c.bf16Activations);
+        const Tensor got = plan.run(input).clone();
+        double worst = 0.0, sum = 0.0, scale = 1e-6;
+        for (int64_t i = 0; i < want.numel(); ++i) {
+            const double error = std::abs(double(got.data()[i]) - double(want.data()[i]));
+            worst = std::max(worst, error), sum += error;
+            scale = std::max(scale, double(std::abs(want.data()[i])));
+        }
+        EXPECT_LE(worst / scale, 2e-2);
+        EXPECT_LE(sum / double(want.numel()) / scale, 2e-3);
+        if (c.bf16Activations > 0)
+            EXPECT_GT(worst, 0.0) << "no activation was rounded";
+        else
+            EXPECT_EQ(worst, 0.0);
+        // Deterministic: the same result on 1 and 3 threads, and no allocation per run.
+        setThreadCount(1);
+        const Tensor one = plan.run(input).clone();
+        setThreadCount(3);
+        plan.run(input);  // the pool's new threads start
+        const int64_t before = testing::allocationCount();
+        const Tensor& three = plan.run(input);
+        // (The every-op graph's generic float ops allocate once per run on 3 threads; its float plan does
+        // the same, so that is not the bf16 path's doing.)
+        if (c.bf16Activations > 0) EXPECT_EQ(testing::allocationCount() - before, 0);
+        setThreadCount(0);
+        for (int64_t i = 0; i < one.numel(); ++i) ASSERT_EQ(one.data()[i], three.data()[i]);
+        for (int64_t i = 0; i < one.numel(); ++i) ASSERT_EQ(one.data()[i], got.data()[i]);
+    }
+}
+
+TEST(InferenceBf16, RefusedWithoutTheInstructions) {
+    Model model = Model::builtin("kpn", {8, 3});
+    model.initialize(1);
+    const SimdLevel original = activeSimdLevel();
+    if (cpuSimdLevel() == SimdLevel::Avx512) setSimdLevel(SimdLevel::Avx2);  // bf16 needs the avx512 level
+    EXPECT_FALSE(bf16Available());
+    EXPECT_THROW(InferencePlan(model, {1, 3, 16, 16}, InferencePrecision::BFloat16), Error);
+    setSimdLevel(original);
+    InferencePlan exact(model, {1, 3, 16, 16});
+    EXPECT_EQ(exact.precision(), InferencePrecision::Float32);
+    EXPECT_EQ(exact.bf16Activations(), 0);
+}
+
 TEST(InferencePlanning, BadInputsAreClearErrors) {
     Model model = Model::builtin("fast");
     model.initialize(1);
