@@ -31,7 +31,7 @@ namespace fs = std::filesystem;
 
 struct FilterArguments {
     std::string method, chain, input, output;
-    std::string model = "models/dejag-fast.safetensors", gate = "auto";
+    std::string model = "models/dejag-fast.safetensors", gate = "auto", precision = "auto";
     int tile = 2048;
     int preset = 39;
     bool greenLuma = false, json = false, noSharpen = false, quiet = false;
@@ -117,6 +117,7 @@ ImageStage makeStage(const std::string& method, const FilterArguments& args) {
     } else if (method == "cnn") {
         infer::CnnOptions options;
         options.tileSize = args.tile;
+        options.precision = infer::cnnPrecision(args.precision);
         if (args.gate == "off") {
             options.gate = false;
         } else if (args.gate != "auto") {
@@ -270,6 +271,7 @@ void runImageChain(const FilterArguments& args, std::vector<ImageStage>& stages)
                 j["tiles_processed"] = stages.back().cnn->tilesProcessed();
                 j["model"] = args.model;
                 j["gate"] = args.gate;
+                j["precision"] = infer::precisionName(stages.back().cnn->options().precision);
             }
             if (stages.back().fxaa) j["preset"] = args.preset;
             std::printf("%s\n", j.dump().c_str());
@@ -429,6 +431,11 @@ void registerFilterCommand(CLI::App& app) {
     command->add_option("--gate", args->gate, "CNN: off | auto | T (run tiles whose luma steps exceed T)")
         ->capture_default_str();
     command->add_option("--tile", args->tile, "CNN: tile side in pixels")->capture_default_str();
+    command
+        ->add_option("--precision", args->precision,
+                     "CNN: fp32 | bf16 (AVX-512 BF16 CPUs: bf16 activations, float sums) | auto (bf16 where "
+                     "the CPU has it)")
+        ->capture_default_str();
     command->add_option("--preset", args->preset, "FXAA quality preset: 12, 23 or 39")->capture_default_str();
     command->add_flag("--green-luma", args->greenLuma, "FXAA: use green as luma");
     command->add_flag("--no-sharpen", args->noSharpen, "TAA: skip the final sharpen (see docs/infer.md)");

@@ -11,6 +11,7 @@
 #include "base/error.h"
 #include "base/files.h"
 #include "base/progress.h"
+#include "base/simd.h"
 #include "base/timer.h"
 #include "data/frame_image.h"
 #include "data/metrics.h"
@@ -162,14 +163,16 @@ StillMethods::StillMethods(const Options& options) : impl_(std::make_unique<Impl
             if (other != path && fs::path(other).stem() == fs::path(path).stem())
                 name = (fs::path(path).parent_path().filename() / fs::path(path).stem()).string();
         const bool rgb = nn::loadModel(path).inputChannels() == 3;
-        for (int variant = 0; variant < 3; ++variant) {
-            const bool gate = variant != 1, chain = variant == 2;
+        for (int variant = 0; variant < 5; ++variant) {
+            const bool gate = variant != 1 && variant != 4, chain = variant == 2, bf16 = variant >= 3;
             if (!gate && (!rgb || !options.ungated)) continue;
             if (chain && !options.chains) continue;
+            if (bf16 && (!rgb || !options.bf16 || !bf16Available())) continue;
             Impl::Method m;
-            m.name = chain ? "FXAA > " + name : name + (gate ? "" : " (ungated)");
+            m.name = chain ? "FXAA > " + name : name + (bf16 ? " bf16" : "") + (gate ? "" : " (ungated)");
             infer::CnnOptions o;
             o.gate = gate;
+            if (bf16) o.precision = nn::InferencePrecision::BFloat16;
             m.cnn = std::make_unique<infer::CnnFilter>(nn::loadModel(path), o);
             if (chain) m.fxaa.emplace();
             methods.push_back(std::move(m));
@@ -389,7 +392,7 @@ void printQualityRows(const std::vector<json>& rows, bool asJson, bool meansOnly
     }
     const bool fullHd =
         std::any_of(rows.begin(), rows.end(), [](const json& r) { return r.contains("ms_1080p"); });
-    std::printf("%-14s %-24s %9s %8s %9s %9s %9s%s  %s\n", "scene", "method", "PSNR dB", "SSIM", "edge dB",
+    std::printf("%-14s %-26s %9s %8s %9s %9s %9s%s  %s\n", "scene", "method", "PSNR dB", "SSIM", "edge dB",
                 "texture", "ms", fullHd ? "  ms 1080p" : "", "");
     for (const json& r : rows) {
         if (meansOnly && r["scene"] != "mean") continue;
@@ -400,7 +403,7 @@ void printQualityRows(const std::vector<json>& rows, bool asJson, bool meansOnly
             return std::string(text);
         };
         std::printf(
-            "%-14s %-24s %9s %8s %9s %9s %9s%s  %s\n", r["scene"].get<std::string>().c_str(),
+            "%-14s %-26s %9s %8s %9s %9s %9s%s  %s\n", r["scene"].get<std::string>().c_str(),
             r["method"].get<std::string>().c_str(), number("psnr_whole", "%.2f").c_str(),
             number("ssim_whole", "%.4f").c_str(), number("psnr_edge", "%.2f").c_str(),
             number("psnr_texture", "%.2f").c_str(), number("ms", "%.2f").c_str(),

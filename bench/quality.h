@@ -43,6 +43,9 @@ class StillMethods {
         std::vector<int> fxaaPresets = {39};
         bool ungated = true;  // RGB networks also without gating
         bool chains = false;  // FXAA 39 then each network
+        // Where the CPU has AVX-512 BF16: each RGB network also with bf16 activations ("NAME bf16",
+        // gated and ungated), next to the float rows (nn/inference.h).
+        bool bf16 = true;
     };
     explicit StillMethods(const Options& options);
     ~StillMethods();

@@ -5,6 +5,7 @@
 #include <utility>
 
 #include "base/error.h"
+#include "base/simd.h"
 #include "base/thread_pool.h"
 
 namespace dejag::infer {
@@ -76,7 +77,7 @@ struct CnnFilter::Impl {
         if (it == plans.end()) {
             TilePlan p;
             const nn::Shape shape{1, model.inputChannels(), height, width};
-            p.plan = std::make_unique<nn::InferencePlan>(model, shape);
+            p.plan = std::make_unique<nn::InferencePlan>(model, shape, options.precision);
             p.input = nn::Tensor(shape);
             it = plans.emplace(std::make_pair(height, width), std::move(p)).first;
         }
@@ -94,10 +95,31 @@ CnnFilter::CnnFilter(nn::Model model, const CnnOptions& options)
     if (options.tileSize < 16 || options.tileSize > 4096) throw Error("tile size must be in 16..4096");
     if (!(options.gateThreshold >= 0) || !std::isfinite(options.gateThreshold))
         throw Error("the gate threshold must be a finite number >= 0");
+    if (options.precision == nn::InferencePrecision::BFloat16 && !bf16Available())
+        throw Error(
+            "bf16 inference needs a CPU with AVX-512 BF16 (this one, or the SIMD level forced, has none)");
     impl_->field = receptiveField(impl_->model);
     const int a = impl_->field.stride;
     impl_->halo = (impl_->field.radius + a - 1) / a * a;  // the receptive field, rounded up to the stride
     impl_->tile = (options.tileSize + a - 1) / a * a;
+}
+
+nn::InferencePrecision cnnPrecision(const std::string& name) {
+    if (name == "fp32") return nn::InferencePrecision::Float32;
+    if (name == "bf16") {
+        if (!bf16Available())
+            throw Error(
+                "--precision bf16 needs a CPU with AVX-512 BF16 (this one, or the SIMD level forced, has "
+                "none)");
+        return nn::InferencePrecision::BFloat16;
+    }
+    if (name == "auto")
+        return bf16Available() ? nn::InferencePrecision::BFloat16 : nn::InferencePrecision::Float32;
+    throw Error("--precision '" + name + "' is not one of fp32, bf16, auto");
+}
+
+const char* precisionName(nn::InferencePrecision precision) {
+    return precision == nn::InferencePrecision::BFloat16 ? "bf16" : "fp32";
 }
 
 CnnFilter::~CnnFilter() = default;

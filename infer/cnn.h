@@ -28,7 +28,15 @@ struct CnnOptions {
     int tileSize = 2048;          // core tile side (rounded up to a multiple of the network's stride)
     bool gate = true;             // false: every tile runs
     float gateThreshold = 0.04f;  // luma step (sRGB-encoded, [0, 1]) that marks a tile as needing work
+    // The network's arithmetic (nn/inference.h): Float32, or BFloat16 (AVX-512 BF16 CPUs only; the
+    // constructor refuses it elsewhere). cnnPrecision("auto") picks BFloat16 where the CPU has it.
+    nn::InferencePrecision precision = nn::InferencePrecision::Float32;
 };
+
+// "fp32", "bf16" or "auto" (bf16 where bf16Available(), else fp32); throws dejag::Error naming the
+// choices for anything else, or for "bf16" on a CPU without AVX-512 BF16.
+nn::InferencePrecision cnnPrecision(const std::string& name);
+const char* precisionName(nn::InferencePrecision precision);
 
 // Optional G-buffers for gating (each width x height, row-major), any may be null.
 struct CnnBuffers {

@@ -10,6 +10,7 @@
 #include <set>
 #include <sstream>
 
+#include "base/simd.h"
 #include "data/image.h"
 #include "nn/model.h"
 #include "tests/test_util.h"
@@ -360,6 +361,35 @@ TEST(Cli, FilterCnnFindsTheShippedModelFromAnyDirectory) {
     EXPECT_NE(nlohmann::json::parse(r.out)["model"].get<std::string>().find("dejag-fast.safetensors"),
               std::string::npos);
     EXPECT_EQ(readImage(dir.file("out.png")).width, 40);
+    EXPECT_EQ(nlohmann::json::parse(r.out)["precision"], bf16Available() ? "bf16" : "fp32");  // auto
+    // bf16 activations where the CPU has AVX-512 BF16 (a clear error elsewhere); auto picks them there.
+    if (bf16Available()) {
+        const RunResult bf16 = run("filter --method cnn --precision bf16 --json edge.png bf16.png", dir,
+                                   "cd '" + dir.path().string() + "' &&");
+        ASSERT_EQ(bf16.exitCode, 0) << bf16.err;
+        EXPECT_EQ(nlohmann::json::parse(bf16.out)["precision"], "bf16");
+        const RunResult fp32 = run("filter --method cnn --precision fp32 --json edge.png fp32.png", dir,
+                                   "cd '" + dir.path().string() + "' &&");
+        ASSERT_EQ(fp32.exitCode, 0) << fp32.err;
+        EXPECT_EQ(nlohmann::json::parse(fp32.out)["precision"], "fp32");
+        const Image exact = readImage(dir.file("fp32.png")), rounded = readImage(dir.file("bf16.png"));
+        float worst = 0;
+        for (int y = 0; y < 32; ++y)
+            for (int x = 0; x < 40; ++x)
+                for (int c = 0; c < 3; ++c)
+                    worst = std::max(worst, std::abs(exact.at(x, y, c) - rounded.at(x, y, c)));
+        EXPECT_LE(worst, 3.0f / 255.0f);
+        const RunResult automatic = run("filter --method cnn --precision auto --json edge.png a.png", dir,
+                                        "cd '" + dir.path().string() + "' &&");
+        EXPECT_EQ(nlohmann::json::parse(automatic.out)["precision"], "bf16");
+    } else {
+        expectOneLineError(run("filter --method cnn --precision bf16 edge.png t.png", dir,
+                               "cd '" + dir.path().string() + "' &&"),
+                           "AVX-512 BF16");
+    }
+    expectOneLineError(run("filter --method cnn --precision half edge.png t.png", dir,
+                           "cd '" + dir.path().string() + "' &&"),
+                       "--precision 'half'");
     // A relative model path outside models/ is taken as given.
     expectOneLineError(run("filter --method cnn --model nowhere/dejag-fast.safetensors edge.png t.png", dir,
                            "cd '" + dir.path().string() + "' &&"),
@@ -629,9 +659,20 @@ TEST(Cli, DemoRunsEveryMethodAndWritesTheReport) {
         }
     }
     const std::string first = dir.path().filename().string() + "/tiny";
-    EXPECT_EQ(methods, (std::set<std::string>{"no AA", "FXAA", "U-TAA", "T-TAA", "T-TAA unsharpened", first,
-                                              first + " (ungated)", "v2/tiny", "v2/tiny (ungated)"}));
-    EXPECT_EQ(rows, 3 * 9);
+    std::set<std::string> expected{"no AA",
+                                   "FXAA",
+                                   "U-TAA",
+                                   "T-TAA",
+                                   "T-TAA unsharpened",
+                                   first,
+                                   first + " (ungated)",
+                                   "v2/tiny",
+                                   "v2/tiny (ungated)"};
+    if (bf16Available())  // each RGB network also with bf16 activations
+        expected.insert(
+            {first + " bf16", first + " bf16 (ungated)", "v2/tiny bf16", "v2/tiny bf16 (ungated)"});
+    EXPECT_EQ(methods, expected);
+    EXPECT_EQ(rows, 3 * int(expected.size()));
     for (const char* f : {"report.html", "mosaic.png", "pareto.png", "results.csv", "results.json",
                           "images/pipe_FXAA_crop.png", "images/flowers_v2-tiny_ssim.png"})
         EXPECT_TRUE(std::filesystem::exists(out + "/" + f)) << f;
