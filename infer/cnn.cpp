@@ -244,36 +244,49 @@ void CnnFilter::apply(const float* in, float* out, int width, int height, int ch
         Impl::TilePlan& plan = m.planFor(ry1 - ry0, rx1 - rx0);
         nn::Tensor& input = plan.input;
         const int RW = rx1 - rx0, RH = ry1 - ry0;
+        // The region's planes, row by row (columns past the frame repeat its last one).
+        const size_t plane = size_t(RH) * size_t(RW);
         parallelFor(0, RH, 8, [&](int64_t j0, int64_t j1) {
             for (int64_t j = j0; j < j1; ++j) {
                 const int y = std::min(int(ry0 + j), height - 1);
-                for (int i = 0; i < RW; ++i) {
-                    const int x = std::min(rx0 + i, width - 1);
-                    const size_t p = size_t(y) * size_t(width) + size_t(x);
-                    if (grey) {
-                        input.at(0, 0, j, i) = m.luma[p];
-                    } else {
-                        const float* s = in + p * C;
-                        for (int c = 0; c < 3; ++c) input.at(0, c, j, i) = s[c];
-                    }
+                const size_t row = size_t(y) * size_t(width);
+                float* r = input.data() + size_t(j) * size_t(RW);
+                const int inside = std::max(0, std::min(RW, width - rx0));
+                if (grey) {
+                    std::copy_n(m.luma.data() + row + size_t(rx0), inside, r);
+                } else {
+                    float* g = r + plane;
+                    float* b = g + plane;
+                    const float* s = in + (row + size_t(rx0)) * C;
+                    for (int i = 0; i < inside; ++i, s += C) r[i] = s[0], g[i] = s[1], b[i] = s[2];
                 }
+                for (int i = inside; i < RW; ++i)
+                    for (int c = 0; c < (grey ? 1 : 3); ++c)
+                        r[size_t(c) * plane + size_t(i)] = r[size_t(c) * plane + size_t(inside - 1)];
             }
         });
         const nn::Tensor& result = plan.plan->runUnchecked(input);
         parallelFor(cy0, cy1, 8, [&](int64_t y0, int64_t y1) {
-            for (int64_t y = y0; y < y1; ++y)
-                for (int x = cx0; x < cx1; ++x) {
-                    const size_t p = size_t(y) * size_t(width) + size_t(x);
-                    float* o = out + p * C;
-                    const int64_t j = y - ry0, i = x - rx0;
-                    if (grey) {
-                        const float change = result.at(0, 0, j, i) - m.luma[p];
-                        for (int c = 0; c < 3; ++c)
-                            o[c] = std::clamp(in[p * C + size_t(c)] + change, 0.0f, 1.0f);
-                    } else {
-                        for (int c = 0; c < 3; ++c) o[c] = std::clamp(result.at(0, c, j, i), 0.0f, 1.0f);
+            for (int64_t y = y0; y < y1; ++y) {
+                const size_t row = size_t(y) * size_t(width);
+                const float* r = result.data() + size_t(y - ry0) * size_t(RW) + size_t(cx0 - rx0);
+                float* o = out + (row + size_t(cx0)) * C;
+                if (grey) {
+                    const float* s = in + (row + size_t(cx0)) * C;
+                    const float* l = m.luma.data() + row + size_t(cx0);
+                    for (int i = 0; i < cx1 - cx0; ++i, o += C, s += C) {
+                        const float change = r[i] - l[i];
+                        for (int c = 0; c < 3; ++c) o[c] = std::clamp(s[c] + change, 0.0f, 1.0f);
+                    }
+                } else {
+                    const float *g = r + plane, *b = g + plane;
+                    for (int i = 0; i < cx1 - cx0; ++i, o += C) {
+                        o[0] = std::clamp(r[i], 0.0f, 1.0f);
+                        o[1] = std::clamp(g[i], 0.0f, 1.0f);
+                        o[2] = std::clamp(b[i], 0.0f, 1.0f);
                     }
                 }
+            }
         });
     }
 }

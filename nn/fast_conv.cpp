@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <array>
+#include <cstring>
 
 #include "base/error.h"
 #include "base/simd.h"
@@ -39,6 +40,12 @@ void forEachBlockedRow(Blocked* blocked, Plain* plain, const BlockedShape& s, co
 }
 
 void toBlocked(float* blocked, const float* plain, const BlockedShape& s) {
+    if (s.block == 1) {  // planar: a row copy into the bordered plane
+        forEachBlockedRow(blocked, plain, s, [&](float* row, const float* const* planes, int) {
+            std::memcpy(row, planes[0], size_t(s.width) * sizeof(float));
+        });
+        return;
+    }
     forEachBlockedRow(blocked, plain, s, [&](float* row, const float* const* planes, int lanes) {
         for (int64_t x = 0; x < s.width; ++x)
             for (int l = 0; l < lanes; ++l) row[x * s.block + l] = planes[l][x];

@@ -5,6 +5,7 @@
 #include <cstring>
 #include <limits>
 #include <optional>
+#include <type_traits>
 
 #include "base/error.h"
 #include "base/simd.h"
@@ -703,13 +704,20 @@ const Tensor& InferencePlan::runUnchecked(const Tensor& input) {
                         }
                     // Float or bf16 on either side (a shuffle into a bf16 concatenation in place).
                     auto shuffleRow = [&](const auto* source, auto* destination) {
+                        using In = std::remove_cv_t<std::remove_pointer_t<decltype(source)>>;
+                        using Out = std::remove_pointer_t<decltype(destination)>;
                         for (int64_t x = 0; x < os.width; ++x) {
                             const int64_t* lane = offset[x % f];
-                            const auto* pixel = source + (x / f) * is.block;
-                            auto* dst = destination + x * B;
-                            for (int l = from; l < valid; ++l)
-                                storeElement(dst + l, loadElement(pixel + lane[l]));
-                            for (int l = valid; l < B; ++l) storeElement(dst + l, 0.0f);
+                            const In* pixel = source + (x / f) * is.block;
+                            Out* dst = destination + x * B;
+                            if constexpr (std::is_same_v<In, Out>) {  // bits copied (no rounding)
+                                for (int l = from; l < valid; ++l) dst[l] = pixel[lane[l]];
+                                for (int l = valid; l < B; ++l) dst[l] = Out(0);
+                            } else {
+                                for (int l = from; l < valid; ++l)
+                                    storeElement(dst + l, loadElement(pixel + lane[l]));
+                                for (int l = valid; l < B; ++l) storeElement(dst + l, 0.0f);
+                            }
                         }
                     };
                     const int64_t rowOffset = is.offset(b, 0, y / f, 0), outOffset = os.offset(b, ob, y, 0);

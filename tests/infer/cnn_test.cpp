@@ -78,6 +78,41 @@ TEST_P(CnnTiles, TiledEqualsWholeFrame) {
     for (size_t p = 0; p < size_t(W) * H; ++p) ASSERT_EQ(tiled[p * C + 3], 0.5f) << "alpha passes through";
 }
 
+// The filter against the model's own forward (nn::Model::forward, the reference kernels): the frame
+// padded by repeating its last row and column up to a multiple of the stride, the network run on it,
+// the result cropped and clamped to [0, 1] (a grey model's luma change added to R, G and B).
+TEST_P(CnnTiles, WholeFrameEqualsTheModelOnTheReplicatedFrame) {
+    const int W = 203, H = 141, C = 4;
+    const std::vector<float> frame = testFrame(W, H, C);
+    nn::Model model = seeded(GetParam(), 3);
+    CnnOptions options;
+    options.gate = false;
+    CnnFilter filter(seeded(GetParam(), 3), options);
+    std::vector<float> got(frame.size());
+    filter.apply(frame.data(), got.data(), W, H, C);
+    const int a = filter.alignment(), PW = (W + a - 1) / a * a, PH = (H + a - 1) / a * a;
+    const bool grey = model.inputChannels() == 1;
+    auto luma = [&](const float* p) { return 0.21f * p[0] + 0.72f * p[1] + 0.07f * p[2]; };
+    nn::Tensor input({1, model.inputChannels(), PH, PW});
+    for (int y = 0; y < PH; ++y)
+        for (int x = 0; x < PW; ++x) {
+            const float* p = &frame[(size_t(std::min(y, H - 1)) * W + size_t(std::min(x, W - 1))) * C];
+            for (int c = 0; c < model.inputChannels(); ++c) input.at(0, c, y, x) = grey ? luma(p) : p[c];
+        }
+    const nn::Tensor& result = model.forward(input);
+    float worst = 0;
+    for (int y = 0; y < H; ++y)
+        for (int x = 0; x < W; ++x) {
+            const float* p = &frame[(size_t(y) * W + size_t(x)) * C];
+            for (int c = 0; c < 3; ++c) {
+                const float want = std::clamp(
+                    grey ? p[c] + result.at(0, 0, y, x) - luma(p) : result.at(0, c, y, x), 0.0f, 1.0f);
+                worst = std::max(worst, std::abs(got[(size_t(y) * W + size_t(x)) * C + size_t(c)] - want));
+            }
+        }
+    EXPECT_LE(worst, 1e-5f);
+}
+
 INSTANTIATE_TEST_SUITE_P(Architectures, CnnTiles, ::testing::Values("seed2020", "fast", "kpn"));
 
 TEST(Cnn, GatedTilesAreTheInputOrTheUngatedResult) {
