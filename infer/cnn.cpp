@@ -157,14 +157,22 @@ void CnnFilter::apply(const float* in, float* out, int width, int height, int ch
     const size_t C = size_t(channels), pixels = size_t(width) * size_t(height);
     // The frame as the network sees it: padded by replication up to a multiple of the stride.
     const int PW = (width + a - 1) / a * a, PH = (height + a - 1) / a * a;
-    if (m.luma.size() < pixels) m.luma.resize(pixels);
-    parallelFor(0, height, 16, [&](int64_t y0, int64_t y1) {
-        for (int64_t y = y0; y < y1; ++y)
-            for (int x = 0; x < width; ++x) {
-                const float* p = in + (size_t(y) * size_t(width) + size_t(x)) * C;
-                m.luma[size_t(y) * size_t(width) + size_t(x)] = 0.21f * p[0] + 0.72f * p[1] + 0.07f * p[2];
-            }
-    });
+    const bool grey = m.model.inputChannels() == 1;
+    auto lumaOf = [&](size_t p) {
+        const float* v = in + p * C;
+        return 0.21f * v[0] + 0.72f * v[1] + 0.07f * v[2];
+    };
+    // A grey model's input: the frame's luma (the gate computes what it needs of it itself, and stops
+    // at a tile's first step, which on most frames comes early).
+    if (grey) {
+        if (m.luma.size() < pixels) m.luma.resize(pixels);
+        parallelFor(0, height, 16, [&](int64_t y0, int64_t y1) {
+            for (int64_t y = y0; y < y1; ++y)
+                for (int x = 0; x < width; ++x)
+                    m.luma[size_t(y) * size_t(width) + size_t(x)] =
+                        lumaOf(size_t(y) * size_t(width) + size_t(x));
+        });
+    }
 
     const int tilesX = (width + T - 1) / T, tilesY = (height + T - 1) / T;
     m.tileCount = tilesX * tilesY;
@@ -177,18 +185,19 @@ void CnnFilter::apply(const float* in, float* out, int width, int height, int ch
             const int x0 = std::max(0, tx * T - 1), x1 = std::min(width - 1, (tx + 1) * T);
             const int y0 = std::max(0, ty * T - 1), y1 = std::min(height - 1, (ty + 1) * T);
             for (int y = y0; y <= y1 && !active; ++y) {
-                const float* l = &m.luma[size_t(y) * size_t(width)];
-                const float* below = y + 1 < height ? l + width : l;
+                const size_t row = size_t(y) * size_t(width);
+                const size_t below = y + 1 < height ? size_t(width) : 0;
+                float here = lumaOf(row + size_t(x0));
                 for (int x = x0; x <= x1; ++x) {
-                    const float right = x + 1 < width ? l[x + 1] : l[x];
-                    if (std::abs(right - l[x]) > m.options.gateThreshold ||
-                        std::abs(below[x] - l[x]) > m.options.gateThreshold) {
+                    const float right = x + 1 < width ? lumaOf(row + size_t(x) + 1) : here;
+                    if (std::abs(right - here) > m.options.gateThreshold ||
+                        std::abs(lumaOf(row + size_t(x) + below) - here) > m.options.gateThreshold) {
                         active = true;
                         break;
                     }
+                    here = right;
                 }
                 if (active) break;
-                const size_t row = size_t(y) * size_t(width);
                 for (int x = x0; x <= x1 && (buffers.ids || buffers.depth); ++x) {
                     const size_t p = row + size_t(x), r = x + 1 < width ? p + 1 : p,
                                  b = y + 1 < height ? p + size_t(width) : p;
@@ -230,7 +239,6 @@ void CnnFilter::apply(const float* in, float* out, int width, int height, int ch
         }
     });
 
-    const bool grey = m.model.inputChannels() == 1;
     m.tilesProcessed = 0;
     for (int t = 0; t < m.tileCount; ++t) {
         if (!m.tileActive[size_t(t)]) continue;
