@@ -187,19 +187,24 @@ TEST_F(Bf16Conv, TransposedAndLargeLayersMatchTheReference) {
         for (const bool outBf16 : {false, true})
             expectClose(runBlocked(conv, input, int64_t(want.size()), true, outBf16), want, outBf16);
     }
-    // 16 -> 32 at 300 x 297: 11.6 MB of float output (streamed), 5.8 MB as bf16.
-    Conv2dDesc d;
-    d.inChannels = 16, d.outChannels = 32, d.inHeight = 301, d.inWidth = 297;
-    d.padTop = d.padBottom = d.padLeft = d.padRight = 1;
-    Case c{d, ActivationDesc{Activation::ReLU}};
-    const auto input = randomValues(size_t(16 * 301 * 297), rng);
-    const auto weight = randomValues(size_t(d.weightCount()), rng, 0.3f);
-    const auto bias = randomValues(32, rng);
-    BlockedConv conv(d, weight.data(), bias.data(), c.activation);
-    conv.useBf16Input();
-    const std::vector<float> want = reference(c, input, weight, bias, true);
-    for (const bool outBf16 : {false, true})
-        expectClose(runBlocked(conv, input, int64_t(want.size()), true, outBf16), want, outBf16);
+    // 16 -> 32 at 301 x 297: 11.6 MB of float output (streamed), 5.8 MB as bf16; and 12 -> 8 at
+    // 601 x 597 (half a vector of outputs: two pixels per vector), 23 and 11.5 MB.
+    for (const int outChannels : {32, 8}) {
+        Conv2dDesc d;
+        d.inChannels = outChannels == 8 ? 12 : 16, d.outChannels = outChannels;
+        d.inHeight = outChannels == 8 ? 601 : 301, d.inWidth = outChannels == 8 ? 597 : 297;
+        d.padTop = d.padBottom = d.padLeft = d.padRight = 1;
+        SCOPED_TRACE(std::to_string(d.inChannels) + " -> " + std::to_string(outChannels));
+        Case c{d, ActivationDesc{Activation::ReLU}};
+        const auto input = randomValues(size_t(d.inChannels * d.inHeight * d.inWidth), rng);
+        const auto weight = randomValues(size_t(d.weightCount()), rng, 0.3f);
+        const auto bias = randomValues(size_t(outChannels), rng);
+        BlockedConv conv(d, weight.data(), bias.data(), c.activation);
+        conv.useBf16Input();
+        const std::vector<float> want = reference(c, input, weight, bias, true);
+        for (const bool outBf16 : {false, true})
+            expectClose(runBlocked(conv, input, int64_t(want.size()), true, outBf16), want, outBf16);
+    }
 }
 
 TEST_F(Bf16Conv, SameResultForEveryThreadCount) {

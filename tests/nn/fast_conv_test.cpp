@@ -349,6 +349,16 @@ TEST_P(FastConv, WideLayersOverALargeFrameMatchTheReference) {
         ASSERT_GT(conv.outputShape(1).floatCount() * int64_t(sizeof(float)), int64_t(8) << 20);
         expectClose(runBlocked(conv, data.input, outCount), want);
     }
+    // 8 outputs (half a vector: AVX-512 runs two pixels per vector, nn/fast_conv_kernels.cpp), streamed.
+    Conv2dDesc d;
+    d.inChannels = 3, d.outChannels = 8, d.inHeight = 601, d.inWidth = 597;
+    d.padTop = d.padBottom = d.padLeft = d.padRight = 1;
+    const RandomConv data(d, rng);
+    const ActivationDesc relu{Activation::ReLU};
+    BlockedConv conv(d, data.weight.data(), data.bias.data(), relu, 1);
+    ASSERT_GT(conv.outputShape(1).floatCount() * int64_t(sizeof(float)), int64_t(8) << 20);
+    const std::vector<float> want = data.activated(relu);
+    expectClose(runBlocked(conv, data.input, int64_t(want.size())), want);
 }
 
 TEST_P(FastConv, SameResultForEveryThreadCount) {
