@@ -93,12 +93,14 @@ inline float logitAt(const KernelLogitsRowArgs& a, int64_t source, int tapPhase)
     return value;
 }
 
-#if defined(DEJAG_SIMD_LEVEL_avx2)
-// column[c] = element c of the 8 consecutive 8-float rows at p (an 8x8 transpose: unpacks within 128-bit
-// halves, shuffles, then the halves exchanged), 24 shuffles instead of 8 gathers.
-inline void transpose8x8(const float* p, VFloat column[8]) {
+#if !defined(DEJAG_SIMD_LEVEL_scalar)
+typedef float Float8 __attribute__((vector_size(8 * sizeof(float))));
+
+// column[c] = element c of the 8 rows of 8 floats at p, p + rowStride, ... (an 8x8 transpose: unpacks
+// within 128-bit halves, shuffles, then the halves exchanged), 24 shuffles instead of 8 gathers.
+inline void transpose8x8(const float* p, int64_t rowStride, Float8 column[8]) {
     __m256 r[8], t[8], u[8];
-    for (int i = 0; i < 8; ++i) r[i] = _mm256_loadu_ps(p + 8 * i);
+    for (int i = 0; i < 8; ++i) r[i] = _mm256_loadu_ps(p + rowStride * i);
     for (int i = 0; i < 8; i += 2) {
         t[i] = _mm256_unpacklo_ps(r[i], r[i + 1]);      // r_i0 r_j0 r_i1 r_j1 | r_i4 r_j4 r_i5 r_j5
         t[i + 1] = _mm256_unpackhi_ps(r[i], r[i + 1]);  // r_i2 r_j2 r_i3 r_j3 | r_i6 r_j6 r_i7 r_j7
@@ -110,8 +112,8 @@ inline void transpose8x8(const float* p, VFloat column[8]) {
         }
     // u[k] (k < 4) holds columns k and k + 4 of rows 0-3, u[k + 4] the same of rows 4-7.
     for (int k = 0; k < 4; ++k) {
-        column[k] = VFloat(_mm256_permute2f128_ps(u[k], u[k + 4], 0x20));
-        column[k + 4] = VFloat(_mm256_permute2f128_ps(u[k], u[k + 4], 0x31));
+        column[k] = Float8(_mm256_permute2f128_ps(u[k], u[k + 4], 0x20));
+        column[k + 4] = Float8(_mm256_permute2f128_ps(u[k], u[k + 4], 0x31));
     }
 }
 #endif
@@ -152,7 +154,20 @@ void logitsFactor2(const KernelLogitsRowArgs& a, int64_t& s) {
         VFloat feature[16];
 #if defined(DEJAG_SIMD_LEVEL_avx2)
         if (a.block == 8 && a.inChannels == 8) {  // kpn:8xD: the 8 pixels' channels are 64 floats in a row
-            transpose8x8(a.features + s * 8, feature);
+            Float8 column[8];
+            transpose8x8(a.features + s * 8, 8, column);
+            for (int c = 0; c < 8; ++c) feature[c] = column[c];
+        } else
+#elif defined(DEJAG_SIMD_LEVEL_avx512)
+        if (a.block == 16 && a.inChannels == 8) {  // kpn:8xD: the first 8 lanes of each pixel's vector
+            // Two 8x8 transposes (pixels s..s+7 and s+8..s+15) joined: 16 loads and 56 shuffles
+            // instead of 8 gathers of 16 floats.
+            Float8 low[8], high[8];
+            transpose8x8(a.features + s * 16, 16, low);
+            transpose8x8(a.features + (s + 8) * 16, 16, high);
+            for (int c = 0; c < 8; ++c)
+                feature[c] = __builtin_shufflevector(low[c], high[c], 0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11,
+                                                     12, 13, 14, 15);
         } else
 #endif
         {

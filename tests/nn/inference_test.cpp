@@ -124,6 +124,11 @@ TEST_P(Inference, KpnFamilyMatchesTheReference) {
     Model narrow = Model::builtin("kpn", {8, 2, 3});
     expectPlanMatchesReference(narrow, {2, 3, 20, 28});
     expectPlanMatchesReference(narrow, {1, 3, 4, 8});  // narrower than a vector: the edge path only
+    // dejag-fast's architecture, wide enough for the fused head's vector path on every level (40
+    // half-resolution pixels: two vectors of 16 and a tail on AVX-512, whose 8 features per pixel are
+    // read by transposes).
+    Model fast = Model::builtin("kpn", {8, 3});
+    expectPlanMatchesReference(fast, {1, 3, 16, 80});
     // The output stage with a 5x5 kernel, a factor of 3 and a width that is no multiple of a vector.
     using nlohmann::json;
     const json nodes =
