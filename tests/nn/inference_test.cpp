@@ -197,7 +197,12 @@ TEST(InferencePlanning, ArenaReusesMemoryAndThreadsDoNotChangeResults) {
 // float plan: every activation rounded to 8 significant bits moves the output by well under 1 %, a bf16
 // tensor read as float (or a lane written to the wrong place) by far more.
 TEST(InferenceBf16, EveryArchitectureStaysCloseToTheFloatPlan) {
-    if (!bf16Available()) GTEST_SKIP() << "this CPU has no AVX-512 BF16";
+    if (!bf16Available()) {  // the plan refuses bf16 there (and InferenceBf16.RefusedWithoutTheInstructions)
+        Model model = Model::builtin("kpn", {8, 3});
+        model.initialize(1);
+        EXPECT_THROW(InferencePlan(model, {1, 3, 16, 16}, InferencePrecision::BFloat16), Error);
+        return;
+    }
     struct Case {
         Model model;
         Shape shape;
@@ -232,10 +237,11 @@ TEST(InferenceBf16, EveryArchitectureStaysCloseToTheFloatPlan) {
         }
         EXPECT_LE(worst / scale, 2e-2);
         EXPECT_LE(sum / double(want.numel()) / scale, 2e-3);
-        if (c.bf16Activations > 0)
+        if (c.bf16Activations > 0) {
             EXPECT_GT(worst, 0.0) << "no activation was rounded";
-        else
+        } else {
             EXPECT_EQ(worst, 0.0);
+        }
         // Deterministic: the same result on 1 and 3 threads, and no allocation per run.
         setThreadCount(1);
         const Tensor one = plan.run(input).clone();
@@ -245,7 +251,9 @@ TEST(InferenceBf16, EveryArchitectureStaysCloseToTheFloatPlan) {
         const Tensor& three = plan.run(input);
         // (The every-op graph's generic float ops allocate once per run on 3 threads; its float plan does
         // the same, so that is not the bf16 path's doing.)
-        if (c.bf16Activations > 0) EXPECT_EQ(testing::allocationCount() - before, 0);
+        if (c.bf16Activations > 0) {
+            EXPECT_EQ(testing::allocationCount() - before, 0);
+        }
         setThreadCount(0);
         for (int64_t i = 0; i < one.numel(); ++i) ASSERT_EQ(one.data()[i], three.data()[i]);
         for (int64_t i = 0; i < one.numel(); ++i) ASSERT_EQ(one.data()[i], got.data()[i]);
