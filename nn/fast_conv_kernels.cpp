@@ -262,13 +262,15 @@ inline void storeBf16(uint16_t* p, VFloat v, bool stream) {
 #endif
 }
 
-template <int TW, int CB, bool OUTB>
+// The output type is a run-time branch per tile (a template parameter would double the instantiations,
+// and the compile time, of every tile below).
+template <int TW, int CB>
 [[gnu::always_inline]] inline void storeWide(const RowContext& c, int64_t cob, int64_t j,
                                              const VFloat (&acc)[CB][TW]) {
     const ActivationDesc activation = c.activation;
     for (int b = 0; b < CB; ++b) {
         const int64_t offset = (cob + b) * c.outBlockStride + j * c.outPixelStep;
-        if constexpr (OUTB) {
+        if (kBf16Kernels && c.outBf16) {
             uint16_t* out = c.outBf16 + offset;
             for (int i = 0; i < TW; ++i)
                 storeBf16(out + i * c.outPixelStep, applyActivation(acc[b][i], activation), c.streamWide);
@@ -282,8 +284,8 @@ template <int TW, int CB, bool OUTB>
     }
 }
 
-// INB / OUTB: bf16 input (BI == B) / output.
-template <int TW, int CB, int BI, bool UNIT, bool POOL, bool INB, bool OUTB>
+// INB: a bf16 input (BI == B).
+template <int TW, int CB, int BI, bool UNIT, bool POOL, bool INB>
 void wideTile(const RowContext& c, int64_t cob, int64_t j) {
     auto accumulate = [&](int64_t rowOffset, VFloat(&sums)[CB][TW]) {
         if constexpr (INB)
@@ -294,7 +296,7 @@ void wideTile(const RowContext& c, int64_t cob, int64_t j) {
     VFloat acc[CB][TW];
     accumulate(0, acc);
     if constexpr (!POOL) {
-        storeWide<TW, CB, OUTB>(c, cob, j, acc);
+        storeWide<TW, CB>(c, cob, j, acc);
     } else if constexpr (TW >= 2) {
         // 2x2 max pooling of lattice rows 2r, 2r + 1 and columns j..j + TW (j and TW even). The
         // activations dejag fuses are monotonic, so pooling before them equals pooling after.
@@ -305,33 +307,33 @@ void wideTile(const RowContext& c, int64_t cob, int64_t j) {
             for (int i = 0; i < TW / 2; ++i)
                 pooled[b][i] = maximum(maximum(acc[b][2 * i], acc[b][2 * i + 1]),
                                        maximum(below[b][2 * i], below[b][2 * i + 1]));
-        storeWide<TW / 2, CB, OUTB>(c, cob, j / 2, pooled);
+        storeWide<TW / 2, CB>(c, cob, j / 2, pooled);
     }
 }
 
 using TileFunction = void (*)(const RowContext&, int64_t, int64_t);
 
 // Row remainders: tiles of 1..kTileWidth-1 columns, chosen through a table of instantiations.
-template <int CB, int BI, bool UNIT, bool POOL, bool INB, bool OUTB, size_t... I>
+template <int CB, int BI, bool UNIT, bool POOL, bool INB, size_t... I>
 constexpr auto makeWideTails(std::index_sequence<I...>) {
-    return std::array<TileFunction, sizeof...(I)>{&wideTile<int(I) + 1, CB, BI, UNIT, POOL, INB, OUTB>...};
+    return std::array<TileFunction, sizeof...(I)>{&wideTile<int(I) + 1, CB, BI, UNIT, POOL, INB>...};
 }
 
-template <int CB, int BI, bool UNIT, bool POOL, bool INB, bool OUTB>
+template <int CB, int BI, bool UNIT, bool POOL, bool INB>
 void wideRow(const RowContext& c, int64_t cob, int64_t columns) {
     static constexpr auto tails =
-        makeWideTails<CB, BI, UNIT, POOL, INB, OUTB>(std::make_index_sequence<kTileWidth - 1>());
+        makeWideTails<CB, BI, UNIT, POOL, INB>(std::make_index_sequence<kTileWidth - 1>());
     int64_t j = 0;
     for (; j + kTileWidth <= columns; j += kTileWidth)
-        wideTile<kTileWidth, CB, BI, UNIT, POOL, INB, OUTB>(c, cob, j);
+        wideTile<kTileWidth, CB, BI, UNIT, POOL, INB>(c, cob, j);
     if (j < columns) tails[size_t(columns - j - 1)](c, cob, j);
 }
 
-template <int BI, bool UNIT, bool POOL, bool INB, bool OUTB>
+template <int BI, bool UNIT, bool POOL, bool INB>
 void wideRows(const ConvRowsArgs& a) {
     // Pooling reads lattice columns in pairs; an odd last column has no pooled output.
     const int64_t columns = POOL ? a.pass.columns / 2 * 2 : a.pass.columns;
-    const size_t alignment = OUTB ? B * sizeof(uint16_t) : sizeof(VFloat);
+    const size_t alignment = a.outBf16 ? B * sizeof(uint16_t) : sizeof(VFloat);
     const bool stream =
         a.outShape.block == B && largeOutput(a) && reinterpret_cast<uintptr_t>(a.out) % alignment == 0;
     for (int64_t r = a.rowBegin; r < a.rowEnd; ++r) {
@@ -339,20 +341,20 @@ void wideRows(const ConvRowsArgs& a) {
         c.streamWide = stream;
         int64_t cob = a.outBlockBegin;
         for (; cob + kTileBlocks <= a.outBlockEnd; cob += kTileBlocks)
-            wideRow<kTileBlocks, BI, UNIT, POOL, INB, OUTB>(c, cob, columns);
-        for (; cob < a.outBlockEnd; ++cob) wideRow<1, BI, UNIT, POOL, INB, OUTB>(c, cob, columns);
+            wideRow<kTileBlocks, BI, UNIT, POOL, INB>(c, cob, columns);
+        for (; cob < a.outBlockEnd; ++cob) wideRow<1, BI, UNIT, POOL, INB>(c, cob, columns);
     }
     if (stream) storeFence();
 }
 
-template <int BI, bool INB, bool OUTB>
+template <int BI, bool INB>
 void wideRowsFor(const ConvRowsArgs& a) {
     const bool unit = a.pass.inStepX == 1;
     if (a.pool2x2) {
         // Fused pooling is for stride-1 Conv2D layers (see BlockedConv::fuseMaxPool2x2).
-        unit ? wideRows<BI, true, true, INB, OUTB>(a) : wideRows<BI, false, true, INB, OUTB>(a);
+        unit ? wideRows<BI, true, true, INB>(a) : wideRows<BI, false, true, INB>(a);
     } else {
-        unit ? wideRows<BI, true, false, INB, OUTB>(a) : wideRows<BI, false, false, INB, OUTB>(a);
+        unit ? wideRows<BI, true, false, INB>(a) : wideRows<BI, false, false, INB>(a);
     }
 }
 
@@ -622,25 +624,16 @@ void convForwardRows(const ConvRowsArgs& a) {
         return;
     }
 #endif
-    if constexpr (kBf16Kernels) {
-        if (a.inBf16 || a.outBf16) {
-            if (a.inBf16 && (a.inShape.block != B || !a.pass.pairWeights))
-                throw Error("convForwardRows: a bf16 input needs a blocked layout and pair weights");
-            if (a.inBf16)
-                a.outBf16 ? wideRowsFor<B, true, true>(a) : wideRowsFor<B, true, false>(a);
-            else if (a.inShape.block == 1)
-                wideRowsFor<1, false, true>(a);
-            else
-                wideRowsFor<B, false, true>(a);
-            return;
-        }
-    } else if (a.inBf16 || a.outBf16) {
+    if (!kBf16Kernels && (a.inBf16 || a.outBf16))
         throw Error("convForwardRows: bf16 activations need AVX-512 BF16");
-    }
-    if (a.inShape.block == 1)
-        wideRowsFor<1, false, false>(a);
+    if (a.inBf16 && (a.inShape.block != B || !a.pass.pairWeights))
+        throw Error("convForwardRows: a bf16 input needs a blocked layout and pair weights");
+    if (a.inBf16)
+        wideRowsFor<B, kBf16Kernels>(a);
+    else if (a.inShape.block == 1)
+        wideRowsFor<1, false>(a);
     else
-        wideRowsFor<B, false, false>(a);
+        wideRowsFor<B, false>(a);
 }
 
 int narrowMaxOutputChannels() {
