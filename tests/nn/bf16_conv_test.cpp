@@ -12,6 +12,7 @@
 #include "base/thread_pool.h"
 #include "nn/init.h"
 #include "nn/layers.h"
+#include "tests/nn/blocked_test_util.h"
 
 namespace dejag::nn {
 namespace {
@@ -50,13 +51,7 @@ std::vector<float> runBlocked(const BlockedConv& conv, const std::vector<float>&
     const uint16_t* outBits = reinterpret_cast<const uint16_t*>(out.data());
     for (int64_t i = 0; i < outShape.floatCount(); ++i)
         outFloat.data()[i] = outBf16 ? fromBf16(outBits[i]) : out.data()[i];
-    for (int64_t y = -border; y < outShape.height + border; ++y)
-        for (int64_t x = -border; x < outShape.width + border; ++x) {
-            if (y >= 0 && y < outShape.height && x >= 0 && x < outShape.width) continue;
-            for (int64_t cb = 0; cb < outShape.channelBlocks(); ++cb)
-                for (int c = 0; c < outShape.block; ++c)
-                    EXPECT_EQ(outFloat.data()[outShape.offset(0, cb, y, x) + c], 0.0f);
-        }
+    testing::expectZeroBorder(outFloat.data(), outShape);
     std::vector<float> plain(static_cast<size_t>(outCount));
     fromBlocked(plain.data(), outFloat.data(), outShape);
     return plain;

@@ -12,6 +12,7 @@
 #include "base/simd.h"
 #include "base/thread_pool.h"
 #include "nn/init.h"
+#include "tests/nn/blocked_test_util.h"
 #include "tests/test_util.h"
 
 namespace dejag::nn {
@@ -32,14 +33,7 @@ std::vector<float> runBlocked(const BlockedConv& conv, const std::vector<float>&
     Tensor in = allocateBlocked(inShape), out = allocateBlocked(outShape);
     toBlocked(in.data(), input.data(), inShape);
     conv.forward(out.data(), outShape, in.data(), inShape);
-    // The border must stay zero for the next layer.
-    for (int64_t y = -border; y < outShape.height + border; ++y)
-        for (int64_t x = -border; x < outShape.width + border; ++x) {
-            if (y >= 0 && y < outShape.height && x >= 0 && x < outShape.width) continue;
-            for (int64_t cb = 0; cb < outShape.channelBlocks(); ++cb)
-                for (int c = 0; c < outShape.block; ++c)
-                    EXPECT_EQ(out.data()[outShape.offset(0, cb, y, x) + c], 0.0f);
-        }
+    testing::expectZeroBorder(out.data(), outShape);
     std::vector<float> plain(static_cast<size_t>(outCount));
     fromBlocked(plain.data(), out.data(), outShape);
     return plain;
