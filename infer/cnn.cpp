@@ -7,6 +7,7 @@
 #include "base/error.h"
 #include "base/simd.h"
 #include "base/thread_pool.h"
+#include "infer/cnn_kernels.h"
 
 namespace dejag::infer {
 
@@ -61,29 +62,59 @@ struct CnnFilter::Impl {
     CnnOptions options;
     ReceptiveField field;
     int halo = 0, tile = 0;
-    struct TilePlan {
-        std::unique_ptr<nn::InferencePlan> plan;
-        nn::Tensor input;
-    };
-    std::map<std::pair<int, int>, TilePlan> plans;  // by (height, width) of a tile's input region
-    std::vector<float> luma;                        // (H, W) luma of the frame
+    // by (height, width) of a tile's input region
+    std::map<std::pair<int, int>, std::unique_ptr<nn::InferencePlan>> plans;
+    std::vector<float> luma;  // (H, W) luma of the frame
     std::vector<uint8_t> tileActive;
     int tilesProcessed = 0, tileCount = 0;
 
     Impl(nn::Model m, const CnnOptions& o) : model(std::move(m)), options(o) {}
 
-    TilePlan& planFor(int height, int width) {
+    nn::InferencePlan& planFor(int height, int width) {
         auto it = plans.find({height, width});
         if (it == plans.end()) {
-            TilePlan p;
             const nn::Shape shape{1, model.inputChannels(), height, width};
-            p.plan = std::make_unique<nn::InferencePlan>(model, shape, options.precision);
-            p.input = nn::Tensor(shape);
-            it = plans.emplace(std::make_pair(height, width), std::move(p)).first;
+            it = plans
+                     .emplace(std::make_pair(height, width),
+                              std::make_unique<nn::InferencePlan>(model, shape, options.precision))
+                     .first;
         }
-        return it->second;
+        return *it->second;
     }
 };
+
+namespace {
+
+// A tile's output rows into the frame: the core's columns of each row, clamped to [0, 1], R G B of an RGB
+// network, or a grey network's luma change added to R, G and B.
+struct FrameRows final : nn::OutputRowSink {
+    const float* in = nullptr;  // the frame (interleaved, C channels)
+    float* out = nullptr;
+    const float* luma = nullptr;  // the frame's luma (grey networks)
+    size_t C = 3, width = 0;
+    int rx0 = 0, ry0 = 0, cx0 = 0, cx1 = 0;  // the region's origin, the core's columns (frame coordinates)
+    bool grey = false;
+
+    void row(int64_t, int64_t y, const float* const* channels) override {
+        const size_t frameRow = size_t(ry0 + y) * width, first = size_t(cx0 - rx0);
+        float* o = out + (frameRow + size_t(cx0)) * C;
+        const int count = cx1 - cx0;
+        if (grey) {
+            const float* r = channels[0] + first;
+            const float* s = in + (frameRow + size_t(cx0)) * C;
+            const float* l = luma + frameRow + size_t(cx0);
+            for (int i = 0; i < count; ++i, o += C, s += C) {
+                const float change = r[i] - l[i];
+                for (int c = 0; c < 3; ++c) o[c] = std::clamp(s[c] + change, 0.0f, 1.0f);
+            }
+        } else {
+            DEJAG_SIMD_CALL(joinRgbRowClamped, channels[0] + first, channels[1] + first, channels[2] + first,
+                            count, int(C), o);
+        }
+    }
+};
+
+}  // namespace
 
 CnnFilter::CnnFilter(nn::Model model, const CnnOptions& options)
     : impl_(std::make_unique<Impl>(std::move(model), options)) {
@@ -249,53 +280,31 @@ void CnnFilter::apply(const float* in, float* out, int width, int height, int ch
         const int rx0 = std::max(0, cx0 - halo), ry0 = std::max(0, cy0 - halo);
         const int rx1 = std::min(PW, (cx1 + a - 1) / a * a + halo),
                   ry1 = std::min(PH, (cy1 + a - 1) / a * a + halo);
-        Impl::TilePlan& plan = m.planFor(ry1 - ry0, rx1 - rx0);
-        nn::Tensor& input = plan.input;
+        nn::InferencePlan& plan = m.planFor(ry1 - ry0, rx1 - rx0);
         const int RW = rx1 - rx0, RH = ry1 - ry0;
-        // The region's planes, row by row (columns past the frame repeat its last one).
-        const size_t plane = size_t(RH) * size_t(RW);
+        // The region's planes, row by row, straight into the plan's input (columns past the frame repeat
+        // its last one).
         parallelFor(0, RH, 8, [&](int64_t j0, int64_t j1) {
             for (int64_t j = j0; j < j1; ++j) {
                 const int y = std::min(int(ry0 + j), height - 1);
                 const size_t row = size_t(y) * size_t(width);
-                float* r = input.data() + size_t(j) * size_t(RW);
                 const int inside = std::max(0, std::min(RW, width - rx0));
+                float* planes[3] = {plan.inputRow(0, 0, j), nullptr, nullptr};
                 if (grey) {
-                    std::copy_n(m.luma.data() + row + size_t(rx0), inside, r);
+                    std::copy_n(m.luma.data() + row + size_t(rx0), inside, planes[0]);
                 } else {
-                    float* g = r + plane;
-                    float* b = g + plane;
-                    const float* s = in + (row + size_t(rx0)) * C;
-                    for (int i = 0; i < inside; ++i, s += C) r[i] = s[0], g[i] = s[1], b[i] = s[2];
+                    planes[1] = plan.inputRow(0, 1, j), planes[2] = plan.inputRow(0, 2, j);
+                    DEJAG_SIMD_CALL(splitRgbRow, in + (row + size_t(rx0)) * C, int(C), inside, planes[0],
+                                    planes[1], planes[2]);
                 }
-                for (int i = inside; i < RW; ++i)
-                    for (int c = 0; c < (grey ? 1 : 3); ++c)
-                        r[size_t(c) * plane + size_t(i)] = r[size_t(c) * plane + size_t(inside - 1)];
+                for (int c = 0; c < (grey ? 1 : 3); ++c)
+                    std::fill(planes[c] + inside, planes[c] + RW, planes[c][inside - 1]);
             }
         });
-        const nn::Tensor& result = plan.plan->runUnchecked(input);
-        parallelFor(cy0, cy1, 8, [&](int64_t y0, int64_t y1) {
-            for (int64_t y = y0; y < y1; ++y) {
-                const size_t row = size_t(y) * size_t(width);
-                const float* r = result.data() + size_t(y - ry0) * size_t(RW) + size_t(cx0 - rx0);
-                float* o = out + (row + size_t(cx0)) * C;
-                if (grey) {
-                    const float* s = in + (row + size_t(cx0)) * C;
-                    const float* l = m.luma.data() + row + size_t(cx0);
-                    for (int i = 0; i < cx1 - cx0; ++i, o += C, s += C) {
-                        const float change = r[i] - l[i];
-                        for (int c = 0; c < 3; ++c) o[c] = std::clamp(s[c] + change, 0.0f, 1.0f);
-                    }
-                } else {
-                    const float *g = r + plane, *b = g + plane;
-                    for (int i = 0; i < cx1 - cx0; ++i, o += C) {
-                        o[0] = std::clamp(r[i], 0.0f, 1.0f);
-                        o[1] = std::clamp(g[i], 0.0f, 1.0f);
-                        o[2] = std::clamp(b[i], 0.0f, 1.0f);
-                    }
-                }
-            }
-        });
+        FrameRows rows;
+        rows.in = in, rows.out = out, rows.luma = m.luma.data(), rows.C = C, rows.width = size_t(width);
+        rows.rx0 = rx0, rows.ry0 = ry0, rows.cx0 = cx0, rows.cx1 = cx1, rows.grey = grey;
+        plan.runInPlace(rows, cy0 - ry0, cy1 - ry0);
     }
 }
 

@@ -220,9 +220,15 @@ struct InferencePlan::Impl {
     int kernelFeatures = -1;
     int kernelFeatureChannels = 0;
     std::vector<float> kernelHeadWeights, kernelHeadBias;
-    static constexpr int kKernelParts = 16;  // row ranges, each with its own scratch
+    static constexpr int kRowParts = 16;  // the output stages' row ranges, each with its own scratch
     static constexpr int kKernelMaxChannels = 4;
-    Tensor kernelScratch;  // [parts][kernel^2][W]
+    Tensor kernelScratch;                   // [parts][kernel^2][W]
+    Tensor rowScratch;                      // [parts][C][W]: output rows on their way to a sink (runInPlace)
+    std::vector<const float*> rowPointers;  // [parts][C]: the rows handed to a sink
+    Tensor staged;  // the input written through inputRow() when the plan holds it blocked
+
+    void runSteps();
+    void finish(const float* planes, OutputRowSink* sink, int64_t rowBegin, int64_t rowEnd);
     Tensor arena;
     Tensor output;
     size_t unpackedBytes = 0;
@@ -284,7 +290,7 @@ InferencePlan::InferencePlan(const Model& model, const Shape& inputShape, Infere
             m.kernelSource = graph[size_t(shuffle)].inputs[0];
             m.kernelFactor = graph[size_t(shuffle)].factor;
             m.kernelFilter = out.kernelFilterDesc(inputShape);
-            m.kernelScratch = Tensor({Impl::kKernelParts, m.kernelFilter.taps(), inputShape[3]});
+            m.kernelScratch = Tensor({Impl::kRowParts, m.kernelFilter.taps(), inputShape[3]});
         }
     }
     // The head convolution fused into the filter stage (see Impl::kernelFeatures).
@@ -549,6 +555,10 @@ InferencePlan::InferencePlan(const Model& model, const Shape& inputShape, Infere
     }
     m.arena = Tensor({std::max<int64_t>(arenaFloats, 16)});
     m.output = Tensor(m.outputShape);
+    if (m.residualSource >= 0 || m.kernelSource >= 0)
+        m.rowScratch = Tensor({Impl::kRowParts, m.outputShape[1], m.outputShape[3]});
+    m.rowPointers.resize(size_t(Impl::kRowParts * m.outputShape[1]));
+    if (m.inputBlocked.block != 1) m.staged = Tensor(inputShape);
 }
 
 InferencePlan::InferencePlan(InferencePlan&&) noexcept = default;
@@ -592,6 +602,33 @@ const Tensor& InferencePlan::runUnchecked(const Tensor& input) {
         throw Error("inference: the SIMD level changed since planning");
     zeroBorder(m.data(-1), m.inputBlocked);
     toBlocked(m.data(-1), input.data(), m.inputBlocked);
+    m.runSteps();
+    m.finish(input.data(), nullptr, 0, m.outputShape[2]);
+    return m.output;
+}
+
+float* InferencePlan::inputRow(int64_t n, int64_t c, int64_t y) {
+    Impl& m = *impl_;
+    const Shape& s = m.inputShape;
+    if (n < 0 || n >= s[0] || c < 0 || c >= s[1] || y < 0 || y >= s[2])
+        throw Error("inference: input row out of range");
+    if (m.inputBlocked.block == 1) return m.data(-1) + m.inputBlocked.offset(n, c, y, 0);
+    return m.staged.data() + ((n * s[1] + c) * s[2] + y) * s[3];
+}
+
+void InferencePlan::runInPlace(OutputRowSink& sink, int64_t rowBegin, int64_t rowEnd) {
+    Impl& m = *impl_;
+    if (m.block != simdFloatLanes(activeSimdLevel()))
+        throw Error("inference: the SIMD level changed since planning");
+    rowBegin = std::max<int64_t>(0, rowBegin), rowEnd = std::min(rowEnd, m.outputShape[2]);
+    zeroBorder(m.data(-1), m.inputBlocked);  // the interior is the caller's rows
+    if (m.inputBlocked.block != 1) toBlocked(m.data(-1), m.staged.data(), m.inputBlocked);
+    m.runSteps();
+    m.finish(m.inputBlocked.block == 1 ? nullptr : m.staged.data(), &sink, rowBegin, rowEnd);
+}
+
+void InferencePlan::Impl::runSteps() {
+    Impl& m = *this;
     for (size_t i = 0; i < m.steps.size(); ++i) {
         Impl::Step& step = m.steps[i];
         if (step.fusedIntoConv || step.fusedIntoOutput || step.concatInPlace) continue;
@@ -739,22 +776,51 @@ const Tensor& InferencePlan::runUnchecked(const Tensor& input) {
                 break;
         }
     }
+}
+
+// The output stages: rows [rowBegin, rowEnd) of every image into the output tensor, or to `sink` (through
+// a part's scratch rows when the stage makes them). `planes`: the input as contiguous planes (the caller's
+// tensor), or null to read the arena's planar copy.
+void InferencePlan::Impl::finish(const float* planes, OutputRowSink* sink, int64_t rowBegin, int64_t rowEnd) {
+    Impl& m = *this;
+    const int64_t C = m.outputShape[1], H = m.outputShape[2], W = m.outputShape[3];
+    auto inputRow = [&](int64_t n, int64_t c, int64_t y) -> const float* {
+        return planes ? planes + ((n * C + c) * H + y) * W : m.data(-1) + m.inputBlocked.offset(n, c, y, 0);
+    };
+    // Output row of channel c: the output tensor's, or the part's scratch row.
+    auto outputRow = [&](int64_t part, int64_t n, int64_t c, int64_t y) -> float* {
+        return sink ? m.rowScratch.data() + (part * C + c) * W : m.output.data() + ((n * C + c) * H + y) * W;
+    };
+    const int64_t span = rowEnd - rowBegin, rows = m.outputShape[0] * span;
+    if (rows <= 0) return;
+    // Calls body(part, n, y) for every output row, the rows cut into kRowParts ranges in parallel.
+    auto forEachOutputRow = [&](const auto& body) {
+        parallelFor(0, kRowParts, 1, [&](int64_t first, int64_t last) {
+            for (int64_t part = first; part < last; ++part)
+                for (int64_t row = rows * part / kRowParts; row < rows * (part + 1) / kRowParts; ++row)
+                    body(part, row / span, rowBegin + row % span);
+        });
+    };
+    auto deliver = [&](int64_t part, int64_t n, int64_t y, bool whole) {
+        const float** channels = m.rowPointers.data() + part * C;
+        for (int64_t c = 0; c < C; ++c)
+            channels[c] = whole ? m.output.data() + ((n * C + c) * H + y) * W : outputRow(part, n, c, y);
+        sink->row(n, y, channels);
+    };
     if (m.residualSource >= 0) {
         // output(c, y, x) = input(c, y, x) + source((c f + y % f) f + x % f, y / f, x / f), row by row.
         const BlockedShape& ss = m.shape(m.residualSource);
         const float* source = m.data(m.residualSource);
-        const int64_t f = m.residualFactor, C = m.outputShape[1], H = m.outputShape[2], W = m.outputShape[3];
-        parallelFor(0, m.outputShape[0] * C * H, 8, [&](int64_t first, int64_t last) {
-            const float* subpixel[16];  // factors up to 16
-            for (int64_t row = first; row < last; ++row) {
-                const int64_t y = row % H, c = (row / H) % C, n = row / (H * C);
+        const int64_t f = m.residualFactor, B = ss.block;
+        forEachOutputRow([&](int64_t part, int64_t n, int64_t y) {
+            for (int64_t c = 0; c < C; ++c) {
+                const float* subpixel[16];  // factors up to 16
                 for (int64_t j = 0; j < f; ++j) {
                     const int64_t k = (c * f + y % f) * f + j;
                     subpixel[j] = source + ss.offset(n, k / ss.block, y / f, 0) + k % ss.block;
                 }
-                const float* in = input.data() + row * W;
-                float* out = m.output.data() + row * W;
-                const int64_t B = ss.block;
+                const float* in = inputRow(n, c, y);
+                float* out = outputRow(part, n, c, y);
                 if (f == 2) {
                     int64_t x = 0;
                     for (; x + 1 < W; x += 2) {
@@ -766,8 +832,9 @@ const Tensor& InferencePlan::runUnchecked(const Tensor& input) {
                     for (int64_t x = 0; x < W; ++x) out[x] = in[x] + subpixel[x % f][(x / f) * B];
                 }
             }
+            if (sink) deliver(part, n, y, false);
         });
-        return m.output;
+        return;
     }
     if (m.kernelSource >= 0) {
         // Row by row: the logits of tap j at column x are channel (j f + y % f) f + x % f of the source
@@ -776,64 +843,55 @@ const Tensor& InferencePlan::runUnchecked(const Tensor& input) {
         const BlockedShape& ss = m.shape(m.kernelSource);
         const float* source = m.data(m.kernelSource);
         const KernelFilterDesc& d = m.kernelFilter;
-        const int64_t f = m.kernelFactor, C = d.channels, H = d.height, W = d.width, rows = d.batch * H;
+        const int64_t f = m.kernelFactor;
         const int k = d.kernel, r = k / 2, taps = k * k;
-        parallelFor(0, Impl::kKernelParts, 1, [&](int64_t first, int64_t last) {
-            for (int64_t part = first; part < last; ++part) {
-                float* logits = m.kernelScratch.data() + part * taps * W;
-                const float* in[Impl::kKernelMaxChannels * 7];
-                float* out[Impl::kKernelMaxChannels];
-                KernelFilterRowArgs args;
-                args.out = out, args.in = in, args.logits = logits;
-                args.width = W, args.channels = int(C), args.kernel = k, args.centreBias = d.centreBias;
+        forEachOutputRow([&](int64_t part, int64_t n, int64_t y) {
+            float* logits = m.kernelScratch.data() + part * taps * W;
+            const float* in[kKernelMaxChannels * 7];
+            float* out[kKernelMaxChannels];
+            KernelFilterRowArgs args;
+            args.out = out, args.in = in, args.logits = logits;
+            args.width = W, args.channels = int(C), args.kernel = k, args.centreBias = d.centreBias;
+            if (m.kernelFeatures >= 0) {
+                const BlockedShape& fs = m.shape(m.kernelFeatures);
                 KernelLogitsRowArgs head;
-                if (m.kernelFeatures >= 0) {
-                    const BlockedShape& fs = m.shape(m.kernelFeatures);
-                    head.blockStride = fs.planeStride(), head.block = fs.block;
-                    head.inChannels = m.kernelFeatureChannels, head.taps = taps, head.factor = int(f);
-                    head.width = W, head.logits = logits;
-                }
-                for (int64_t row = rows * part / Impl::kKernelParts;
-                     row < rows * (part + 1) / Impl::kKernelParts; ++row) {
-                    const int64_t n = row / H, y = row % H;
-                    if (m.kernelFeatures >= 0) {
-                        const int64_t slot = (y % f) * taps * f;
-                        head.features =
-                            m.data(m.kernelFeatures) + m.shape(m.kernelFeatures).offset(n, 0, y / f, 0);
-                        head.weights = m.kernelHeadWeights.data() + slot * head.inChannels;
-                        head.bias = m.kernelHeadBias.data() + slot;
-                        DEJAG_SIMD_CALL(kernelLogitsRow, head);
-                    } else {
-                        // Source pixel by source pixel: the lanes this row's taps and phases read, each
-                        // an offset from the pixel (a few KB of row, read once).
-                        int64_t lane[49][16];  // [tap][phase], factors up to 16
-                        for (int j = 0; j < taps; ++j)
-                            for (int64_t phase = 0; phase < f; ++phase) {
-                                const int64_t channel = (j * f + y % f) * f + phase;
-                                lane[j][phase] = (channel / ss.block) * ss.planeStride() + channel % ss.block;
-                            }
-                        const float* pixel = source + ss.offset(n, 0, y / f, 0);
-                        for (int64_t x0 = 0; x0 < W; x0 += f, pixel += ss.block) {
-                            const int64_t phases = std::min<int64_t>(f, W - x0);
-                            for (int j = 0; j < taps; ++j)
-                                for (int64_t phase = 0; phase < phases; ++phase)
-                                    logits[j * W + x0 + phase] = pixel[lane[j][phase]];
-                        }
+                head.blockStride = fs.planeStride(), head.block = fs.block;
+                head.inChannels = m.kernelFeatureChannels, head.taps = taps, head.factor = int(f);
+                head.width = W, head.logits = logits;
+                const int64_t slot = (y % f) * taps * f;
+                head.features = m.data(m.kernelFeatures) + fs.offset(n, 0, y / f, 0);
+                head.weights = m.kernelHeadWeights.data() + slot * head.inChannels;
+                head.bias = m.kernelHeadBias.data() + slot;
+                DEJAG_SIMD_CALL(kernelLogitsRow, head);
+            } else {
+                // Source pixel by source pixel: the lanes this row's taps and phases read, each an offset
+                // from the pixel (a few KB of row, read once).
+                int64_t lane[49][16];  // [tap][phase], factors up to 16
+                for (int j = 0; j < taps; ++j)
+                    for (int64_t phase = 0; phase < f; ++phase) {
+                        const int64_t channel = (j * f + y % f) * f + phase;
+                        lane[j][phase] = (channel / ss.block) * ss.planeStride() + channel % ss.block;
                     }
-                    for (int64_t c = 0; c < C; ++c) {
-                        for (int dy = -r; dy <= r; ++dy)
-                            in[c * k + dy + r] =
-                                input.data() + ((n * C + c) * H + std::clamp<int64_t>(y + dy, 0, H - 1)) * W;
-                        out[c] = m.output.data() + ((n * C + c) * H + y) * W;
-                    }
-                    DEJAG_SIMD_CALL(kernelFilterRow, args);
+                const float* pixel = source + ss.offset(n, 0, y / f, 0);
+                for (int64_t x0 = 0; x0 < W; x0 += f, pixel += ss.block) {
+                    const int64_t phases = std::min<int64_t>(f, W - x0);
+                    for (int j = 0; j < taps; ++j)
+                        for (int64_t phase = 0; phase < phases; ++phase)
+                            logits[j * W + x0 + phase] = pixel[lane[j][phase]];
                 }
             }
+            for (int64_t c = 0; c < C; ++c) {
+                for (int dy = -r; dy <= r; ++dy)
+                    in[c * k + dy + r] = inputRow(n, c, std::clamp<int64_t>(y + dy, 0, H - 1));
+                out[c] = outputRow(part, n, c, y);
+            }
+            DEJAG_SIMD_CALL(kernelFilterRow, args);
+            if (sink) deliver(part, n, y, false);
         });
-        return m.output;
+        return;
     }
     fromBlocked(m.output.data(), m.data(m.outputStep), m.steps[size_t(m.outputStep)].shape);
-    return m.output;
+    if (sink) forEachOutputRow([&](int64_t part, int64_t n, int64_t y) { deliver(part, n, y, true); });
 }
 
 }  // namespace dejag::nn

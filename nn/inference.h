@@ -7,6 +7,7 @@
 // size, another SIMD level, or after the weights change.
 #pragma once
 
+#include <cstdint>
 #include <memory>
 
 #include "nn/model.h"
@@ -20,6 +21,17 @@ namespace dejag::nn {
 // and half the memory traffic; the model's input, its output and whatever else reads an activation stay
 // float. Each bf16 value carries 8 significant bits (a relative error up to 2^-9 per rounding).
 enum class InferencePrecision { Float32, BFloat16 };
+
+// Takes the output rows of InferencePlan::runInPlace(): row y of image n, one pointer per output channel
+// to outputShape()[3] floats, valid during the call. Calls come from several threads at once, each with
+// another row.
+class OutputRowSink {
+  public:
+    virtual void row(int64_t n, int64_t y, const float* const* channels) = 0;
+
+  protected:
+    ~OutputRowSink() = default;
+};
 
 class InferencePlan {
   public:
@@ -35,6 +47,15 @@ class InferencePlan {
     const Tensor& run(const Tensor& input);
     // As run(), without the finiteness check (the caller has checked).
     const Tensor& runUnchecked(const Tensor& input);
+
+    // Frames without a copy in and out (the CNN filter's path): write the input's rows in place through
+    // inputRow() — channel c, row y of image n, inputShape()[3] floats, straight into the plan's own
+    // input buffer when only convolutions and the output stages read it, else into a staging tensor —
+    // then runInPlace() hands every image's output rows [rowBegin, rowEnd) to `sink` as they are made
+    // (a kernel-predicting or residual network's output stage computes no other rows; outputs of other
+    // networks are made whole first). No finiteness check; the output tensor is not written.
+    float* inputRow(int64_t n, int64_t c, int64_t y);
+    void runInPlace(OutputRowSink& sink, int64_t rowBegin, int64_t rowEnd);
 
     const Shape& inputShape() const;
     const Shape& outputShape() const;

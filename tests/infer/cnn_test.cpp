@@ -5,11 +5,15 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
+#include <bit>
 #include <cmath>
 #include <random>
 
 #include "base/error.h"
+#include "infer/cnn_kernels.h"
 #include "tests/alloc_counter.h"
+#include "tests/test_util.h"
 
 namespace dejag::infer {
 namespace {
@@ -45,6 +49,44 @@ float maxDifference(const std::vector<float>& a, const std::vector<float>& b) {
     for (size_t i = 0; i < a.size(); ++i) worst = std::max(worst, std::abs(a[i] - b[i]));
     return worst;
 }
+
+// The frame rows into planes and back on every SIMD level: RGB frames by vectors (and a tail), RGBA
+// pixel by pixel; out-of-range values clamped, NaN kept, the other channels untouched.
+class CnnRows : public testing::SimdLevelTest {};
+
+TEST_P(CnnRows, SplitAndJoinMatchThePixelLoops) {
+    for (int channels : {3, 4})
+        for (int64_t count : {0, 1, 15, 16, 17, 40, 77}) {
+            std::vector<float> frame(size_t(count * channels));
+            for (size_t i = 0; i < frame.size(); ++i) frame[i] = float(i % 29) / 13.0f - 0.5f;
+            if (count > 5) frame[size_t(5 * channels + 1)] = NAN;
+            std::vector<float> r(size_t(count) + 1, -7.0f), g = r, b = r;
+            DEJAG_SIMD_CALL(splitRgbRow, frame.data(), channels, count, r.data(), g.data(), b.data());
+            for (int64_t x = 0; x < count; ++x) {
+                const float* p = &frame[size_t(x * channels)];
+                ASSERT_EQ(std::bit_cast<uint32_t>(r[size_t(x)]), std::bit_cast<uint32_t>(p[0])) << x;
+                ASSERT_EQ(std::bit_cast<uint32_t>(g[size_t(x)]), std::bit_cast<uint32_t>(p[1])) << x;
+                ASSERT_EQ(std::bit_cast<uint32_t>(b[size_t(x)]), std::bit_cast<uint32_t>(p[2])) << x;
+            }
+            EXPECT_EQ(r[size_t(count)], -7.0f) << "written past the row";
+            std::vector<float> joined(frame.size() + size_t(channels), 9.0f);
+            DEJAG_SIMD_CALL(joinRgbRowClamped, r.data(), g.data(), b.data(), count, channels, joined.data());
+            for (int64_t x = 0; x < count; ++x)
+                for (int c = 0; c < channels; ++c) {
+                    const float v = frame[size_t(x * channels + c)], got = joined[size_t(x * channels + c)];
+                    if (c >= 3)
+                        EXPECT_EQ(got, 9.0f) << "channel " << c << " of pixel " << x << " written";
+                    else if (std::isnan(v))
+                        EXPECT_TRUE(std::isnan(got)) << x;
+                    else
+                        EXPECT_EQ(got, std::clamp(v, 0.0f, 1.0f)) << "channel " << c << " of pixel " << x;
+                }
+            EXPECT_EQ(joined[frame.size()], 9.0f) << "written past the row";
+        }
+}
+
+INSTANTIATE_TEST_SUITE_P(SimdLevels, CnnRows, ::testing::ValuesIn(testing::availableSimdLevels()),
+                         testing::simdTestName);
 
 TEST(Cnn, ReceptiveFieldOfTheShippedArchitectures) {
     const ReceptiveField seed = receptiveField(nn::Model::builtin("seed2020"));

@@ -4,6 +4,7 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 
 #include "base/error.h"
@@ -87,6 +88,43 @@ nlohmann::json everyOpArchitecture() {
 
 class Inference : public testing::SimdLevelTest {};
 
+// Output rows handed over by runInPlace(), kept as a tensor; each row's deliveries counted.
+struct CollectedRows final : OutputRowSink {
+    Tensor rows;
+    std::vector<int> deliveries;  // per (image, row)
+    explicit CollectedRows(const Shape& shape) : rows(shape), deliveries(size_t(shape[0] * shape[2])) {}
+    void row(int64_t n, int64_t y, const float* const* channels) override {
+        const int64_t C = rows.shape()[1], H = rows.shape()[2], W = rows.shape()[3];
+        for (int64_t c = 0; c < C; ++c) std::copy_n(channels[c], W, rows.data() + ((n * C + c) * H + y) * W);
+        ++deliveries[size_t(n * H + y)];  // rows come once each: no two threads share an element
+    }
+};
+
+// The input written through inputRow() and the rows [first, last) taken from runInPlace() equal run()'s
+// bit for bit; every other row is left out, each wanted one comes once.
+void expectInPlaceRunMatchesRun(InferencePlan& plan, const Tensor& input, int64_t first, int64_t last) {
+    const Tensor want = plan.run(input).clone();
+    const Shape& s = input.shape();
+    for (int64_t n = 0; n < s[0]; ++n)
+        for (int64_t c = 0; c < s[1]; ++c)
+            for (int64_t y = 0; y < s[2]; ++y)
+                std::copy_n(input.data() + ((n * s[1] + c) * s[2] + y) * s[3], s[3], plan.inputRow(n, c, y));
+    CollectedRows got(want.shape());
+    plan.runInPlace(got, first, last);
+    const Shape& o = want.shape();
+    for (int64_t n = 0; n < o[0]; ++n)
+        for (int64_t y = 0; y < o[2]; ++y) {
+            const bool wanted = y >= first && y < last;
+            ASSERT_EQ(got.deliveries[size_t(n * o[2] + y)], wanted ? 1 : 0) << "image " << n << " row " << y;
+            for (int64_t c = 0; wanted && c < o[1]; ++c)
+                for (int64_t x = 0; x < o[3]; ++x) {
+                    const int64_t i = ((n * o[1] + c) * o[2] + y) * o[3] + x;
+                    ASSERT_EQ(got.rows.data()[i], want.data()[i])
+                        << "image " << n << " channel " << c << " row " << y << " column " << x;
+                }
+        }
+}
+
 void expectPlanMatchesReference(Model& model, const Shape& shape) {
     model.initialize(11);
     // Biases start at zero; non-zero ones check that every fused path adds them.
@@ -106,6 +144,7 @@ void expectPlanMatchesReference(Model& model, const Shape& shape) {
         scale = std::max(scale, double(std::abs(want.data()[i])));
     }
     EXPECT_LE(worst / scale, 1e-5) << model.name();
+    expectInPlaceRunMatchesRun(plan, input, 1, shape[2] - 1);
 }
 
 TEST_P(Inference, Seed2020MatchesTheReference) {
@@ -159,6 +198,26 @@ TEST_P(Inference, KpnFamilyMatchesTheReference) {
 TEST_P(Inference, EveryOpMatchesTheReference) {
     Model model = Model::fromArchitecture(everyOpArchitecture());
     expectPlanMatchesReference(model, {2, 3, 20, 24});
+}
+
+// An input the plan holds blocked (more than 4 channels): inputRow() writes a staging tensor.
+TEST_P(Inference, BlockedInputMatchesTheReference) {
+    using nlohmann::json;
+    const json nodes = json::array({{{"name", "a"},
+                                     {"op", "conv2d"},
+                                     {"inputs", {"input"}},
+                                     {"out_channels", 5},
+                                     {"kernel", 3},
+                                     {"padding", "same"},
+                                     {"activation", "relu"}},
+                                    {{"name", "out"},
+                                     {"op", "conv2d"},
+                                     {"inputs", {"a"}},
+                                     {"out_channels", 3},
+                                     {"kernel", 3},
+                                     {"padding", "same"}}});
+    Model model = Model::fromArchitecture({{"name", "wide_input"}, {"input_channels", 6}, {"nodes", nodes}});
+    expectPlanMatchesReference(model, {2, 6, 12, 20});
 }
 
 INSTANTIATE_TEST_SUITE_P(SimdLevels, Inference, ::testing::ValuesIn(testing::availableSimdLevels()),

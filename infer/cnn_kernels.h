@@ -1,0 +1,20 @@
+// dejag/infer: the CNN filter's frame rows in and out of the network's planes, compiled once per SIMD
+// level (infer/cnn.cpp dispatches). Three-channel frames take the vector path (infer/pixel_simd.h's
+// loadRgb / storeRgb); frames with more channels (alpha) go pixel by pixel.
+#pragma once
+
+#include <cstdint>
+
+#include "base/simd.h"
+
+namespace dejag::infer {
+
+DEJAG_SIMD_DECLARE(
+    // `count` pixels of an interleaved row (`channels` floats per pixel, R G B first) into planes.
+    void splitRgbRow(const float* pixels, int channels, int64_t count, float* r, float* g, float* b);
+    // `count` pixels of planes, each value clamped to [0, 1], into R G B of an interleaved row; the
+    // pixels' other channels are left as they are.
+    void joinRgbRowClamped(const float* r, const float* g, const float* b, int64_t count, int channels,
+                           float* pixels);)
+
+}  // namespace dejag::infer
