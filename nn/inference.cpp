@@ -12,6 +12,7 @@
 #include "base/thread_pool.h"
 #include "nn/fast_conv.h"
 #include "nn/kernel_filter_kernels.h"
+#include "nn/shuffle_kernels.h"
 
 namespace dejag::nn {
 namespace {
@@ -760,6 +761,36 @@ void InferencePlan::Impl::runSteps() {
                     const int64_t rowOffset = is.offset(b, 0, y / f, 0), outOffset = os.offset(b, ob, y, 0);
                     auto* in16 = reinterpret_cast<const uint16_t*>(in) + rowOffset;
                     auto* out16 = reinterpret_cast<uint16_t*>(out) + outOffset;
+                    // By SIMD permutes where each phase's lanes come from at most two source blocks.
+                    if (step.inBf16 == step.outBf16 && is.block == B && f <= 16) {
+                        ShuffleRowArgs args;
+                        args.source = step.inBf16 ? static_cast<const void*>(in16)
+                                                  : static_cast<const void*>(in + rowOffset);
+                        args.out =
+                            step.outBf16 ? static_cast<void*>(out16) : static_cast<void*>(out + outOffset);
+                        args.blockStride = is.planeStride(), args.width = os.width, args.factor = int(f);
+                        args.bf16 = step.inBf16, args.from = from, args.valid = valid;
+                        bool twoBlocks = true;
+                        for (int64_t j = 0; j < f && twoBlocks; ++j) {
+                            int64_t blocks[2] = {-1, -1};
+                            for (int l = from; l < valid; ++l) {
+                                const int64_t sourceBlock = offset[j][l] / is.planeStride(),
+                                              within = offset[j][l] % is.planeStride();
+                                const int slot = blocks[0] < 0 || blocks[0] == sourceBlock   ? 0
+                                                 : blocks[1] < 0 || blocks[1] == sourceBlock ? 1
+                                                                                             : 2;
+                                if (slot == 2) {
+                                    twoBlocks = false;
+                                    break;
+                                }
+                                blocks[slot] = sourceBlock;
+                                args.lane[j][l] = int32_t(within + slot * B);
+                            }
+                            args.firstBlock[j] = std::max<int64_t>(blocks[0], 0);
+                            args.secondBlock[j] = blocks[1] < 0 ? args.firstBlock[j] : blocks[1];
+                        }
+                        if (twoBlocks && DEJAG_SIMD_CALL(shuffleRow, args)) return;
+                    }
                     if (step.inBf16)
                         step.outBf16 ? shuffleRow(in16, out16) : shuffleRow(in16, out + outOffset);
                     else
