@@ -8,6 +8,7 @@
 #pragma once
 
 #include <functional>
+#include <map>
 #include <memory>
 #include <nlohmann/json.hpp>
 #include <string>
@@ -69,7 +70,10 @@ struct ReportOptions {
     std::string title;  // of the report
     std::string intro;  // HTML paragraph under the title
     std::vector<std::string> notes;
-    std::vector<std::pair<std::string, double>> fullHdMs;  // optional: method -> ms at 1920x1080
+    // Optional: method -> ms at 1920x1080 (the median over fullHdScenes), and each scene's ms.
+    std::vector<std::pair<std::string, double>> fullHdMs;
+    std::vector<std::string> fullHdScenes;
+    std::map<std::string, std::vector<double>> fullHdSceneMs;  // method -> ms per scene, in that order
 };
 // Writes the report from scored cases; returns one JSON row per (case, method) and a "mean" row per
 // method (means over cases, ms a median; plus ms_1080p when given).
@@ -93,7 +97,7 @@ struct QualityBenchOptions {
     int limit = 0;  // test items (0: all)
     int repeat = 3;
     int reportItems = 8;  // cases with crops in the report
-    bool fullHd = true;   // time every method on a rendered 1920x1080 frame
+    bool fullHd = true;   // time every method on the test scenes rendered at 1920x1080
     bool quiet = false;
 };
 std::vector<nlohmann::json> benchQuality(const QualityBenchOptions& options);
