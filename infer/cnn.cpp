@@ -114,6 +114,28 @@ struct FrameRows final : nn::OutputRowSink {
     }
 };
 
+// The rows of a tile's input region, as the network reads them: planes of R, G, B (or the luma of a grey
+// network), rows and columns past the frame repeating its last ones.
+struct RegionRows final : nn::InputRowSource {
+    const float* in = nullptr;  // the frame (interleaved, C channels)
+    const float* luma = nullptr;
+    size_t C = 3, width = 0;
+    int height = 0, rx0 = 0, ry0 = 0, RW = 0;  // the region's origin and width
+    bool grey = false;
+
+    void row(int64_t, int64_t y, float* const* channels) override {
+        const size_t frameRow = size_t(std::min(int(ry0 + y), height - 1)) * width;
+        const int inside = std::max(0, std::min(RW, int(width) - rx0));
+        if (grey)
+            std::copy_n(luma + frameRow + size_t(rx0), inside, channels[0]);
+        else
+            DEJAG_SIMD_CALL(splitRgbRow, in + (frameRow + size_t(rx0)) * C, int(C), inside, channels[0],
+                            channels[1], channels[2]);
+        for (int c = 0; c < (grey ? 1 : 3); ++c)
+            std::fill(channels[c] + inside, channels[c] + RW, channels[c][inside - 1]);
+    }
+};
+
 }  // namespace
 
 CnnFilter::CnnFilter(nn::Model model, const CnnOptions& options)
@@ -282,29 +304,25 @@ void CnnFilter::apply(const float* in, float* out, int width, int height, int ch
                   ry1 = std::min(PH, (cy1 + a - 1) / a * a + halo);
         nn::InferencePlan& plan = m.planFor(ry1 - ry0, rx1 - rx0);
         const int RW = rx1 - rx0, RH = ry1 - ry0;
-        // The region's planes, row by row, straight into the plan's input (columns past the frame repeat
-        // its last one).
-        parallelFor(0, RH, 8, [&](int64_t j0, int64_t j1) {
-            for (int64_t j = j0; j < j1; ++j) {
-                const int y = std::min(int(ry0 + j), height - 1);
-                const size_t row = size_t(y) * size_t(width);
-                const int inside = std::max(0, std::min(RW, width - rx0));
-                float* planes[3] = {plan.inputRow(0, 0, j), nullptr, nullptr};
-                if (grey) {
-                    std::copy_n(m.luma.data() + row + size_t(rx0), inside, planes[0]);
-                } else {
-                    planes[1] = plan.inputRow(0, 1, j), planes[2] = plan.inputRow(0, 2, j);
-                    DEJAG_SIMD_CALL(splitRgbRow, in + (row + size_t(rx0)) * C, int(C), inside, planes[0],
-                                    planes[1], planes[2]);
-                }
-                for (int c = 0; c < (grey ? 1 : 3); ++c)
-                    std::fill(planes[c] + inside, planes[c] + RW, planes[c][inside - 1]);
-            }
-        });
+        RegionRows region;
+        region.in = in, region.luma = m.luma.data(), region.C = C, region.width = size_t(width);
+        region.height = height, region.rx0 = rx0, region.ry0 = ry0, region.RW = RW, region.grey = grey;
         FrameRows rows;
         rows.in = in, rows.out = out, rows.luma = m.luma.data(), rows.C = C, rows.width = size_t(width);
         rows.rx0 = rx0, rows.ry0 = ry0, rows.cx0 = cx0, rows.cx1 = cx1, rows.grey = grey;
-        plan.runInPlace(rows, cy0 - ry0, cy1 - ry0);
+        if (plan.canStreamInput()) {
+            // The frame's rows go straight into the first layer and the output stage, band by band.
+            plan.runStreamed(region, rows, cy0 - ry0, cy1 - ry0);
+        } else {
+            parallelFor(0, RH, 8, [&](int64_t j0, int64_t j1) {
+                float* planes[3];
+                for (int64_t j = j0; j < j1; ++j) {
+                    for (int c = 0; c < (grey ? 1 : 3); ++c) planes[c] = plan.inputRow(0, c, j);
+                    region.row(0, j, planes);
+                }
+            });
+            plan.runInPlace(rows, cy0 - ry0, cy1 - ry0);
+        }
     }
 }
 

@@ -308,6 +308,57 @@ void BlockedConv::forward(float* out, const BlockedShape& outShape, const float*
     });
 }
 
+BlockedShape BlockedConv::bandShape(const BlockedShape& inShape) const {
+    const Pass& pass = passes_.front();
+    int64_t low = 0, high = 0;
+    for (const Tap& t : pass.taps) low = std::min(low, t.dy), high = std::max(high, t.dy);
+    BlockedShape band = inShape;
+    band.batch = 1;
+    band.height = (kBandRows - 1) * pass.inStepY + high - low + 1;
+    return band;
+}
+
+void BlockedConv::forwardBanded(float* out, const BlockedShape& outShape, const BlockedShape& inShape,
+                                BandInput& input, float* const* buffers, int bufferCount,
+                                bool outBf16) const {
+    if (!canBandInput()) throw Error("BlockedConv: a banded input needs a single-pass Conv2D of one image");
+    if ((outBf16 && !canWriteBf16()) || inShape.block != inputBlock_ || outShape.block != outputBlock_ ||
+        block_ != simdFloatLanes(activeSimdLevel()) || inShape.border < requiredBorder_ ||
+        inShape.channels != inChannels_ || inShape.height != inHeight_ || inShape.width != inWidth_ ||
+        outShape.channels != outChannels_ || outShape.height != outHeight_ || outShape.width != outWidth_ ||
+        bufferCount < 1)
+        throw Error("BlockedConv: tensor shapes do not match the convolution");
+    const Pass& pass = passes_.front();
+    const BlockedShape band = bandShape(inShape);
+    int64_t low = 0;
+    for (const Tap& t : pass.taps) low = std::min(low, t.dy);
+    std::array<int64_t, kMaxTaps> offsets{};
+    for (size_t t = 0; t < pass.taps.size(); ++t)
+        offsets[t] = pass.taps[t].dy * band.rowStride() + pass.taps[t].dx * inputBlock_;
+    const int64_t bands = (pass.rows + kBandRows - 1) / kBandRows;
+    parallelFor(0, bufferCount, 1, [&](int64_t first, int64_t last) {
+        for (int64_t k = first; k < last; ++k)
+            for (int64_t b = k; b < bands; b += bufferCount) {
+                ConvRowsArgs a;
+                a.rowBegin = b * kBandRows, a.rowEnd = std::min(pass.rows, a.rowBegin + kBandRows);
+                // The band's first input row: the top tap of its first lattice row.
+                const int64_t firstRow = pass.inY0 + a.rowBegin * pass.inStepY + low;
+                input.fill(
+                    firstRow,
+                    (a.rowEnd - 1 - a.rowBegin) * pass.inStepY + band.height - (kBandRows - 1) * pass.inStepY,
+                    buffers[k], band);
+                a.in = buffers[k], a.inShape = band, a.out = out, a.outShape = outShape;
+                a.pass = pass.view(offsets.data());
+                a.pass.inY0 -= firstRow;  // lattice row r reads band row inY0 + r * inStepY - firstRow
+                a.bias = paddedBias_.data();
+                a.activation = activation_;
+                a.outBf16 = outBf16;
+                a.outBlockBegin = 0, a.outBlockEnd = outShape.channelBlocks();
+                DEJAG_SIMD_CALL(convForwardRows, a);
+            }
+    });
+}
+
 void BlockedConv::backwardWeights(float* dweight, float* dbias, const float* dout,
                                   const BlockedShape& doutShape, const float* in,
                                   const BlockedShape& inShape) const {

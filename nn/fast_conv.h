@@ -43,6 +43,25 @@ class BlockedConv {
     void forward(float* out, const BlockedShape& outShape, const float* in, const BlockedShape& inShape,
                  bool inBf16 = false, bool outBf16 = false) const;
 
+    // An input made a band of rows at a time, never stored whole (a frame streamed into a network's
+    // first layer): for a single-pass Conv2D without pooling on one image (canBandInput()).
+    struct BandInput {
+        // Input rows [firstRow, firstRow + rows) into `band`, row y at bandShape.offset(0, c, y - firstRow,
+        // 0); rows outside the image must be zero. The band's border columns are zero and must stay so.
+        virtual void fill(int64_t firstRow, int64_t rows, float* band, const BlockedShape& bandShape) = 0;
+
+      protected:
+        ~BandInput() = default;
+    };
+    static constexpr int64_t kBandRows = 8;  // output rows per band
+    bool canBandInput() const { return passes_.size() == 1 && !pool_ && !transposed_ && batch_ == 1; }
+    // The shape of a band buffer for an input of shape inShape (its width, block and border).
+    BlockedShape bandShape(const BlockedShape& inShape) const;
+    // As forward(), the input given band by band: the bands are shared out among bufferCount chunks run
+    // in parallel, chunk k filling buffers[k] (zeroed once, bandShape(inShape).floatCount() floats).
+    void forwardBanded(float* out, const BlockedShape& outShape, const BlockedShape& inShape,
+                       BandInput& input, float* const* buffers, int bufferCount, bool outBf16 = false) const;
+
     // Packs the weights rounded to bf16 in input-channel pairs, for forward() with a bf16 input (the
     // activations and weights in bf16, the sums in float: vdpbf16ps). Throws dejag::Error when
     // bf16Available() is false, or for an input that is not blocked or a layer the narrow kernel runs.

@@ -319,11 +319,12 @@ constexpr auto makeWideTails(std::index_sequence<I...>) {
     return std::array<TileFunction, sizeof...(I)>{&wideTile<int(I) + 1, CB, BI, UNIT, POOL, INB>...};
 }
 
+// Lattice columns [first, columns) of one row.
 template <int CB, int BI, bool UNIT, bool POOL, bool INB>
-void wideRow(const RowContext& c, int64_t cob, int64_t columns) {
+void wideRow(const RowContext& c, int64_t cob, int64_t columns, int64_t first = 0) {
     static constexpr auto tails =
         makeWideTails<CB, BI, UNIT, POOL, INB>(std::make_index_sequence<kTileWidth - 1>());
-    int64_t j = 0;
+    int64_t j = first;
     for (; j + kTileWidth <= columns; j += kTileWidth)
         wideTile<kTileWidth, CB, BI, UNIT, POOL, INB>(c, cob, j);
     if (j < columns) tails[size_t(columns - j - 1)](c, cob, j);
@@ -346,6 +347,90 @@ void wideRows(const ConvRowsArgs& a) {
     }
     if (stream) storeFence();
 }
+
+#if defined(DEJAG_SIMD_LEVEL_avx512)
+// ---- Planar stride-2 layers: a network's first convolution on an RGB or grey frame -----------------
+//
+// The wide kernel gives such a layer one broadcast and one multiply-add per input channel and tap for
+// each output pixel, with half its lanes idle when it has 8 outputs. Here the lanes are 16 output pixels
+// of one output channel instead: a tap's 16 inputs (every other float of 31) are one permute of two
+// loads, and each weight is a broadcast operand, so 8 outputs cost 8 multiply-adds per input channel
+// and tap for 16 pixels (the wide kernel: 16). The 8 channel vectors are then transposed to pixels.
+// Accumulation order and arithmetic are the wide kernel's: the results are bit for bit the same.
+constexpr int kPlanarOutChannels = 8;
+
+bool planarStride2Applies(const ConvRowsArgs& a) {
+    return !a.pool2x2 && !a.inBf16 && a.inShape.block == 1 && a.inShape.channels <= 4 &&
+           a.pass.inStepX == 2 && a.outShape.block == B && a.outShape.channels <= kPlanarOutChannels &&
+           a.outBlockBegin == 0 && a.outBlockEnd == 1;
+}
+
+// rows[k] (k < 8) holds row k of an 8x8 block; cols[k] becomes its column k.
+inline void transpose8x8(const __m256 (&rows)[8], __m256 (&cols)[8]) {
+    __m256 t[8], u[8];
+    for (int i = 0; i < 8; i += 2) {
+        t[i] = _mm256_unpacklo_ps(rows[i], rows[i + 1]);
+        t[i + 1] = _mm256_unpackhi_ps(rows[i], rows[i + 1]);
+    }
+    for (int i = 0; i < 8; i += 4)
+        for (int k = 0; k < 2; ++k) {
+            u[i + 2 * k] = _mm256_shuffle_ps(t[i + k], t[i + 2 + k], _MM_SHUFFLE(1, 0, 1, 0));
+            u[i + 2 * k + 1] = _mm256_shuffle_ps(t[i + k], t[i + 2 + k], _MM_SHUFFLE(3, 2, 3, 2));
+        }
+    for (int k = 0; k < 4; ++k) {
+        cols[k] = _mm256_permute2f128_ps(u[k], u[k + 4], 0x20);
+        cols[k + 4] = _mm256_permute2f128_ps(u[k], u[k + 4], 0x31);
+    }
+}
+
+void planarStride2Rows(const ConvRowsArgs& a) {
+    constexpr int K = kPlanarOutChannels;
+    const int64_t columns = a.pass.columns, vectorColumns = columns / B * B;
+    const size_t alignment = a.outBf16 ? B * sizeof(uint16_t) : sizeof(VFloat);
+    const bool stream = largeOutput(a) && reinterpret_cast<uintptr_t>(a.out) % alignment == 0;
+    const __m512i evens = _mm512_setr_epi32(0, 2, 4, 6, 8, 10, 12, 14, 16, 18, 20, 22, 24, 26, 28, 30);
+    for (int64_t r = a.rowBegin; r < a.rowEnd; ++r) {
+        RowContext c = rowContext(a, r);
+        c.streamWide = stream;
+        // Lanes K.. of every pixel: what the wide kernel computes there (no channel: bias, activation).
+        const __m512 rest = __m512(applyActivation(loadu<VFloat>(c.bias), c.activation));
+        for (int64_t j = 0; j < vectorColumns; j += B) {
+            VFloat acc[K];
+            for (int k = 0; k < K; ++k) acc[k] = splat<VFloat>(c.bias[k]);
+            for (int64_t ci = 0; ci < c.cinBlocks; ++ci)
+                for (int t = 0; t < c.taps; ++t) {
+                    const float* p = c.in + ci * c.inBlockStride + c.tapOffsets[t] + 2 * j;
+                    const VFloat v = VFloat(_mm512_permutex2var_ps(_mm512_loadu_ps(p), evens,
+                                                                   _mm512_maskz_loadu_ps(0x7FFF, p + B)));
+                    const float* w = c.weights + (ci * c.taps + t) * B;
+#pragma GCC unroll 8
+                    for (int k = 0; k < K; ++k) acc[k] += v * w[k];
+                }
+            __m256 low[K], high[K], lowPixels[K], highPixels[K];
+            for (int k = 0; k < K; ++k) {
+                const VFloat v = applyActivation(acc[k], c.activation);
+                low[k] = __m256(__builtin_shufflevector(v, v, 0, 1, 2, 3, 4, 5, 6, 7));
+                high[k] = __m256(__builtin_shufflevector(v, v, 8, 9, 10, 11, 12, 13, 14, 15));
+            }
+            transpose8x8(low, lowPixels);
+            transpose8x8(high, highPixels);
+            for (int i = 0; i < B; ++i) {
+                const VFloat pixel =
+                    VFloat(_mm512_insertf32x8(rest, i < K ? lowPixels[i] : highPixels[i - K], 0));
+                const int64_t offset = (j + i) * c.outPixelStep;
+                if (c.outBf16)
+                    storeBf16(c.outBf16 + offset, pixel, stream);
+                else if (stream)
+                    streamStore(c.out + offset, pixel);
+                else
+                    storeu(c.out + offset, pixel);
+            }
+        }
+        wideRow<1, 1, false, false, false>(c, 0, columns, vectorColumns);  // the last columns
+    }
+    if (stream) storeFence();
+}
+#endif
 
 template <int BI, bool INB>
 void wideRowsFor(const ConvRowsArgs& a) {
@@ -628,8 +713,11 @@ void convForwardRows(const ConvRowsArgs& a) {
         throw Error("convForwardRows: bf16 activations need AVX-512 BF16");
     if (a.inBf16 && (a.inShape.block != B || !a.pass.pairWeights))
         throw Error("convForwardRows: a bf16 input needs a blocked layout and pair weights");
-    if (a.inBf16)
-        wideRowsFor<B, kBf16Kernels>(a);
+    if (a.inBf16) wideRowsFor<B, kBf16Kernels>(a);
+#if defined(DEJAG_SIMD_LEVEL_avx512)
+    else if (planarStride2Applies(a))
+        planarStride2Rows(a);
+#endif
     else if (a.inShape.block == 1)
         wideRowsFor<1, false>(a);
     else

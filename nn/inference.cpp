@@ -228,8 +228,19 @@ struct InferencePlan::Impl {
     std::vector<const float*> rowPointers;  // [parts][C]: the rows handed to a sink
     Tensor staged;  // the input written through inputRow() when the plan holds it blocked
 
-    void runSteps();
-    void finish(const float* planes, OutputRowSink* sink, int64_t rowBegin, int64_t rowEnd);
+    // Streamed input (runStreamed): band buffers for the convolutions reading the input, one per chunk
+    // of bands, and per output part a ring of the input rows the output stage reads.
+    bool streamInput = false;
+    Tensor bandBuffers;  // [chunks][band floats]
+    std::vector<float*> bandPointers;
+    int ringSlots = 1;
+    Tensor inputRing;               // [parts][ringSlots][C][W]
+    std::vector<int64_t> ringRows;  // [parts][ringSlots]: the input row each slot holds (-1: none)
+
+    // streamed: the input's source (null: the input is in the arena).
+    void runSteps(InputRowSource* streamed);
+    void finish(const float* planes, OutputRowSink* sink, int64_t rowBegin, int64_t rowEnd,
+                InputRowSource* streamed);
     Tensor arena;
     Tensor output;
     size_t unpackedBytes = 0;
@@ -560,6 +571,28 @@ InferencePlan::InferencePlan(const Model& model, const Shape& inputShape, Infere
         m.rowScratch = Tensor({Impl::kRowParts, m.outputShape[1], m.outputShape[3]});
     m.rowPointers.resize(size_t(Impl::kRowParts * m.outputShape[1]));
     if (m.inputBlocked.block != 1) m.staged = Tensor(inputShape);
+    // A streamed input (runStreamed): one image, planar, read only by single-pass convolutions (given it
+    // in bands) and the output stage (given it in rows).
+    m.streamInput = planarInput && inputShape[0] == 1 && inputShape[1] <= 16;
+    int64_t bandFloats = 0;
+    for (int i = 0; i < int(graph.size()); ++i)
+        for (int source : graph[size_t(i)].inputs) {
+            if (source >= 0 || i == filterNode || i == residualAdd) continue;
+            const Impl::Step& step = m.steps[size_t(i)];
+            if (graph[size_t(i)].op == GraphOp::Conv2d && step.conv && step.conv->canBandInput())
+                bandFloats = std::max(bandFloats, step.conv->bandShape(m.inputBlocked).floatCount());
+            else
+                m.streamInput = false;
+        }
+    if (m.streamInput) {
+        const int chunks = std::max(1, threadCount());
+        m.bandBuffers = Tensor({chunks, (bandFloats + 15) / 16 * 16});
+        for (int k = 0; k < chunks; ++k)
+            m.bandPointers.push_back(m.bandBuffers.data() + k * m.bandBuffers.shape()[1]);
+        m.ringSlots = m.kernelSource >= 0 ? m.kernelFilter.kernel : 1;
+        m.inputRing = Tensor({Impl::kRowParts, m.ringSlots, inputShape[1], inputShape[3]});
+        m.ringRows.assign(size_t(Impl::kRowParts * m.ringSlots), -1);
+    }
 }
 
 InferencePlan::InferencePlan(InferencePlan&&) noexcept = default;
@@ -603,8 +636,8 @@ const Tensor& InferencePlan::runUnchecked(const Tensor& input) {
         throw Error("inference: the SIMD level changed since planning");
     zeroBorder(m.data(-1), m.inputBlocked);
     toBlocked(m.data(-1), input.data(), m.inputBlocked);
-    m.runSteps();
-    m.finish(input.data(), nullptr, 0, m.outputShape[2]);
+    m.runSteps(nullptr);
+    m.finish(input.data(), nullptr, 0, m.outputShape[2], nullptr);
     return m.output;
 }
 
@@ -624,12 +657,51 @@ void InferencePlan::runInPlace(OutputRowSink& sink, int64_t rowBegin, int64_t ro
     rowBegin = std::max<int64_t>(0, rowBegin), rowEnd = std::min(rowEnd, m.outputShape[2]);
     zeroBorder(m.data(-1), m.inputBlocked);  // the interior is the caller's rows
     if (m.inputBlocked.block != 1) toBlocked(m.data(-1), m.staged.data(), m.inputBlocked);
-    m.runSteps();
-    m.finish(m.inputBlocked.block == 1 ? nullptr : m.staged.data(), &sink, rowBegin, rowEnd);
+    m.runSteps(nullptr);
+    m.finish(m.inputBlocked.block == 1 ? nullptr : m.staged.data(), &sink, rowBegin, rowEnd, nullptr);
 }
 
-void InferencePlan::Impl::runSteps() {
+bool InferencePlan::canStreamInput() const {
+    return impl_->streamInput;
+}
+
+void InferencePlan::runStreamed(InputRowSource& source, OutputRowSink& sink, int64_t rowBegin,
+                                int64_t rowEnd) {
+    Impl& m = *impl_;
+    if (!m.streamInput) throw Error("inference: this plan cannot stream its input (canStreamInput())");
+    if (m.block != simdFloatLanes(activeSimdLevel()))
+        throw Error("inference: the SIMD level changed since planning");
+    rowBegin = std::max<int64_t>(0, rowBegin), rowEnd = std::min(rowEnd, m.outputShape[2]);
+    m.runSteps(&source);
+    m.finish(nullptr, &sink, rowBegin, rowEnd, &source);
+}
+
+namespace {
+
+// A convolution's input band from a streamed source (rows outside the image are zero).
+struct BandFromSource final : BlockedConv::BandInput {
+    InputRowSource* source = nullptr;
+    int64_t channels = 0, height = 0, width = 0;
+    void fill(int64_t firstRow, int64_t rows, float* band, const BlockedShape& shape) override {
+        float* row[16];
+        for (int64_t y = firstRow; y < firstRow + rows; ++y) {
+            for (int64_t c = 0; c < channels; ++c) row[c] = band + shape.offset(0, c, y - firstRow, 0);
+            if (y < 0 || y >= height) {
+                for (int64_t c = 0; c < channels; ++c) std::fill_n(row[c], width, 0.0f);
+            } else {
+                source->row(0, y, row);
+            }
+        }
+    }
+};
+
+}  // namespace
+
+void InferencePlan::Impl::runSteps(InputRowSource* streamed) {
     Impl& m = *this;
+    BandFromSource band;
+    band.source = streamed;
+    band.channels = inputShape[1], band.height = inputShape[2], band.width = inputShape[3];
     for (size_t i = 0; i < m.steps.size(); ++i) {
         Impl::Step& step = m.steps[i];
         if (step.fusedIntoConv || step.fusedIntoOutput || step.concatInPlace) continue;
@@ -644,7 +716,11 @@ void InferencePlan::Impl::runSteps() {
         switch (n.op) {
             case GraphOp::Conv2d:
             case GraphOp::ConvTranspose2d:
-                step.conv->forward(out, os, in, is, step.inBf16, step.outBf16);
+                if (streamed && n.inputs[0] < 0)
+                    step.conv->forwardBanded(out, os, is, band, bandPointers.data(), int(bandPointers.size()),
+                                             step.outBf16);
+                else
+                    step.conv->forward(out, os, in, is, step.inBf16, step.outBf16);
                 if (step.sigmoidAfterConv) blockedActivation(out, os, out, os, n.activation);
                 break;
             case GraphOp::MaxPool2d:
@@ -812,11 +888,26 @@ void InferencePlan::Impl::runSteps() {
 // The output stages: rows [rowBegin, rowEnd) of every image into the output tensor, or to `sink` (through
 // a part's scratch rows when the stage makes them). `planes`: the input as contiguous planes (the caller's
 // tensor), or null to read the arena's planar copy.
-void InferencePlan::Impl::finish(const float* planes, OutputRowSink* sink, int64_t rowBegin, int64_t rowEnd) {
+void InferencePlan::Impl::finish(const float* planes, OutputRowSink* sink, int64_t rowBegin, int64_t rowEnd,
+                                 InputRowSource* streamed) {
     Impl& m = *this;
     const int64_t C = m.outputShape[1], H = m.outputShape[2], W = m.outputShape[3];
-    auto inputRow = [&](int64_t n, int64_t c, int64_t y) -> const float* {
-        return planes ? planes + ((n * C + c) * H + y) * W : m.data(-1) + m.inputBlocked.offset(n, c, y, 0);
+    // Input row y of channel c: the caller's planes, the arena's, or (streamed) the part's ring, where
+    // the rows of consecutive output rows stay until overwritten.
+    if (streamed) std::fill(m.ringRows.begin(), m.ringRows.end(), int64_t(-1));
+    auto inputRow = [&](int64_t part, int64_t n, int64_t c, int64_t y) -> const float* {
+        if (!streamed)
+            return planes ? planes + ((n * C + c) * H + y) * W
+                          : m.data(-1) + m.inputBlocked.offset(n, c, y, 0);
+        const int64_t slot = y % m.ringSlots;
+        float* rows = m.inputRing.data() + (part * m.ringSlots + slot) * C * W;
+        if (int64_t& held = m.ringRows[size_t(part * m.ringSlots + slot)]; held != y) {
+            float* channels[16];
+            for (int64_t k = 0; k < C; ++k) channels[k] = rows + k * W;
+            streamed->row(n, y, channels);
+            held = y;
+        }
+        return rows + c * W;
     };
     // Output row of channel c: the output tensor's, or the part's scratch row.
     auto outputRow = [&](int64_t part, int64_t n, int64_t c, int64_t y) -> float* {
@@ -850,7 +941,7 @@ void InferencePlan::Impl::finish(const float* planes, OutputRowSink* sink, int64
                     const int64_t k = (c * f + y % f) * f + j;
                     subpixel[j] = source + ss.offset(n, k / ss.block, y / f, 0) + k % ss.block;
                 }
-                const float* in = inputRow(n, c, y);
+                const float* in = inputRow(part, n, c, y);
                 float* out = outputRow(part, n, c, y);
                 if (f == 2) {
                     int64_t x = 0;
@@ -913,7 +1004,7 @@ void InferencePlan::Impl::finish(const float* planes, OutputRowSink* sink, int64
             }
             for (int64_t c = 0; c < C; ++c) {
                 for (int dy = -r; dy <= r; ++dy)
-                    in[c * k + dy + r] = inputRow(n, c, std::clamp<int64_t>(y + dy, 0, H - 1));
+                    in[c * k + dy + r] = inputRow(part, n, c, std::clamp<int64_t>(y + dy, 0, H - 1));
                 out[c] = outputRow(part, n, c, y);
             }
             DEJAG_SIMD_CALL(kernelFilterRow, args);

@@ -22,9 +22,20 @@ namespace dejag::nn {
 // float. Each bf16 value carries 8 significant bits (a relative error up to 2^-9 per rounding).
 enum class InferencePrecision { Float32, BFloat16 };
 
-// Takes the output rows of InferencePlan::runInPlace(): row y of image n, one pointer per output channel
-// to outputShape()[3] floats, valid during the call. Calls come from several threads at once, each with
-// another row.
+// Gives the input rows InferencePlan::runStreamed() asks for: row y of image n into one pointer per input
+// channel (inputShape()[3] floats each). Calls come from several threads at once; a row may be asked
+// for more than once.
+class InputRowSource {
+  public:
+    virtual void row(int64_t n, int64_t y, float* const* channels) = 0;
+
+  protected:
+    ~InputRowSource() = default;
+};
+
+// Takes the output rows of InferencePlan::runInPlace() and runStreamed(): row y of image n, one pointer per
+// output channel to outputShape()[3] floats, valid during the call. Calls come from several threads at once,
+// each with another row.
 class OutputRowSink {
   public:
     virtual void row(int64_t n, int64_t y, const float* const* channels) = 0;
@@ -56,6 +67,12 @@ class InferencePlan {
     // networks are made whole first). No finiteness check; the output tensor is not written.
     float* inputRow(int64_t n, int64_t c, int64_t y);
     void runInPlace(OutputRowSink& sink, int64_t rowBegin, int64_t rowEnd);
+    // As runInPlace(), with the input never stored whole: its rows are asked of `source` a band at a time
+    // as the first layers and the output stage need them, and used while they are in the caches. For a
+    // planar input of one image read only by single-pass convolutions and the output stage
+    // (canStreamInput(); dejag-fast is one).
+    bool canStreamInput() const;
+    void runStreamed(InputRowSource& source, OutputRowSink& sink, int64_t rowBegin, int64_t rowEnd);
 
     const Shape& inputShape() const;
     const Shape& outputShape() const;

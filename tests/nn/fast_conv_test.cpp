@@ -355,6 +355,80 @@ TEST_P(FastConv, WideLayersOverALargeFrameMatchTheReference) {
     expectClose(runBlocked(conv, data.input, int64_t(want.size())), want);
 }
 
+// Planar stride-2 layers with a few outputs (a network's first layer on a frame: AVX-512 puts 16 output
+// pixels in the lanes, nn/fast_conv_kernels.cpp): widths with whole vectors and a tail, 1-4 inputs,
+// 1-8 outputs, 3x3 and 5x5, a dilation, a stride in one direction only, every activation.
+TEST_P(FastConv, PlanarStrideTwoLayersMatchTheReference) {
+    Rng rng(91);
+    for (int trial = 0; trial < 12; ++trial) {
+        Conv2dDesc d;
+        d.inChannels = 1 + trial % 4, d.outChannels = 1 + (trial * 3) % 8;
+        d.kernelHeight = d.kernelWidth = trial % 3 == 2 ? 5 : 3;
+        d.strideH = trial % 4 == 3 ? 1 : 2, d.strideW = 2;
+        d.dilationW = trial == 5 ? 2 : 1;
+        d.padTop = d.padBottom = d.kernelHeight / 2;
+        d.padLeft = d.padRight = d.dilationW * (d.kernelWidth / 2);
+        d.inHeight = 9 + trial, d.inWidth = 2 * 16 * (1 + trial % 3) + trial % 5;
+        SCOPED_TRACE("trial " + std::to_string(trial));
+        const RandomConv data(d, rng);
+        const ActivationDesc activation{kActivations[trial % 4], 0.1f, -0.5f, 0.5f};
+        const BlockedConv conv(d, data.weight.data(), data.bias.data(), activation, 1);
+        const std::vector<float> want = data.activated(activation);
+        expectClose(runBlocked(conv, data.input, int64_t(want.size())), want);
+    }
+}
+
+// An input given band by band (BlockedConv::forwardBanded, a frame streamed into a first layer) gives
+// forward()'s output bit for bit, whatever the number of band buffers.
+TEST_P(FastConv, BandedInputEqualsTheWholeInput) {
+    Rng rng(93);
+    for (int trial = 0; trial < 6; ++trial) {
+        Conv2dDesc d;
+        d.inChannels = 1 + trial % 3, d.outChannels = trial % 2 == 0 ? 8 : 20;
+        d.kernelHeight = d.kernelWidth = trial < 3 ? 3 : 5;
+        d.strideH = d.strideW = 1 + trial % 2;
+        d.padTop = d.padBottom = d.padLeft = d.padRight = d.kernelHeight / 2;
+        d.inHeight = 37 + trial, d.inWidth = 45 - trial;
+        SCOPED_TRACE("trial " + std::to_string(trial));
+        const RandomConv data(d, rng);
+        const BlockedConv conv(d, data.weight.data(), data.bias.data(), ActivationDesc{Activation::ReLU}, 1);
+        ASSERT_TRUE(conv.canBandInput());
+        const int border = conv.requiredInputBorder();
+        const BlockedShape inShape = conv.inputShape(border), outShape = conv.outputShape(border);
+        Tensor in = allocateBlocked(inShape), want = allocateBlocked(outShape);
+        toBlocked(in.data(), data.input.data(), inShape);
+        conv.forward(want.data(), outShape, in.data(), inShape);
+        // Rows from the whole input (zero outside it), counted.
+        struct Rows final : BlockedConv::BandInput {
+            const float* plain = nullptr;
+            int64_t channels = 0, height = 0, width = 0, filled = 0;
+            void fill(int64_t firstRow, int64_t rows, float* band, const BlockedShape& shape) override {
+                for (int64_t y = firstRow; y < firstRow + rows; ++y)
+                    for (int64_t c = 0; c < channels; ++c) {
+                        float* row = band + shape.offset(0, c, y - firstRow, 0);
+                        for (int64_t x = 0; x < width; ++x)
+                            row[x] = y < 0 || y >= height ? 0.0f : plain[(c * height + y) * width + x];
+                    }
+                filled += rows;
+            }
+        } rows;
+        rows.plain = data.input.data(), rows.channels = d.inChannels, rows.height = d.inHeight;
+        rows.width = d.inWidth;
+        for (int buffers : {1, 3}) {
+            const BlockedShape bandShape = conv.bandShape(inShape);
+            std::vector<Tensor> bands;
+            std::vector<float*> pointers;
+            for (int k = 0; k < buffers; ++k) bands.push_back(allocateBlocked(bandShape));
+            for (Tensor& t : bands) pointers.push_back(t.data());
+            Tensor got = allocateBlocked(outShape);
+            conv.forwardBanded(got.data(), outShape, inShape, rows, pointers.data(), buffers);
+            for (int64_t i = 0; i < got.numel(); ++i)
+                ASSERT_EQ(got.data()[i], want.data()[i]) << buffers << " buffers, element " << i;
+        }
+        EXPECT_GE(rows.filled, 2 * d.inHeight) << "every input row given at least once per run";
+    }
+}
+
 TEST_P(FastConv, SameResultForEveryThreadCount) {
     Rng rng(5);
     Conv2dDesc d;

@@ -6,6 +6,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <mutex>
 
 #include "base/error.h"
 #include "base/random.h"
@@ -100,17 +101,8 @@ struct CollectedRows final : OutputRowSink {
     }
 };
 
-// The input written through inputRow() and the rows [first, last) taken from runInPlace() equal run()'s
-// bit for bit; every other row is left out, each wanted one comes once.
-void expectInPlaceRunMatchesRun(InferencePlan& plan, const Tensor& input, int64_t first, int64_t last) {
-    const Tensor want = plan.run(input).clone();
-    const Shape& s = input.shape();
-    for (int64_t n = 0; n < s[0]; ++n)
-        for (int64_t c = 0; c < s[1]; ++c)
-            for (int64_t y = 0; y < s[2]; ++y)
-                std::copy_n(input.data() + ((n * s[1] + c) * s[2] + y) * s[3], s[3], plan.inputRow(n, c, y));
-    CollectedRows got(want.shape());
-    plan.runInPlace(got, first, last);
+// The rows [first, last) of every image equal want's bit for bit, each delivered once; no other row.
+void expectRowsMatch(const CollectedRows& got, const Tensor& want, int64_t first, int64_t last) {
     const Shape& o = want.shape();
     for (int64_t n = 0; n < o[0]; ++n)
         for (int64_t y = 0; y < o[2]; ++y) {
@@ -123,6 +115,44 @@ void expectInPlaceRunMatchesRun(InferencePlan& plan, const Tensor& input, int64_
                         << "image " << n << " channel " << c << " row " << y << " column " << x;
                 }
         }
+}
+
+// The input written through inputRow() and the rows [first, last) taken from runInPlace(), and the same
+// rows of runStreamed() (where the plan can stream its input), equal run()'s
+// bit for bit; every other row is left out, each wanted one comes once.
+void expectInPlaceRunMatchesRun(InferencePlan& plan, const Tensor& input, int64_t first, int64_t last) {
+    const Tensor want = plan.run(input).clone();
+    const Shape& s = input.shape();
+    for (int64_t n = 0; n < s[0]; ++n)
+        for (int64_t c = 0; c < s[1]; ++c)
+            for (int64_t y = 0; y < s[2]; ++y)
+                std::copy_n(input.data() + ((n * s[1] + c) * s[2] + y) * s[3], s[3], plan.inputRow(n, c, y));
+    CollectedRows inPlace(want.shape());
+    plan.runInPlace(inPlace, first, last);
+    expectRowsMatch(inPlace, want, first, last);
+    // Streamed (the input's rows asked for as the first layers and the output stage need them).
+    struct InputRows final : InputRowSource {
+        const Tensor* input = nullptr;
+        std::vector<int> asked;  // per row (several threads: counted under a lock)
+        std::mutex lock;
+        void row(int64_t n, int64_t y, float* const* channels) override {
+            const Shape& s = input->shape();
+            for (int64_t c = 0; c < s[1]; ++c)
+                std::copy_n(input->data() + ((n * s[1] + c) * s[2] + y) * s[3], s[3], channels[c]);
+            std::lock_guard<std::mutex> hold(lock);
+            ++asked[size_t(y)];
+        }
+    } source;
+    source.input = &input;
+    source.asked.assign(size_t(s[2]), 0);
+    if (plan.canStreamInput()) {
+        CollectedRows streamed(want.shape());
+        plan.runStreamed(source, streamed, first, last);
+        expectRowsMatch(streamed, want, first, last);
+        for (int64_t y = 0; y < s[2]; ++y) EXPECT_GT(source.asked[size_t(y)], 0) << "input row " << y;
+    } else {
+        EXPECT_THROW(plan.runStreamed(source, inPlace, first, last), Error);
+    }
 }
 
 void expectPlanMatchesReference(Model& model, const Shape& shape) {
