@@ -1,6 +1,7 @@
 #include "infer/cnn.h"
 
 #include <algorithm>
+#include <atomic>
 #include <cmath>
 #include <utility>
 
@@ -230,48 +231,46 @@ void CnnFilter::apply(const float* in, float* out, int width, int height, int ch
     const int tilesX = (width + T - 1) / T, tilesY = (height + T - 1) / T;
     m.tileCount = tilesX * tilesY;
     if (m.tileActive.size() < size_t(m.tileCount)) m.tileActive.resize(size_t(m.tileCount));
-    // Gating: a tile (plus one pixel around it) with a luma step, an ID change or a depth jump.
-    parallelFor(0, m.tileCount, 1, [&](int64_t first, int64_t last) {
-        for (int64_t t = first; t < last; ++t) {
-            const int tx = int(t % tilesX), ty = int(t / tilesX);
-            bool active = !m.options.gate;
-            const int x0 = std::max(0, tx * T - 1), x1 = std::min(width - 1, (tx + 1) * T);
-            const int y0 = std::max(0, ty * T - 1), y1 = std::min(height - 1, (ty + 1) * T);
-            for (int y = y0; y <= y1 && !active; ++y) {
-                const size_t row = size_t(y) * size_t(width);
-                const size_t below = y + 1 < height ? size_t(width) : 0;
-                float here = lumaOf(row + size_t(x0));
-                for (int x = x0; x <= x1; ++x) {
-                    const float right = x + 1 < width ? lumaOf(row + size_t(x) + 1) : here;
-                    if (std::abs(right - here) > m.options.gateThreshold ||
-                        std::abs(lumaOf(row + size_t(x) + below) - here) > m.options.gateThreshold) {
-                        active = true;
-                        break;
-                    }
-                    here = right;
-                }
-                if (active) break;
-                for (int x = x0; x <= x1 && (buffers.ids || buffers.depth); ++x) {
-                    const size_t p = row + size_t(x), r = x + 1 < width ? p + 1 : p,
-                                 b = y + 1 < height ? p + size_t(width) : p;
-                    if (buffers.ids &&
-                        (buffers.ids[p] != buffers.ids[r] || buffers.ids[p] != buffers.ids[b])) {
-                        active = true;
-                        break;
-                    }
-                    if (buffers.depth) {
-                        const float d = buffers.depth[p];
-                        if (std::abs(d - buffers.depth[r]) > 0.05f * std::min(d, buffers.depth[r]) ||
-                            std::abs(d - buffers.depth[b]) > 0.05f * std::min(d, buffers.depth[b])) {
-                            active = true;
-                            break;
+    // Gating: a tile (plus one pixel around it) with a luma step, an ID change or a depth jump. Each
+    // tile's rows are scanned in kGateChunks parts in parallel, all of them stopping once one finds a step
+    // (a frame in one tile would otherwise be scanned by one thread, the whole of it where it is flat).
+    constexpr int kGateChunks = 8;
+    for (int t = 0; t < m.tileCount; ++t) m.tileActive[size_t(t)] = !m.options.gate;
+    if (m.options.gate)
+        parallelFor(0, int64_t(m.tileCount) * kGateChunks, 1, [&](int64_t first, int64_t last) {
+            for (int64_t item = first; item < last; ++item) {
+                const int t = int(item / kGateChunks), part = int(item % kGateChunks);
+                const int tx = t % tilesX, ty = t / tilesX;
+                std::atomic_ref<uint8_t> active(m.tileActive[size_t(t)]);
+                const int x0 = std::max(0, tx * T - 1), x1 = std::min(width - 1, (tx + 1) * T);
+                const int y0 = std::max(0, ty * T - 1), y1 = std::min(height - 1, (ty + 1) * T);
+                const int rows = y1 - y0 + 1;
+                for (int y = y0 + rows * part / kGateChunks; y < y0 + rows * (part + 1) / kGateChunks; ++y) {
+                    if (active.load(std::memory_order_relaxed)) break;
+                    const size_t row = size_t(y) * size_t(width);
+                    const size_t below = y + 1 < height ? row + size_t(width) : row;
+                    bool step = DEJAG_SIMD_CALL(rowHasLumaStep, in + row * C, in + below * C, int(C), width,
+                                                x0, x1, m.options.gateThreshold);
+                    for (int x = x0; x <= x1 && !step && (buffers.ids || buffers.depth); ++x) {
+                        const size_t p = row + size_t(x), r = x + 1 < width ? p + 1 : p,
+                                     b = y + 1 < height ? p + size_t(width) : p;
+                        if (buffers.ids &&
+                            (buffers.ids[p] != buffers.ids[r] || buffers.ids[p] != buffers.ids[b]))
+                            step = true;
+                        if (const float* depth = buffers.depth) {
+                            const float d = depth[p];
+                            if (std::abs(d - depth[r]) > 0.05f * std::min(d, depth[r]) ||
+                                std::abs(d - depth[b]) > 0.05f * std::min(d, depth[b]))
+                                step = true;
                         }
+                    }
+                    if (step) {
+                        active.store(1, std::memory_order_relaxed);
+                        break;
                     }
                 }
             }
-            m.tileActive[size_t(t)] = active;
-        }
-    });
+        });
 
     // Skipped tiles are the input, bit for bit; processed tiles get R, G, B from the network below, so
     // only their other channels (alpha, ...) are copied here. (A 1080p frame in one processed tile

@@ -1,6 +1,7 @@
 #include "infer/cnn_kernels.h"
 
 #include <algorithm>
+#include <cmath>
 
 #include "infer/pixel_simd.h"
 
@@ -33,6 +34,45 @@ void joinRgbRowClamped(const float* r, const float* g, const float* b, int64_t c
         p[1] = std::clamp(g[x], 0.0f, 1.0f);
         p[2] = std::clamp(b[x], 0.0f, 1.0f);
     }
+}
+
+namespace {
+// Luma as the gate computes it everywhere (this file is built without contracted multiply-adds, so
+// every level rounds as the scalar code does).
+template <class V>
+inline V lumaOf(V r, V g, V b) {
+    return 0.21f * r + 0.72f * g + 0.07f * b;
+}
+inline float lumaAt(const float* p) {
+    return lumaOf(p[0], p[1], p[2]);
+}
+}  // namespace
+
+bool rowHasLumaStep(const float* row, const float* below, int channels, int64_t width, int64_t first,
+                    int64_t last, float threshold) {
+    int64_t x = first;
+#if !defined(DEJAG_SIMD_LEVEL_scalar)
+    if (channels == 3) {
+        // Vectors of pixels whose right neighbours all exist.
+        for (; x + kFloatLanes <= last + 1 && x + kFloatLanes < width; x += kFloatLanes) {
+            VFloat r, g, b;
+            loadRgb(row + 3 * x, r, g, b);
+            const VFloat here = lumaOf(r, g, b);
+            loadRgb(row + 3 * (x + 1), r, g, b);
+            const VFloat right = lumaOf(r, g, b);
+            loadRgb(below + 3 * x, r, g, b);
+            const VFloat down = lumaOf(r, g, b);
+            if (any(vabs(right - here) > threshold) || any(vabs(down - here) > threshold)) return true;
+        }
+    }
+#endif
+    for (; x <= last; ++x) {
+        const float here = lumaAt(row + x * channels);
+        const float right = x + 1 < width ? lumaAt(row + (x + 1) * channels) : here;
+        if (std::abs(right - here) > threshold || std::abs(lumaAt(below + x * channels) - here) > threshold)
+            return true;
+    }
+    return false;
 }
 
 }  // namespace dejag::infer::DEJAG_SIMD_NAMESPACE

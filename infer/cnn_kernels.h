@@ -15,6 +15,11 @@ DEJAG_SIMD_DECLARE(
     // `count` pixels of planes, each value clamped to [0, 1], into R G B of an interleaved row; the
     // pixels' other channels are left as they are.
     void joinRgbRowClamped(const float* r, const float* g, const float* b, int64_t count, int channels,
-                           float* pixels);)
+                           float* pixels);
+    // The gate's test of one row (infer/cnn.h): whether a pixel x in [first, last] has a luma
+    // (0.21 R + 0.72 G + 0.07 B) step above `threshold` to its right neighbour or to the pixel below
+    // (`below`: the next row, or the row itself on the last one; past the row's end the pixel itself).
+    bool rowHasLumaStep(const float* row, const float* below, int channels, int64_t width, int64_t first,
+                        int64_t last, float threshold);)
 
 }  // namespace dejag::infer

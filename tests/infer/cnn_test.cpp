@@ -85,6 +85,45 @@ TEST_P(CnnRows, SplitAndJoinMatchThePixelLoops) {
         }
 }
 
+// The gate's row test on every level equals the pixel loop it replaced: a step to the right or below at
+// each position of rows of several widths, inside [first, last] or just outside it, at the row's end
+// (no right neighbour), and values a hair either side of the threshold.
+TEST_P(CnnRows, LumaStepTestMatchesThePixelLoop) {
+    auto luma = [](const float* p) { return 0.21f * p[0] + 0.72f * p[1] + 0.07f * p[2]; };
+    const float threshold = 0.04f;
+    for (int channels : {3, 4})
+        for (int64_t width : {1, 7, 16, 17, 40, 53}) {
+            std::vector<float> row(size_t(width * channels), 0.5f), below = row;
+            auto expected = [&](int64_t first, int64_t last) {
+                for (int64_t x = first; x <= last; ++x) {
+                    const float here = luma(&row[size_t(x * channels)]);
+                    const float right = x + 1 < width ? luma(&row[size_t((x + 1) * channels)]) : here;
+                    if (std::abs(right - here) > threshold ||
+                        std::abs(luma(&below[size_t(x * channels)]) - here) > threshold)
+                        return true;
+                }
+                return false;
+            };
+            for (int64_t at = 0; at < width; ++at)
+                for (int where = 0; where < 2; ++where)
+                    for (float jump : {0.0399f, 0.0401f, 0.06f}) {
+                        std::fill(row.begin(), row.end(), 0.5f), std::fill(below.begin(), below.end(), 0.5f);
+                        std::vector<float>& target = where == 0 ? row : below;
+                        for (int c = 0; c < 3; ++c) target[size_t(at * channels + c)] += jump;
+                        for (const auto& [first, last] : {std::pair<int64_t, int64_t>{0, width - 1},
+                                                          {std::min<int64_t>(at + 1, width - 1), width - 1},
+                                                          {0, std::max<int64_t>(at - 2, 0)}}) {
+                            const bool got = DEJAG_SIMD_CALL(rowHasLumaStep, row.data(), below.data(),
+                                                             channels, width, first, last, threshold);
+                            ASSERT_EQ(got, expected(first, last))
+                                << channels << " channels, width " << width << ", step " << jump << " at "
+                                << at << (where ? " below" : " in the row") << ", pixels " << first << ".."
+                                << last;
+                        }
+                    }
+        }
+}
+
 INSTANTIATE_TEST_SUITE_P(SimdLevels, CnnRows, ::testing::ValuesIn(testing::availableSimdLevels()),
                          testing::simdTestName);
 
