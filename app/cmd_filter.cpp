@@ -269,6 +269,7 @@ void runImageChain(const FilterArguments& args, std::vector<ImageStage>& stages)
             if (stages.back().cnn) {
                 j["tiles"] = stages.back().cnn->tileCount();
                 j["tiles_processed"] = stages.back().cnn->tilesProcessed();
+                j["passed_through_fraction"] = stages.back().cnn->passedThroughFraction();
                 j["model"] = args.model;
                 j["gate"] = args.gate;
                 j["precision"] = infer::precisionName(stages.back().cnn->options().precision);

@@ -135,8 +135,11 @@ struct StillMethods::Impl {
         }
         m.cnn->apply(source, out.data(), W, H, 3, {depth, ids});
         char text[64];
-        std::snprintf(text, sizeof text, "%s%.0f %% of tiles", m.cnn->options().gate ? "gated: " : "",
-                      100.0 * m.cnn->processedFraction());
+        if (m.cnn->options().gate)
+            std::snprintf(text, sizeof text, "gated: %.0f %% of tiles, %.0f %% of their pixels passed",
+                          100.0 * m.cnn->processedFraction(), 100.0 * m.cnn->passedThroughFraction());
+        else
+            std::snprintf(text, sizeof text, "%.0f %% of tiles", 100.0 * m.cnn->processedFraction());
         note = text;
     }
 };

@@ -68,6 +68,7 @@ struct CnnFilter::Impl {
     std::vector<float> luma;  // (H, W) luma of the frame
     std::vector<uint8_t> tileActive;
     int tilesProcessed = 0, tileCount = 0;
+    double passedPixels = 0, processedPixels = 0;
 
     Impl(nn::Model m, const CnnOptions& o) : model(std::move(m)), options(o) {}
 
@@ -149,6 +150,8 @@ CnnFilter::CnnFilter(nn::Model model, const CnnOptions& options)
     if (options.tileSize < 16 || options.tileSize > 4096) throw Error("tile size must be in 16..4096");
     if (!(options.gateThreshold >= 0) || !std::isfinite(options.gateThreshold))
         throw Error("the gate threshold must be a finite number >= 0");
+    if (!(options.passSpan >= 0) || !std::isfinite(options.passSpan))
+        throw Error("the pass-through span must be a finite number >= 0");
     if (options.precision == nn::InferencePrecision::BFloat16 && !bf16Available())
         throw Error(
             "bf16 inference needs a CPU with AVX-512 BF16 (this one, or the SIMD level forced, has none)");
@@ -192,6 +195,10 @@ int CnnFilter::halo() const {
 int CnnFilter::alignment() const {
     return impl_->field.stride;
 }
+double CnnFilter::passedThroughFraction() const {
+    return impl_->processedPixels > 0 ? impl_->passedPixels / impl_->processedPixels : 0.0;
+}
+
 double CnnFilter::processedFraction() const {
     return impl_->tileCount ? double(impl_->tilesProcessed) / impl_->tileCount : 0.0;
 }
@@ -292,6 +299,7 @@ void CnnFilter::apply(const float* in, float* out, int width, int height, int ch
     });
 
     m.tilesProcessed = 0;
+    m.passedPixels = m.processedPixels = 0;
     for (int t = 0; t < m.tileCount; ++t) {
         if (!m.tileActive[size_t(t)]) continue;
         ++m.tilesProcessed;
@@ -309,6 +317,7 @@ void CnnFilter::apply(const float* in, float* out, int width, int height, int ch
         FrameRows rows;
         rows.in = in, rows.out = out, rows.luma = m.luma.data(), rows.C = C, rows.width = size_t(width);
         rows.rx0 = rx0, rows.ry0 = ry0, rows.cx0 = cx0, rows.cx1 = cx1, rows.grey = grey;
+        plan.setPassThrough(m.options.gate ? m.options.passSpan : 0.0f);
         if (plan.canStreamInput()) {
             // The frame's rows go straight into the first layer and the output stage, band by band.
             plan.runStreamed(region, rows, cy0 - ry0, cy1 - ry0);
@@ -322,6 +331,8 @@ void CnnFilter::apply(const float* in, float* out, int width, int height, int ch
             });
             plan.runInPlace(rows, cy0 - ry0, cy1 - ry0);
         }
+        const double made = double(cy1 - cy0) * double(RW);  // the rows made, halo columns included
+        m.processedPixels += made, m.passedPixels += made * plan.passedThroughFraction();
     }
 }
 

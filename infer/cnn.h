@@ -8,7 +8,8 @@
 //
 // Gating: a tile is processed only if aliasing can exist in it — a luma step between 4-neighbours above
 // the gate threshold (the jaggies of an edge, a texture at Nyquist), or, when buffers are given, an
-// object-ID change or a depth jump. Skipped tiles are copied through bit for bit.
+// object-ID change or a depth jump. Skipped tiles are copied through bit for bit. Inside a processed
+// tile, a kernel-predicting network also passes through the flat runs of pixels (CnnOptions::passSpan).
 //
 // After the first frame of a size, apply() allocates nothing: plans and tile buffers are kept.
 #pragma once
@@ -28,6 +29,11 @@ struct CnnOptions {
     int tileSize = 2048;          // core tile side (rounded up to a multiple of the network's stride)
     bool gate = true;             // false: every tile runs
     float gateThreshold = 0.04f;  // luma step (sRGB-encoded, [0, 1]) that marks a tile as needing work
+    // Gated, inside processed tiles, a kernel-predicting network passes through (the input, bit for bit)
+    // each group of 32 pixels of a row whose 3x3 neighbourhoods span at most this in every channel: its
+    // filter, a convex combination of that neighbourhood, could move them by no more (nn/inference.h,
+    // InferencePlan::setPassThrough). 0 turns it off.
+    float passSpan = 1.0f / 1024.0f;
     // The network's arithmetic (nn/inference.h): Float32, or BFloat16 (AVX-512 BF16 CPUs only; the
     // constructor refuses it elsewhere). cnnPrecision("auto") picks BFloat16 where the CPU has it.
     nn::InferencePrecision precision = nn::InferencePrecision::Float32;
@@ -63,6 +69,8 @@ class CnnFilter {
     int halo() const;                  // pixels of context around each tile
     int alignment() const;             // the network's total stride
     double processedFraction() const;  // of the last apply(): tiles run / tiles
+    // Of the last apply(): the share of the processed tiles' pixels passed through (0 ungated).
+    double passedThroughFraction() const;
     int tilesProcessed() const;
     int tileCount() const;
 

@@ -228,6 +228,12 @@ struct InferencePlan::Impl {
     std::vector<const float*> rowPointers;  // [parts][C]: the rows handed to a sink
     Tensor staged;  // the input written through inputRow() when the plan holds it blocked
 
+    // Pass-through (setPassThrough): the span, per part a row's flags per group of kPassGroup columns,
+    // and per part the groups passed in the last run.
+    float passSpan = 0.0f;
+    int64_t passGroupsPerRow = 0, passGroupsTotal = 0;
+    std::vector<uint8_t> passGroups;
+    std::vector<int64_t> passCounts;
     // Streamed input (runStreamed): band buffers for the convolutions reading the input, one per chunk
     // of bands, and per output part a ring of the input rows the output stage reads.
     bool streamInput = false;
@@ -571,6 +577,11 @@ InferencePlan::InferencePlan(const Model& model, const Shape& inputShape, Infere
         m.rowScratch = Tensor({Impl::kRowParts, m.outputShape[1], m.outputShape[3]});
     m.rowPointers.resize(size_t(Impl::kRowParts * m.outputShape[1]));
     if (m.inputBlocked.block != 1) m.staged = Tensor(inputShape);
+    if (m.kernelSource >= 0) {
+        m.passGroupsPerRow = (inputShape[3] + kPassGroup - 1) / kPassGroup;
+        m.passGroups.assign(size_t(Impl::kRowParts * m.passGroupsPerRow), 0);
+        m.passCounts.assign(size_t(Impl::kRowParts), 0);
+    }
     // A streamed input (runStreamed): one image, planar, read only by single-pass convolutions (given it
     // in bands) and the output stage (given it in rows).
     m.streamInput = planarInput && inputShape[0] == 1 && inputShape[1] <= 16;
@@ -659,6 +670,17 @@ void InferencePlan::runInPlace(OutputRowSink& sink, int64_t rowBegin, int64_t ro
     if (m.inputBlocked.block != 1) toBlocked(m.data(-1), m.staged.data(), m.inputBlocked);
     m.runSteps(nullptr);
     m.finish(m.inputBlocked.block == 1 ? nullptr : m.staged.data(), &sink, rowBegin, rowEnd, nullptr);
+}
+
+void InferencePlan::setPassThrough(float span) {
+    impl_->passSpan = impl_->kernelSource >= 0 && span > 0 ? span : 0.0f;
+}
+
+double InferencePlan::passedThroughFraction() const {
+    const Impl& m = *impl_;
+    int64_t passed = 0;
+    for (int64_t count : m.passCounts) passed += count;
+    return m.passGroupsTotal > 0 ? double(passed) / double(m.passGroupsTotal) : 0.0;
 }
 
 bool InferencePlan::canStreamInput() const {
@@ -895,6 +917,9 @@ void InferencePlan::Impl::finish(const float* planes, OutputRowSink* sink, int64
     // Input row y of channel c: the caller's planes, the arena's, or (streamed) the part's ring, where
     // the rows of consecutive output rows stay until overwritten.
     if (streamed) std::fill(m.ringRows.begin(), m.ringRows.end(), int64_t(-1));
+    std::fill(m.passCounts.begin(), m.passCounts.end(), int64_t(0));
+    m.passGroupsTotal =
+        m.passSpan > 0 ? m.outputShape[0] * std::max<int64_t>(0, rowEnd - rowBegin) * m.passGroupsPerRow : 0;
     auto inputRow = [&](int64_t part, int64_t n, int64_t c, int64_t y) -> const float* {
         if (!streamed)
             return planes ? planes + ((n * C + c) * H + y) * W
@@ -974,6 +999,18 @@ void InferencePlan::Impl::finish(const float* planes, OutputRowSink* sink, int64
             KernelFilterRowArgs args;
             args.out = out, args.in = in, args.logits = logits;
             args.width = W, args.channels = int(C), args.kernel = k, args.centreBias = d.centreBias;
+            // The input rows first: the pass-through test reads them before any logit is made.
+            for (int64_t c = 0; c < C; ++c) {
+                for (int dy = -r; dy <= r; ++dy)
+                    in[c * k + dy + r] = inputRow(part, n, c, std::clamp<int64_t>(y + dy, 0, H - 1));
+                out[c] = outputRow(part, n, c, y);
+            }
+            uint8_t* flat = nullptr;
+            if (m.passSpan > 0) {
+                flat = m.passGroups.data() + part * m.passGroupsPerRow;
+                m.passCounts[size_t(part)] += DEJAG_SIMD_CALL(kernelFlatGroups, args, m.passSpan, flat);
+                args.flatGroups = flat;
+            }
             if (m.kernelFeatures >= 0) {
                 const BlockedShape& fs = m.shape(m.kernelFeatures);
                 KernelLogitsRowArgs head;
@@ -984,6 +1021,7 @@ void InferencePlan::Impl::finish(const float* planes, OutputRowSink* sink, int64
                 head.features = m.data(m.kernelFeatures) + fs.offset(n, 0, y / f, 0);
                 head.weights = m.kernelHeadWeights.data() + slot * head.inChannels;
                 head.bias = m.kernelHeadBias.data() + slot;
+                head.flatGroups = flat;
                 DEJAG_SIMD_CALL(kernelLogitsRow, head);
             } else {
                 // Source pixel by source pixel: the lanes this row's taps and phases read, each an offset
@@ -1001,11 +1039,6 @@ void InferencePlan::Impl::finish(const float* planes, OutputRowSink* sink, int64
                         for (int64_t phase = 0; phase < phases; ++phase)
                             logits[j * W + x0 + phase] = pixel[lane[j][phase]];
                 }
-            }
-            for (int64_t c = 0; c < C; ++c) {
-                for (int dy = -r; dy <= r; ++dy)
-                    in[c * k + dy + r] = inputRow(part, n, c, std::clamp<int64_t>(y + dy, 0, H - 1));
-                out[c] = outputRow(part, n, c, y);
             }
             DEJAG_SIMD_CALL(kernelFilterRow, args);
             if (sink) deliver(part, n, y, false);

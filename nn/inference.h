@@ -72,6 +72,14 @@ class InferencePlan {
     // planar input of one image read only by single-pass convolutions and the output stage
     // (canStreamInput(); dejag-fast is one).
     bool canStreamInput() const;
+
+    // A kernel-predicting network's output stage passes a pixel through — its output the input, bit for
+    // bit — where the input's kernel x kernel neighbourhood spans at most `span` in every channel, in
+    // groups of 32 columns of a row: the filter, a convex combination of that neighbourhood, could move
+    // such a pixel by no more than span, and its logits and softmax are not computed. 0 (the default)
+    // turns it off; other networks ignore it. passedThroughFraction(): of the last run's groups.
+    void setPassThrough(float span);
+    double passedThroughFraction() const;
     void runStreamed(InputRowSource& source, OutputRowSink& sink, int64_t rowBegin, int64_t rowEnd);
 
     const Shape& inputShape() const;

@@ -74,14 +74,54 @@ inline void filterPixels(const KernelFilterRowArgs& a, int64_t x, bool clampX) {
     }
 }
 
+// The centre inputs of the pixels from x into the output (passed through).
+template <class V, int K>
+inline void passPixels(const KernelFilterRowArgs& a, int64_t x) {
+    for (int c = 0; c < a.channels; ++c) storeu(a.out[c] + x, loadu<V>(a.in[c * K + K / 2] + x));
+}
+
 template <int K>
 void filterRow(const KernelFilterRowArgs& a) {
     constexpr int kRadius = K / 2;
     const int64_t W = a.width;
+    const uint8_t* flat = a.flatGroups;
+    auto onePixel = [&](int64_t x) {
+        if (flat && flat[x / kPassGroup])
+            passPixels<float, K>(a, x);
+        else
+            filterPixels<float, int32_t, K>(a, x, true);
+    };
     int64_t x = 0;
-    for (; x < std::min<int64_t>(kRadius, W); ++x) filterPixels<float, int32_t, K>(a, x, true);
-    for (; x + kFloatLanes + kRadius <= W; x += kFloatLanes) filterPixels<VFloat, VInt, K>(a, x, false);
-    for (; x < W; ++x) filterPixels<float, int32_t, K>(a, x, true);
+    for (; x < std::min<int64_t>(kRadius, W); ++x) onePixel(x);
+    for (; x + kFloatLanes + kRadius <= W; x += kFloatLanes) {
+        if (!flat) {
+            filterPixels<VFloat, VInt, K>(a, x, false);
+            continue;
+        }
+        // The vector's lanes lie in one or two groups.
+        const int64_t first = x / kPassGroup, last = (x + kFloatLanes - 1) / kPassGroup;
+        if (flat[first] && flat[last]) {
+            passPixels<VFloat, K>(a, x);
+            continue;
+        }
+        filterPixels<VFloat, VInt, K>(a, x, false);
+        if (flat[first] || flat[last]) {  // the passed lanes back to their inputs
+            VInt lane;
+#if defined(DEJAG_SIMD_LEVEL_scalar)
+            lane = 0;
+#else
+            for (int l = 0; l < kFloatLanes; ++l) lane[l] = l;
+#endif
+            const VInt inFirst = lane < int32_t(last * kPassGroup - x);
+            const VInt passed = flat[first] ? inFirst : ~inFirst;
+            for (int c = 0; c < a.channels; ++c) {
+                const VFloat centre = loadu<VFloat>(a.in[c * K + kRadius] + x);
+                const VFloat filtered = loadu<VFloat>(a.out[c] + x);
+                storeu(a.out[c] + x, passed ? centre : filtered);
+            }
+        }
+    }
+    for (; x < W; ++x) onePixel(x);
 }
 
 // One logit: bias + weights . the source pixel's features.
@@ -147,6 +187,8 @@ void logitsFactor2(const KernelLogitsRowArgs& a, int64_t& s) {
     for (int c = 0; c < a.inChannels; ++c)
         channel[c] = a.features + (c / a.block) * a.blockStride + c % a.block;
     for (; s + kFloatLanes <= sources; s += kFloatLanes) {
+        // 2 kFloatLanes output columns, inside one pass-through group: skipped when it is passed.
+        if (a.flatGroups && a.flatGroups[2 * s / kPassGroup]) continue;
         // The gathers wait on memory unless the pixels two vectors ahead are on their way (the hardware
         // prefetcher does not follow gathers): a line per pixel for the first channel block.
         for (int l = 0; l < kFloatLanes; ++l)
@@ -202,6 +244,89 @@ void logitsFactor2(const KernelLogitsRowArgs& a, int64_t& s) {
 #endif
 
 }  // namespace
+
+#if !defined(DEJAG_SIMD_LEVEL_scalar)
+typedef float Float4 __attribute__((vector_size(4 * sizeof(float))));
+
+// The largest lane of `high` minus the smallest of `low`, by halving (a tree, not a chain of
+// kFloatLanes dependent steps).
+inline float laneSpread(VFloat high, VFloat low) {
+#if defined(DEJAG_SIMD_LEVEL_avx512)
+    typedef float Half __attribute__((vector_size(8 * sizeof(float))));
+    const Half hh = __builtin_shufflevector(high, high, 0, 1, 2, 3, 4, 5, 6, 7),
+               hl = __builtin_shufflevector(high, high, 8, 9, 10, 11, 12, 13, 14, 15);
+    const Half lh = __builtin_shufflevector(low, low, 0, 1, 2, 3, 4, 5, 6, 7),
+               ll = __builtin_shufflevector(low, low, 8, 9, 10, 11, 12, 13, 14, 15);
+    const Half h8 = hh < hl ? hl : hh, l8 = ll < lh ? ll : lh;
+#else
+    const VFloat h8 = high, l8 = low;
+#endif
+    const Float4 ha = __builtin_shufflevector(h8, h8, 0, 1, 2, 3),
+                 hb = __builtin_shufflevector(h8, h8, 4, 5, 6, 7);
+    const Float4 la = __builtin_shufflevector(l8, l8, 0, 1, 2, 3),
+                 lb = __builtin_shufflevector(l8, l8, 4, 5, 6, 7);
+    Float4 h = ha < hb ? hb : ha, l = lb < la ? lb : la;
+    h = h < __builtin_shufflevector(h, h, 2, 3, 0, 1) ? __builtin_shufflevector(h, h, 2, 3, 0, 1) : h;
+    l = __builtin_shufflevector(l, l, 2, 3, 0, 1) < l ? __builtin_shufflevector(l, l, 2, 3, 0, 1) : l;
+    return std::max(h[0], h[1]) - std::min(l[0], l[1]);
+}
+
+// The sum of v's lanes (NaN if any lane is), by halving.
+inline float laneSum(VFloat v) {
+#if defined(DEJAG_SIMD_LEVEL_avx512)
+    typedef float Half __attribute__((vector_size(8 * sizeof(float))));
+    const Half s8 = __builtin_shufflevector(v, v, 0, 1, 2, 3, 4, 5, 6, 7) +
+                    __builtin_shufflevector(v, v, 8, 9, 10, 11, 12, 13, 14, 15);
+#else
+    const VFloat s8 = v;
+#endif
+    Float4 s4 = __builtin_shufflevector(s8, s8, 0, 1, 2, 3) + __builtin_shufflevector(s8, s8, 4, 5, 6, 7);
+    s4 = s4 + __builtin_shufflevector(s4, s4, 2, 3, 0, 1);
+    return s4[0] + s4[1];
+}
+#endif
+
+int64_t kernelFlatGroups(const KernelFilterRowArgs& a, float span, uint8_t* flat) {
+    const int K = a.kernel, r = K / 2;
+    const int64_t W = a.width, groups = (W + kPassGroup - 1) / kPassGroup;
+    int64_t count = 0;
+    for (int64_t g = 0; g < groups; ++g) {
+        // The group's neighbourhood: columns [x0, x1] of the kernel's rows (edges repeated, so clamping
+        // the columns loses nothing). A NaN or an infinity anywhere there makes `bad` NaN: not flat.
+        const int64_t x0 = std::max<int64_t>(0, g * kPassGroup - r),
+                      x1 = std::min<int64_t>(W - 1, (g + 1) * kPassGroup - 1 + r);
+        bool isFlat = true;
+        for (int c = 0; c < a.channels && isFlat; ++c) {
+#if !defined(DEJAG_SIMD_LEVEL_scalar)
+            if (x1 - x0 + 1 >= kFloatLanes) {
+                VFloat low = loadu<VFloat>(a.in[c * K] + x0), high = low, bad = low - low;
+                for (int dy = 0; dy < K; ++dy) {
+                    const float* row = a.in[c * K + dy];
+                    auto take = [&](int64_t x) {
+                        const VFloat v = loadu<VFloat>(row + x);
+                        low = v < low ? v : low, high = high < v ? v : high, bad = bad + (v - v);
+                    };
+                    int64_t x = x0;
+                    for (; x + kFloatLanes <= x1 + 1; x += kFloatLanes) take(x);
+                    if (x <= x1) take(x1 + 1 - kFloatLanes);  // the last columns, overlapping
+                }
+                isFlat = laneSpread(high, low) <= span && laneSum(bad) == 0.0f;
+                continue;
+            }
+#endif
+            float low = a.in[c * K][x0], high = low, bad = 0.0f;
+            for (int dy = 0; dy < K; ++dy)
+                for (int64_t x = x0; x <= x1; ++x) {
+                    const float v = a.in[c * K + dy][x];
+                    low = std::min(low, v), high = std::max(high, v), bad += v - v;
+                }
+            isFlat = high - low <= span && bad == 0.0f;
+        }
+        flat[g] = isFlat;
+        count += isFlat;
+    }
+    return count;
+}
 
 void kernelLogitsRow(const KernelLogitsRowArgs& a) {
     int64_t s = 0;

@@ -16,7 +16,13 @@ struct KernelFilterRowArgs {
     int64_t width = 0;
     int channels = 0, kernel = 3;
     float centreBias = 0.0f;
+    // Pass-through (null: off): per group of kPassGroup output columns, 1 where the group is passed
+    // through — each pixel its centre input, bit for bit — as kernelFlatGroups() marks them.
+    const uint8_t* flatGroups = nullptr;
 };
+
+// Output columns per pass-through group.
+inline constexpr int kPassGroup = 32;
 
 // The logits of one output row computed from the features a 1x1 convolution would have turned into
 // them (the convolution and the pixel shuffle fused, so the logit tensor is never stored): the logit of
@@ -33,9 +39,17 @@ struct KernelLogitsRowArgs {
     int taps = 9, factor = 2;
     int64_t width = 0;        // output columns (factor * source columns)
     float* logits = nullptr;  // [taps][width]
+    // Groups of kPassGroup output columns whose logits are not needed (null: all are); their logits are
+    // left as they were.
+    const uint8_t* flatGroups = nullptr;
 };
 
 DEJAG_SIMD_DECLARE(void kernelFilterRow(const KernelFilterRowArgs& args);
-                   void kernelLogitsRow(const KernelLogitsRowArgs& args);)
+                   void kernelLogitsRow(const KernelLogitsRowArgs& args);
+                   // Marks in flat[g] (one per group of kPassGroup output columns) the groups whose every
+                   // pixel's kernel x kernel input neighbourhood (args.in, edges repeated) spans at most
+                   // `span` in every channel: the filter, a convex combination of that neighbourhood, would
+                   // move such a pixel by no more than span. Returns how many groups are marked.
+                   int64_t kernelFlatGroups(const KernelFilterRowArgs& args, float span, uint8_t* flat);)
 
 }  // namespace dejag::nn

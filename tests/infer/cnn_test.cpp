@@ -237,6 +237,40 @@ TEST(Cnn, GatedTilesAreTheInputOrTheUngatedResult) {
     EXPECT_EQ(some.tilesProcessed(), 1);
 }
 
+// Gated, a kernel-predicting network also passes flat runs of pixels through inside processed tiles:
+// each pixel is then the ungated result or the input — the input only where the ungated result is within
+// the pass-through span of it — and with the span at 0 the processed tiles are exactly the ungated result.
+TEST(Cnn, KpnPassesFlatRunsThroughWithinTheSpan) {
+    const int W = 256, H = 192, C = 3;
+    const std::vector<float> frame = testFrame(W, H, C);
+    std::vector<float> ungated(frame.size()), gated(frame.size()), exact(frame.size());
+    CnnOptions off;
+    off.gate = false;
+    CnnFilter all(seeded("kpn", 7), off);
+    all.apply(frame.data(), ungated.data(), W, H, C);
+    CnnOptions on;
+    CnnFilter some(seeded("kpn", 7), on);
+    some.apply(frame.data(), gated.data(), W, H, C);
+    EXPECT_EQ(some.processedFraction(), 1.0);
+    EXPECT_GT(some.passedThroughFraction(), 0.2);
+    EXPECT_LT(some.passedThroughFraction(), 1.0);
+    EXPECT_EQ(all.passedThroughFraction(), 0.0);
+    int passed = 0;
+    for (size_t i = 0; i < frame.size(); ++i) {
+        if (gated[i] == ungated[i]) continue;
+        ASSERT_EQ(gated[i], frame[i]) << "element " << i << " is neither the ungated result nor the input";
+        ASSERT_LE(std::abs(ungated[i] - frame[i]), on.passSpan * 1.001f) << "element " << i;
+        ++passed;
+    }
+    on.passSpan = 0.0f;
+    CnnFilter none(seeded("kpn", 7), on);
+    none.apply(frame.data(), exact.data(), W, H, C);
+    EXPECT_EQ(exact, ungated);
+    EXPECT_EQ(none.passedThroughFraction(), 0.0);
+    on.passSpan = -1.0f;
+    EXPECT_THROW(CnnFilter(seeded("kpn", 7), on), Error);
+}
+
 TEST(Cnn, NoAllocationPerFrameAfterWarmUp) {
     const int W = 160, H = 120, C = 3;
     const std::vector<float> frame = testFrame(W, H, C);

@@ -230,6 +230,68 @@ TEST_P(Inference, EveryOpMatchesTheReference) {
     expectPlanMatchesReference(model, {2, 3, 20, 24});
 }
 
+// Pass-through (setPassThrough): a kpn's pixels in groups of 32 columns whose 3x3 neighbourhoods span at
+// most `span` in every channel are the input bit for bit — the groups found independently here — and
+// every other pixel is run()'s without it; where a pixel is passed, the filter would have moved it by no
+// more than span (its output is a convex combination of the neighbourhood). A NaN is never passed.
+TEST_P(Inference, KpnPassesFlatGroupsThrough) {
+    Model model = Model::builtin("kpn", {8, 3});
+    model.initialize(31);
+    const int64_t C = 3, H = 24, W = 152;  // 4 groups and a partial fifth
+    Tensor input({1, C, H, W});
+    Rng rng(32);
+    for (int64_t c = 0; c < C; ++c)
+        for (int64_t y = 0; y < H; ++y)
+            for (int64_t x = 0; x < W; ++x) {
+                float v = 0.25f + 0.1f * float(c);                         // flat ...
+                if (x >= 40 && x < 60 && y % 6 < 3) v = 0.9f;              // ... but for an edge pattern,
+                if (x >= 100 && y >= 12) v += rng.uniform(0.0f, 0.0008f);  // faint noise (under the span)
+                if (x >= 120 && y < 4) v += rng.uniform(0.0f, 0.01f);      // and noise above it
+                input.data()[(c * H + y) * W + x] = v;
+            }
+    const float span = 1.0f / 1024;
+    InferencePlan plan(model, input.shape());
+    const Tensor exact = plan.run(input).clone();
+    plan.setPassThrough(span);
+    const Tensor got = plan.run(input).clone();
+    auto at = [&](const Tensor& t, int64_t c, int64_t y, int64_t x) { return t.data()[(c * H + y) * W + x]; };
+    const int64_t groups = (W + 31) / 32;
+    int64_t passed = 0;
+    for (int64_t y = 0; y < H; ++y)
+        for (int64_t g = 0; g < groups; ++g) {
+            bool flat = true;
+            for (int64_t c = 0; c < C; ++c) {
+                float low = 1e30f, high = -1e30f;
+                for (int64_t yy = std::max<int64_t>(0, y - 1); yy <= std::min(H - 1, y + 1); ++yy)
+                    for (int64_t x = std::max<int64_t>(0, 32 * g - 1); x <= std::min(W - 1, 32 * g + 32); ++x)
+                        low = std::min(low, at(input, c, yy, x)), high = std::max(high, at(input, c, yy, x));
+                flat = flat && high - low <= span;
+            }
+            passed += flat;
+            for (int64_t x = 32 * g; x < std::min(W, 32 * g + 32); ++x)
+                for (int64_t c = 0; c < C; ++c) {
+                    if (flat) {
+                        ASSERT_EQ(at(got, c, y, x), at(input, c, y, x)) << "passed pixel " << y << "," << x;
+                        ASSERT_LE(std::abs(at(exact, c, y, x) - at(input, c, y, x)), span * 1.001f);
+                    } else {
+                        ASSERT_EQ(at(got, c, y, x), at(exact, c, y, x)) << "filtered pixel " << y << "," << x;
+                    }
+                }
+        }
+    EXPECT_GT(passed, 0);
+    EXPECT_LT(passed, H * groups);
+    EXPECT_DOUBLE_EQ(plan.passedThroughFraction(), double(passed) / double(H * groups));
+    // A NaN inside a flat area is filtered (NaN), never passed as if flat.
+    Tensor poisoned = input.clone();
+    poisoned.data()[(0 * H + 5) * W + 10] = NAN;
+    const Tensor& withNan = plan.runUnchecked(poisoned);
+    EXPECT_TRUE(std::isnan(withNan.data()[(0 * H + 5) * W + 11]));
+    // Off again: run()'s result.
+    plan.setPassThrough(0.0f);
+    const Tensor& off = plan.run(input);
+    for (int64_t i = 0; i < off.numel(); ++i) ASSERT_EQ(off.data()[i], exact.data()[i]);
+}
+
 // An input the plan holds blocked (more than 4 channels): inputRow() writes a staging tensor.
 TEST_P(Inference, BlockedInputMatchesTheReference) {
     using nlohmann::json;
