@@ -245,7 +245,8 @@ void BlockedConv::useBf16Input() {
 }
 
 void BlockedConv::forward(float* out, const BlockedShape& outShape, const float* in,
-                          const BlockedShape& inShape, bool inBf16, bool outBf16) const {
+                          const BlockedShape& inShape, bool inBf16, bool outBf16,
+                          const ColumnKeep* keep) const {
     if ((inBf16 && !bf16Input_) || (outBf16 && !canWriteBf16()))
         throw Error(inBf16 && !bf16Input_ ? "BlockedConv: a bf16 input needs useBf16Input() first"
                                           : "BlockedConv: this layer cannot write a bf16 output");
@@ -303,6 +304,8 @@ void BlockedConv::forward(float* out, const BlockedShape& outShape, const float*
             a.outBlockEnd = std::min(coutBlocks, a.outBlockBegin + 2);
             a.rowBegin = (index % bands) * items[p].rowsPerBand;
             a.rowEnd = std::min(pool_ ? pass.rows / 2 : pass.rows, a.rowBegin + items[p].rowsPerBand);
+            if (keep && passes_.size() == 1 && !pool_ && !transposed_ && batch_ == 1)
+                a.keep = keep->keep, a.keepRowStride = keep->rowStride, a.keepGroup = keep->group;
             DEJAG_SIMD_CALL(convForwardRows, a);
         }
     });

@@ -40,8 +40,14 @@ class BlockedConv {
     // inBf16 / outBf16: the input / output holds bf16 elements (uint16_t, nn/blocked.h's toBf16) in the
     // same layout, pointers cast to float*; for inference where bf16Available(). A bf16 input needs
     // useBf16Input() first; a bf16 output is rounded after the activation.
+    // keep (optional): output columns to compute per output row, as ConvRowsArgs::keep (a single-pass
+    // Conv2D only; the wide kernel honours it, the others compute everything).
+    struct ColumnKeep {
+        const uint8_t* keep = nullptr;
+        int64_t rowStride = 0, group = 0;
+    };
     void forward(float* out, const BlockedShape& outShape, const float* in, const BlockedShape& inShape,
-                 bool inBf16 = false, bool outBf16 = false) const;
+                 bool inBf16 = false, bool outBf16 = false, const ColumnKeep* keep = nullptr) const;
 
     // An input made a band of rows at a time, never stored whole (a frame streamed into a network's
     // first layer): for a single-pass Conv2D without pooling on one image (canBandInput()).

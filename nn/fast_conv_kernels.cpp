@@ -340,10 +340,24 @@ void wideRows(const ConvRowsArgs& a) {
     for (int64_t r = a.rowBegin; r < a.rowEnd; ++r) {
         RowContext c = rowContext(a, r);
         c.streamWide = stream;
-        int64_t cob = a.outBlockBegin;
-        for (; cob + kTileBlocks <= a.outBlockEnd; cob += kTileBlocks)
-            wideRow<kTileBlocks, BI, UNIT, POOL, INB>(c, cob, columns);
-        for (; cob < a.outBlockEnd; ++cob) wideRow<1, BI, UNIT, POOL, INB>(c, cob, columns);
+        // The row's runs of columns to compute: all of them, or the kept groups.
+        const uint8_t* keep = !POOL && a.keep ? a.keep + r * a.keepRowStride : nullptr;
+        for (int64_t g = 0; g * (keep ? a.keepGroup : columns) < columns;) {
+            int64_t first = 0, last = columns;
+            if (keep) {
+                while (g * a.keepGroup < columns && !keep[g]) ++g;
+                const int64_t start = g;
+                while (g * a.keepGroup < columns && keep[g]) ++g;
+                if (start == g) break;
+                first = start * a.keepGroup, last = std::min(columns, g * a.keepGroup);
+            } else {
+                g = 1;
+            }
+            int64_t cob = a.outBlockBegin;
+            for (; cob + kTileBlocks <= a.outBlockEnd; cob += kTileBlocks)
+                wideRow<kTileBlocks, BI, UNIT, POOL, INB>(c, cob, last, first);
+            for (; cob < a.outBlockEnd; ++cob) wideRow<1, BI, UNIT, POOL, INB>(c, cob, last, first);
+        }
     }
     if (stream) storeFence();
 }

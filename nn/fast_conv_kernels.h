@@ -45,6 +45,11 @@ struct ConvRowsArgs {
     // elements in the same blocked layout (offsets count elements). A bf16 input needs pass.pairWeights
     // and a blocked (block B) input; a bf16 output is rounded to nearest even after the activation.
     bool inBf16 = false, outBf16 = false;
+    // Columns to compute (null: all): lattice row r needs columns [g * keepGroup, (g + 1) * keepGroup)
+    // where keep[r * keepRowStride + g] is non-zero; the wide kernel skips the others (their outputs are
+    // left as they were), other kernels compute everything.
+    const uint8_t* keep = nullptr;
+    int64_t keepRowStride = 0, keepGroup = 0;
 };
 
 // Weight gradient of one (pass, tap, output block, input block): for every image and lattice point,

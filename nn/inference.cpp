@@ -243,6 +243,18 @@ struct InferencePlan::Impl {
     Tensor inputRing;               // [parts][ringSlots][C][W]
     std::vector<int64_t> ringRows;  // [parts][ringSlots]: the input row each slot holds (-1: none)
 
+    // Pass-through marks for the whole run (markFlat), when the head is fused and there is one image:
+    // flatRows [H][groups], and per source row of the head's features the groups whose features some
+    // unpassed output pixel needs (keepFeatures [H / factor][groups]: the layer making them skips the
+    // rest).
+    bool flatMarked = false;
+    std::vector<uint8_t> flatRows, keepFeatures;
+
+    // Row y of input channel c for output part `part`: the caller's planes, the arena's planar input, or
+    // (streamed) the part's ring of rows.
+    const float* inputRowAt(int64_t part, int64_t n, int64_t c, int64_t y, const float* planes,
+                            InputRowSource* streamed);
+    void markFlat(const float* planes, InputRowSource* streamed, int64_t rowBegin, int64_t rowEnd);
     // streamed: the input's source (null: the input is in the arena).
     void runSteps(InputRowSource* streamed);
     void finish(const float* planes, OutputRowSink* sink, int64_t rowBegin, int64_t rowEnd,
@@ -577,6 +589,12 @@ InferencePlan::InferencePlan(const Model& model, const Shape& inputShape, Infere
         m.rowScratch = Tensor({Impl::kRowParts, m.outputShape[1], m.outputShape[3]});
     m.rowPointers.resize(size_t(Impl::kRowParts * m.outputShape[1]));
     if (m.inputBlocked.block != 1) m.staged = Tensor(inputShape);
+    if (m.kernelSource >= 0 && m.kernelFeatures >= 0 && inputShape[0] == 1 &&
+        kPassGroup % m.kernelFactor == 0) {
+        const int64_t groups = (inputShape[3] + kPassGroup - 1) / kPassGroup;
+        m.flatRows.assign(size_t(inputShape[2] * groups), 0);
+        m.keepFeatures.assign(size_t((inputShape[2] + m.kernelFactor - 1) / m.kernelFactor * groups), 1);
+    }
     if (m.kernelSource >= 0) {
         m.passGroupsPerRow = (inputShape[3] + kPassGroup - 1) / kPassGroup;
         m.passGroups.assign(size_t(Impl::kRowParts * m.passGroupsPerRow), 0);
@@ -647,6 +665,7 @@ const Tensor& InferencePlan::runUnchecked(const Tensor& input) {
         throw Error("inference: the SIMD level changed since planning");
     zeroBorder(m.data(-1), m.inputBlocked);
     toBlocked(m.data(-1), input.data(), m.inputBlocked);
+    m.markFlat(input.data(), nullptr, 0, m.outputShape[2]);
     m.runSteps(nullptr);
     m.finish(input.data(), nullptr, 0, m.outputShape[2], nullptr);
     return m.output;
@@ -668,8 +687,10 @@ void InferencePlan::runInPlace(OutputRowSink& sink, int64_t rowBegin, int64_t ro
     rowBegin = std::max<int64_t>(0, rowBegin), rowEnd = std::min(rowEnd, m.outputShape[2]);
     zeroBorder(m.data(-1), m.inputBlocked);  // the interior is the caller's rows
     if (m.inputBlocked.block != 1) toBlocked(m.data(-1), m.staged.data(), m.inputBlocked);
+    const float* planes = m.inputBlocked.block == 1 ? nullptr : m.staged.data();
+    m.markFlat(planes, nullptr, rowBegin, rowEnd);
     m.runSteps(nullptr);
-    m.finish(m.inputBlocked.block == 1 ? nullptr : m.staged.data(), &sink, rowBegin, rowEnd, nullptr);
+    m.finish(planes, &sink, rowBegin, rowEnd, nullptr);
 }
 
 void InferencePlan::setPassThrough(float span) {
@@ -694,6 +715,7 @@ void InferencePlan::runStreamed(InputRowSource& source, OutputRowSink& sink, int
     if (m.block != simdFloatLanes(activeSimdLevel()))
         throw Error("inference: the SIMD level changed since planning");
     rowBegin = std::max<int64_t>(0, rowBegin), rowEnd = std::min(rowEnd, m.outputShape[2]);
+    m.markFlat(nullptr, &source, rowBegin, rowEnd);
     m.runSteps(&source);
     m.finish(nullptr, &sink, rowBegin, rowEnd, &source);
 }
@@ -738,7 +760,11 @@ void InferencePlan::Impl::runSteps(InputRowSource* streamed) {
         switch (n.op) {
             case GraphOp::Conv2d:
             case GraphOp::ConvTranspose2d:
-                if (streamed && n.inputs[0] < 0)
+                if (int(i) == m.kernelFeatures && m.flatMarked) {
+                    const BlockedConv::ColumnKeep keep{m.keepFeatures.data(), m.passGroupsPerRow,
+                                                       kPassGroup / m.kernelFactor};
+                    step.conv->forward(out, os, in, is, step.inBf16, step.outBf16, &keep);
+                } else if (streamed && n.inputs[0] < 0)
                     step.conv->forwardBanded(out, os, is, band, bandPointers.data(), int(bandPointers.size()),
                                              step.outBf16);
                 else
@@ -907,6 +933,59 @@ void InferencePlan::Impl::runSteps(InputRowSource* streamed) {
     }
 }
 
+const float* InferencePlan::Impl::inputRowAt(int64_t part, int64_t n, int64_t c, int64_t y,
+                                             const float* planes, InputRowSource* streamed) {
+    const int64_t C = inputShape[1], H = inputShape[2], W = inputShape[3];
+    if (!streamed)
+        return planes ? planes + ((n * C + c) * H + y) * W : data(-1) + inputBlocked.offset(n, c, y, 0);
+    const int64_t slot = y % ringSlots;
+    float* rows = inputRing.data() + (part * ringSlots + slot) * C * W;
+    if (int64_t& held = ringRows[size_t(part * ringSlots + slot)]; held != y) {
+        float* channels[16];
+        for (int64_t k = 0; k < C; ++k) channels[k] = rows + k * W;
+        streamed->row(n, y, channels);
+        held = y;
+    }
+    return rows + c * W;
+}
+
+// Marks the groups the output stage will pass through before any layer runs, so that the layer making
+// the fused head's features computes only the columns an unpassed pixel needs.
+void InferencePlan::Impl::markFlat(const float* planes, InputRowSource* streamed, int64_t rowBegin,
+                                   int64_t rowEnd) {
+    flatMarked = passSpan > 0 && !flatRows.empty();
+    if (!flatMarked) return;
+    const int64_t C = inputShape[1], H = inputShape[2], W = inputShape[3], G = passGroupsPerRow;
+    const int k = kernelFilter.kernel, r = k / 2;
+    rowBegin = std::max<int64_t>(0, rowBegin), rowEnd = std::min(rowEnd, H);
+    if (streamed) std::fill(ringRows.begin(), ringRows.end(), int64_t(-1));
+    const int64_t span = std::max<int64_t>(0, rowEnd - rowBegin);
+    parallelFor(0, kRowParts, 1, [&](int64_t first, int64_t last) {
+        for (int64_t part = first; part < last; ++part)
+            for (int64_t y = rowBegin + span * part / kRowParts; y < rowBegin + span * (part + 1) / kRowParts;
+                 ++y) {
+                const float* in[kKernelMaxChannels * 7];
+                KernelFilterRowArgs args;
+                args.in = in, args.width = W, args.channels = int(C), args.kernel = k;
+                for (int64_t c = 0; c < C; ++c)
+                    for (int dy = -r; dy <= r; ++dy)
+                        in[c * k + dy + r] =
+                            inputRowAt(part, 0, c, std::clamp<int64_t>(y + dy, 0, H - 1), planes, streamed);
+                DEJAG_SIMD_CALL(kernelFlatGroups, args, passSpan, flatRows.data() + y * G);
+            }
+    });
+    // A feature row's group is needed when an output row it feeds, inside [rowBegin, rowEnd), is not
+    // passed there.
+    const int64_t f = kernelFactor;
+    for (int64_t s = 0; s * f < H; ++s)
+        for (int64_t g = 0; g < G; ++g) {
+            uint8_t keep = 0;
+            for (int64_t y = s * f; y < std::min(H, s * f + f); ++y)
+                keep |= y >= rowBegin && y < rowEnd && !flatRows[size_t(y * G + g)];
+            keepFeatures[size_t(s * G + g)] = keep;
+        }
+}
+
 // The output stages: rows [rowBegin, rowEnd) of every image into the output tensor, or to `sink` (through
 // a part's scratch rows when the stage makes them). `planes`: the input as contiguous planes (the caller's
 // tensor), or null to read the arena's planar copy.
@@ -920,19 +999,8 @@ void InferencePlan::Impl::finish(const float* planes, OutputRowSink* sink, int64
     std::fill(m.passCounts.begin(), m.passCounts.end(), int64_t(0));
     m.passGroupsTotal =
         m.passSpan > 0 ? m.outputShape[0] * std::max<int64_t>(0, rowEnd - rowBegin) * m.passGroupsPerRow : 0;
-    auto inputRow = [&](int64_t part, int64_t n, int64_t c, int64_t y) -> const float* {
-        if (!streamed)
-            return planes ? planes + ((n * C + c) * H + y) * W
-                          : m.data(-1) + m.inputBlocked.offset(n, c, y, 0);
-        const int64_t slot = y % m.ringSlots;
-        float* rows = m.inputRing.data() + (part * m.ringSlots + slot) * C * W;
-        if (int64_t& held = m.ringRows[size_t(part * m.ringSlots + slot)]; held != y) {
-            float* channels[16];
-            for (int64_t k = 0; k < C; ++k) channels[k] = rows + k * W;
-            streamed->row(n, y, channels);
-            held = y;
-        }
-        return rows + c * W;
+    auto inputRow = [&](int64_t part, int64_t n, int64_t c, int64_t y) {
+        return m.inputRowAt(part, n, c, y, planes, streamed);
     };
     // Output row of channel c: the output tensor's, or the part's scratch row.
     auto outputRow = [&](int64_t part, int64_t n, int64_t c, int64_t y) -> float* {
@@ -1006,7 +1074,11 @@ void InferencePlan::Impl::finish(const float* planes, OutputRowSink* sink, int64
                 out[c] = outputRow(part, n, c, y);
             }
             uint8_t* flat = nullptr;
-            if (m.passSpan > 0) {
+            if (m.flatMarked) {  // marked before the layers ran
+                flat = m.flatRows.data() + y * m.passGroupsPerRow;
+                for (int64_t g = 0; g < m.passGroupsPerRow; ++g) m.passCounts[size_t(part)] += flat[g];
+                args.flatGroups = flat;
+            } else if (m.passSpan > 0) {
                 flat = m.passGroups.data() + part * m.passGroupsPerRow;
                 m.passCounts[size_t(part)] += DEJAG_SIMD_CALL(kernelFlatGroups, args, m.passSpan, flat);
                 args.flatGroups = flat;
