@@ -249,6 +249,11 @@ struct InferencePlan::Impl {
     // rest).
     bool flatMarked = false;
     std::vector<uint8_t> flatRows, keepFeatures;
+    // ... and the pixel shuffle into the features' layer's concatenation (keepShuffle, its rows by groups of
+    // kPassGroup / 2 columns) and the convolution it shuffles (keepShuffleSource, groups of kPassGroup / 4),
+    // when those feed nothing else; keepRadius: the features' layer's reach into the concatenation.
+    int keepShuffleStep = -1, keepShuffleSourceStep = -1, keepRadius = 1;
+    std::vector<uint8_t> keepShuffle, keepShuffleSource;
 
     // Row y of input channel c for output part `part`: the caller's planes, the arena's planar input, or
     // (streamed) the part's ring of rows.
@@ -594,6 +599,25 @@ InferencePlan::InferencePlan(const Model& model, const Shape& inputShape, Infere
         const int64_t groups = (inputShape[3] + kPassGroup - 1) / kPassGroup;
         m.flatRows.assign(size_t(inputShape[2] * groups), 0);
         m.keepFeatures.assign(size_t((inputShape[2] + m.kernelFactor - 1) / m.kernelFactor * groups), 1);
+        // Further back (a U-Net's last level): when the features' layer reads a concatenation in place
+        // whose other part is a factor-2 pixel shuffle of a convolution read by nothing else, that shuffle
+        // and that convolution are needed only around the kept features too.
+        const GraphNode& features = graph[size_t(m.kernelFeatures)];
+        const int cat = features.inputs.empty() ? -1 : features.inputs[0];
+        if (features.op == GraphOp::Conv2d && cat >= 0 && m.steps[size_t(cat)].concatInPlace &&
+            readers(cat) == 1 && m.kernelFactor == 2)
+            for (int i = 0; i < int(graph.size()); ++i) {
+                const GraphNode& n = graph[size_t(i)];
+                if (n.op != GraphOp::PixelShuffle || m.steps[size_t(i)].concatBuffer != cat || n.factor != 2)
+                    continue;
+                const int source = n.inputs[0];
+                if (source < 0 || graph[size_t(source)].op != GraphOp::Conv2d || readers(source) != 1)
+                    continue;
+                m.keepShuffleStep = i, m.keepShuffleSourceStep = source;
+                m.keepRadius = int(std::max(features.kernel / 2, 1) * features.dilation);
+                m.keepShuffle.assign(size_t(shapes[size_t(cat)][2] * groups), 1);
+                m.keepShuffleSource.assign(size_t(shapes[size_t(source)][2] * groups), 1);
+            }
     }
     if (m.kernelSource >= 0) {
         m.passGroupsPerRow = (inputShape[3] + kPassGroup - 1) / kPassGroup;
@@ -764,6 +788,10 @@ void InferencePlan::Impl::runSteps(InputRowSource* streamed) {
                     const BlockedConv::ColumnKeep keep{m.keepFeatures.data(), m.passGroupsPerRow,
                                                        kPassGroup / m.kernelFactor};
                     step.conv->forward(out, os, in, is, step.inBf16, step.outBf16, &keep);
+                } else if (int(i) == m.keepShuffleSourceStep && m.flatMarked) {
+                    const BlockedConv::ColumnKeep keep{m.keepShuffleSource.data(), m.passGroupsPerRow,
+                                                       kPassGroup / 4};
+                    step.conv->forward(out, os, in, is, step.inBf16, step.outBf16, &keep);
                 } else if (streamed && n.inputs[0] < 0)
                     step.conv->forwardBanded(out, os, is, band, bandPointers.data(), int(bandPointers.size()),
                                              step.outBf16);
@@ -913,6 +941,27 @@ void InferencePlan::Impl::runSteps(InputRowSource* streamed) {
                             args.firstBlock[j] = std::max<int64_t>(blocks[0], 0);
                             args.secondBlock[j] = blocks[1] < 0 ? args.firstBlock[j] : blocks[1];
                         }
+                        if (twoBlocks && int(i) == m.keepShuffleStep && m.flatMarked && f == 2) {
+                            // Only the runs of kept groups (kPassGroup / 2 columns, whole source pixels).
+                            const uint8_t* keep = m.keepShuffle.data() + y * m.passGroupsPerRow;
+                            const int64_t group = kPassGroup / 2, size = step.inBf16 ? 2 : 4;
+                            const auto* sourceRow = static_cast<const char*>(args.source);
+                            auto* outRow = static_cast<char*>(args.out);
+                            bool done = true;
+                            for (int64_t g = 0; g * group < os.width && done;) {
+                                while (g * group < os.width && !keep[g]) ++g;
+                                const int64_t start = g;
+                                while (g * group < os.width && keep[g]) ++g;
+                                if (start == g) break;
+                                const int64_t x0 = start * group, x1 = std::min(os.width, g * group);
+                                args.source = sourceRow + (x0 / 2) * is.block * size;
+                                args.out = outRow + x0 * B * size;
+                                args.width = x1 - x0;
+                                done = DEJAG_SIMD_CALL(shuffleRow, args);
+                            }
+                            if (done) return;
+                            args.source = sourceRow, args.out = outRow, args.width = os.width;
+                        }
                         if (twoBlocks && DEJAG_SIMD_CALL(shuffleRow, args)) return;
                     }
                     if (step.inBf16)
@@ -984,6 +1033,24 @@ void InferencePlan::Impl::markFlat(const float* planes, InputRowSource* streamed
                 keep |= y >= rowBegin && y < rowEnd && !flatRows[size_t(y * G + g)];
             keepFeatures[size_t(s * G + g)] = keep;
         }
+    if (keepShuffleStep < 0) return;
+    // The concatenation's rows and groups within the features' layer's reach of a kept one (a group
+    // each side covers a reach up to a group), then the shuffled convolution's rows under them.
+    const int64_t featureRows = int64_t(keepFeatures.size()) / G, catRows = int64_t(keepShuffle.size()) / G;
+    for (int64_t y = 0; y < catRows; ++y)
+        for (int64_t g = 0; g < G; ++g) {
+            uint8_t keep = 0;
+            for (int64_t yy = std::max<int64_t>(0, y - keepRadius);
+                 yy <= std::min(featureRows - 1, y + keepRadius); ++yy)
+                for (int64_t gg = std::max<int64_t>(0, g - 1); gg <= std::min(G - 1, g + 1); ++gg)
+                    keep |= keepFeatures[size_t(yy * G + gg)];
+            keepShuffle[size_t(y * G + g)] = keep;
+        }
+    for (int64_t q = 0; q < int64_t(keepShuffleSource.size()) / G; ++q)
+        for (int64_t g = 0; g < G; ++g)
+            keepShuffleSource[size_t(q * G + g)] =
+                keepShuffle[size_t(std::min(catRows - 1, 2 * q) * G + g)] |
+                keepShuffle[size_t(std::min(catRows - 1, 2 * q + 1) * G + g)];
 }
 
 // The output stages: rows [rowBegin, rowEnd) of every image into the output tensor, or to `sink` (through
