@@ -429,7 +429,10 @@ void registerFilterCommand(CLI::App& app) {
             "--model", args->model,
             "CNN: model file (a models/... path missing here is taken from the dejag tree the binary is in)")
         ->capture_default_str();
-    command->add_option("--gate", args->gate, "CNN: off | auto | T (run tiles whose luma steps exceed T)")
+    command
+        ->add_option("--gate", args->gate,
+                     "CNN: off | auto | T (run tiles whose luma steps exceed T; gated, a kernel-predicting "
+                     "network also passes through runs of pixels it could move by at most 1/1024)")
         ->capture_default_str();
     command->add_option("--tile", args->tile, "CNN: tile side in pixels")->capture_default_str();
     command
