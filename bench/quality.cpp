@@ -135,9 +135,11 @@ struct StillMethods::Impl {
         }
         m.cnn->apply(source, out.data(), W, H, 3, {depth, ids});
         char text[64];
-        if (m.cnn->options().gate)
+        if (m.cnn->options().gate && m.cnn->passedThroughFraction() > 0)  // a kernel-predicting network
             std::snprintf(text, sizeof text, "gated: %.0f %% of tiles, %.0f %% of their pixels passed",
                           100.0 * m.cnn->processedFraction(), 100.0 * m.cnn->passedThroughFraction());
+        else if (m.cnn->options().gate)
+            std::snprintf(text, sizeof text, "gated: %.0f %% of tiles", 100.0 * m.cnn->processedFraction());
         else
             std::snprintf(text, sizeof text, "%.0f %% of tiles", 100.0 * m.cnn->processedFraction());
         note = text;
