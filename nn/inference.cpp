@@ -1,6 +1,7 @@
 #include "nn/inference.h"
 
 #include <algorithm>
+#include <atomic>
 #include <cmath>
 #include <cstring>
 #include <limits>
@@ -254,12 +255,23 @@ struct InferencePlan::Impl {
     // when those feed nothing else; keepRadius: the features' layer's reach into the concatenation.
     int keepShuffleStep = -1, keepShuffleSourceStep = -1, keepRadius = 1;
     std::vector<uint8_t> keepShuffle, keepShuffleSource;
+    // A streamed input is marked from its bands (no read of the frame for the marks alone): as the
+    // first convolution's bands are filled, each input row's ranges per group (kernelRowRanges: rowLow
+    // and rowHigh [H][groups][C], rowBad [H][groups]; rowRanged [H], claimed by the first band to hold
+    // the row), then the marks from them once that convolution has run (markFlatFromRanges).
+    bool rangesWanted = false;
+    int64_t markBegin = 0, markEnd = 0;
+    std::vector<float> rowLow, rowHigh;
+    std::vector<uint8_t> rowBad, rowRanged;
 
     // Row y of input channel c for output part `part`: the caller's planes, the arena's planar input, or
     // (streamed) the part's ring of rows.
     const float* inputRowAt(int64_t part, int64_t n, int64_t c, int64_t y, const float* planes,
                             InputRowSource* streamed);
     void markFlat(const float* planes, InputRowSource* streamed, int64_t rowBegin, int64_t rowEnd);
+    void markFlatFromRanges(InputRowSource& source);
+    // The keep masks from flatRows, for output rows [rowBegin, rowEnd).
+    void markKeeps(int64_t rowBegin, int64_t rowEnd);
     // streamed: the input's source (null: the input is in the arena).
     void runSteps(InputRowSource* streamed);
     void finish(const float* planes, OutputRowSink* sink, int64_t rowBegin, int64_t rowEnd,
@@ -645,6 +657,13 @@ InferencePlan::InferencePlan(const Model& model, const Shape& inputShape, Infere
         m.ringSlots = m.kernelSource >= 0 ? m.kernelFilter.kernel : 1;
         m.inputRing = Tensor({Impl::kRowParts, m.ringSlots, inputShape[1], inputShape[3]});
         m.ringRows.assign(size_t(Impl::kRowParts * m.ringSlots), -1);
+        if (!m.flatRows.empty()) {
+            const int64_t H = inputShape[2], G = m.passGroupsPerRow, C = inputShape[1];
+            m.rowLow.assign(size_t(H * G * C), 0.0f);
+            m.rowHigh.assign(size_t(H * G * C), 0.0f);
+            m.rowBad.assign(size_t(H * G), 0);
+            m.rowRanged.assign(size_t(H), 0);
+        }
     }
 }
 
@@ -739,17 +758,31 @@ void InferencePlan::runStreamed(InputRowSource& source, OutputRowSink& sink, int
     if (m.block != simdFloatLanes(activeSimdLevel()))
         throw Error("inference: the SIMD level changed since planning");
     rowBegin = std::max<int64_t>(0, rowBegin), rowEnd = std::min(rowEnd, m.outputShape[2]);
-    m.markFlat(nullptr, &source, rowBegin, rowEnd);
+    if (m.passSpan > 0 && !m.rowLow.empty()) {
+        // Marked from the first convolution's bands (runSteps).
+        m.flatMarked = false;
+        m.rangesWanted = true, m.markBegin = rowBegin, m.markEnd = rowEnd;
+        std::fill(m.rowRanged.begin(), m.rowRanged.end(), uint8_t(0));
+    } else {
+        m.markFlat(nullptr, &source, rowBegin, rowEnd);
+    }
     m.runSteps(&source);
+    if (m.rangesWanted) m.markFlatFromRanges(source);  // no convolution read the input
     m.finish(nullptr, &sink, rowBegin, rowEnd, &source);
 }
 
 namespace {
 
-// A convolution's input band from a streamed source (rows outside the image are zero).
+// A convolution's input band from a streamed source (rows outside the image are zero), with each row's
+// ranges for the pass-through marks while it is in the cache (when `ranged` is set).
 struct BandFromSource final : BlockedConv::BandInput {
     InputRowSource* source = nullptr;
     int64_t channels = 0, height = 0, width = 0;
+    uint8_t* ranged = nullptr;  // per row: 1 once a band has taken its ranges
+    float *low = nullptr, *high = nullptr;
+    uint8_t* bad = nullptr;
+    int64_t groups = 0;
+    int radius = 0;
     void fill(int64_t firstRow, int64_t rows, float* band, const BlockedShape& shape) override {
         float* row[16];
         for (int64_t y = firstRow; y < firstRow + rows; ++y) {
@@ -758,6 +791,13 @@ struct BandFromSource final : BlockedConv::BandInput {
                 for (int64_t c = 0; c < channels; ++c) std::fill_n(row[c], width, 0.0f);
             } else {
                 source->row(0, y, row);
+                // Bands overlap by a row or two: the first to hold a row takes its ranges.
+                if (ranged &&
+                    std::atomic_ref<uint8_t>(ranged[y]).exchange(1, std::memory_order_relaxed) == 0) {
+                    const size_t at = size_t(y * groups);
+                    DEJAG_SIMD_CALL(kernelRowRanges, row, int(channels), width, radius,
+                                    low + at * size_t(channels), high + at * size_t(channels), bad + at);
+                }
             }
         }
     }
@@ -770,6 +810,10 @@ void InferencePlan::Impl::runSteps(InputRowSource* streamed) {
     BandFromSource band;
     band.source = streamed;
     band.channels = inputShape[1], band.height = inputShape[2], band.width = inputShape[3];
+    if (streamed && m.rangesWanted) {
+        band.ranged = m.rowRanged.data(), band.low = m.rowLow.data(), band.high = m.rowHigh.data();
+        band.bad = m.rowBad.data(), band.groups = m.passGroupsPerRow, band.radius = m.kernelFilter.kernel / 2;
+    }
     for (size_t i = 0; i < m.steps.size(); ++i) {
         Impl::Step& step = m.steps[i];
         if (step.fusedIntoConv || step.fusedIntoOutput || step.concatInPlace) continue;
@@ -792,10 +836,14 @@ void InferencePlan::Impl::runSteps(InputRowSource* streamed) {
                     const BlockedConv::ColumnKeep keep{m.keepShuffleSource.data(), m.passGroupsPerRow,
                                                        kPassGroup / 4};
                     step.conv->forward(out, os, in, is, step.inBf16, step.outBf16, &keep);
-                } else if (streamed && n.inputs[0] < 0)
+                } else if (streamed && n.inputs[0] < 0) {
                     step.conv->forwardBanded(out, os, is, band, bandPointers.data(), int(bandPointers.size()),
                                              step.outBf16);
-                else
+                    if (m.rangesWanted) {  // every row the convolution read has its ranges: the marks
+                        m.markFlatFromRanges(*streamed);
+                        band.ranged = nullptr;
+                    }
+                } else
                     step.conv->forward(out, os, in, is, step.inBf16, step.outBf16);
                 if (step.sigmoidAfterConv) blockedActivation(out, os, out, os, n.activation);
                 break;
@@ -1023,6 +1071,52 @@ void InferencePlan::Impl::markFlat(const float* planes, InputRowSource* streamed
                 DEJAG_SIMD_CALL(kernelFlatGroups, args, passSpan, flatRows.data() + y * G);
             }
     });
+    markKeeps(rowBegin, rowEnd);
+}
+
+// The marks of output rows [markBegin, markEnd) from the rows' ranges: a group is flat in row y when
+// rows y - r ... y + r (clamped) are not bad and in every channel the greatest of their highs minus the
+// least of their lows is at most the span — the floats kernelFlatGroups() would compare. Rows no band
+// held (a convolution that skips the image's last rows) are read from the source for it.
+void InferencePlan::Impl::markFlatFromRanges(InputRowSource& source) {
+    rangesWanted = false;
+    const int64_t C = inputShape[1], H = inputShape[2], W = inputShape[3], G = passGroupsPerRow;
+    const int r = kernelFilter.kernel / 2;
+    const int64_t rowBegin = markBegin, rowEnd = markEnd;
+    for (int64_t y = std::max<int64_t>(0, rowBegin - r); y < std::min(H, rowEnd + r); ++y) {
+        if (rowRanged[size_t(y)]) continue;
+        float* channels[16];
+        for (int64_t c = 0; c < C; ++c) channels[c] = rowScratch.data() + c * W;
+        source.row(0, y, channels);
+        DEJAG_SIMD_CALL(kernelRowRanges, channels, int(C), W, r, rowLow.data() + y * G * C,
+                        rowHigh.data() + y * G * C, rowBad.data() + y * G);
+        rowRanged[size_t(y)] = 1;
+    }
+    parallelFor(rowBegin, rowEnd, 32, [&](int64_t y0, int64_t y1) {
+        for (int64_t y = y0; y < y1; ++y) {
+            const int64_t top = std::max<int64_t>(0, y - r), bottom = std::min(H - 1, y + r);
+            for (int64_t g = 0; g < G; ++g) {
+                bool isFlat = true;
+                for (int64_t yy = top; yy <= bottom && isFlat; ++yy) isFlat = !rowBad[size_t(yy * G + g)];
+                for (int64_t c = 0; c < C && isFlat; ++c) {
+                    float low = rowLow[size_t((top * G + g) * C + c)],
+                          high = rowHigh[size_t((top * G + g) * C + c)];
+                    for (int64_t yy = top + 1; yy <= bottom; ++yy) {
+                        low = std::min(low, rowLow[size_t((yy * G + g) * C + c)]);
+                        high = std::max(high, rowHigh[size_t((yy * G + g) * C + c)]);
+                    }
+                    isFlat = high - low <= passSpan;
+                }
+                flatRows[size_t(y * G + g)] = isFlat;
+            }
+        }
+    });
+    flatMarked = true;
+    markKeeps(rowBegin, rowEnd);
+}
+
+void InferencePlan::Impl::markKeeps(int64_t rowBegin, int64_t rowEnd) {
+    const int64_t H = inputShape[2], G = passGroupsPerRow;
     // A feature row's group is needed when an output row it feeds, inside [rowBegin, rowEnd), is not
     // passed there.
     const int64_t f = kernelFactor;

@@ -271,6 +271,33 @@ inline float laneSpread(VFloat high, VFloat low) {
     return std::max(h[0], h[1]) - std::min(l[0], l[1]);
 }
 
+// The greatest and the least of v's lanes, by halving.
+template <bool kGreatest>
+inline float laneExtreme(VFloat v) {
+    auto pick = [](auto a, auto b) {
+        if constexpr (kGreatest)
+            return a < b ? b : a;
+        else
+            return b < a ? b : a;
+    };
+#if defined(DEJAG_SIMD_LEVEL_avx512)
+    const auto e8 = pick(__builtin_shufflevector(v, v, 0, 1, 2, 3, 4, 5, 6, 7),
+                         __builtin_shufflevector(v, v, 8, 9, 10, 11, 12, 13, 14, 15));
+#else
+    const VFloat e8 = v;
+#endif
+    Float4 e = pick(__builtin_shufflevector(e8, e8, 0, 1, 2, 3), __builtin_shufflevector(e8, e8, 4, 5, 6, 7));
+    e = pick(e, __builtin_shufflevector(e, e, 2, 3, 0, 1));
+    e = pick(e, __builtin_shufflevector(e, e, 1, 0, 3, 2));
+    return e[0];
+}
+inline float laneMax(VFloat v) {
+    return laneExtreme<true>(v);
+}
+inline float laneMin(VFloat v) {
+    return laneExtreme<false>(v);
+}
+
 // The sum of v's lanes (NaN if any lane is), by halving.
 inline float laneSum(VFloat v) {
 #if defined(DEJAG_SIMD_LEVEL_avx512)
@@ -326,6 +353,41 @@ int64_t kernelFlatGroups(const KernelFilterRowArgs& a, float span, uint8_t* flat
         count += isFlat;
     }
     return count;
+}
+
+void kernelRowRanges(const float* const* rows, int channels, int64_t width, int radius, float* low,
+                     float* high, uint8_t* bad) {
+    const int64_t groups = (width + kPassGroup - 1) / kPassGroup;
+    for (int64_t g = 0; g < groups; ++g) {
+        const int64_t x0 = std::max<int64_t>(0, g * kPassGroup - radius),
+                      x1 = std::min<int64_t>(width - 1, (g + 1) * kPassGroup - 1 + radius);
+        float badSum = 0.0f;  // NaN when a value is a NaN or an infinity
+        for (int c = 0; c < channels; ++c) {
+            const float* row = rows[c];
+#if !defined(DEJAG_SIMD_LEVEL_scalar)
+            if (x1 - x0 + 1 >= kFloatLanes) {
+                VFloat lo = loadu<VFloat>(row + x0), hi = lo, sum = lo - lo;
+                auto take = [&](int64_t x) {
+                    const VFloat v = loadu<VFloat>(row + x);
+                    lo = v < lo ? v : lo, hi = hi < v ? v : hi, sum = sum + (v - v);
+                };
+                int64_t x = x0;
+                for (; x + kFloatLanes <= x1 + 1; x += kFloatLanes) take(x);
+                if (x <= x1) take(x1 + 1 - kFloatLanes);  // the last columns, overlapping
+                low[g * channels + c] = laneMin(lo), high[g * channels + c] = laneMax(hi);
+                badSum += laneSum(sum);
+                continue;
+            }
+#endif
+            float l = row[x0], h = l;
+            for (int64_t x = x0; x <= x1; ++x) {
+                const float v = row[x];
+                l = std::min(l, v), h = std::max(h, v), badSum += v - v;
+            }
+            low[g * channels + c] = l, high[g * channels + c] = h;
+        }
+        bad[g] = !(badSum == 0.0f);
+    }
 }
 
 void kernelLogitsRow(const KernelLogitsRowArgs& a) {

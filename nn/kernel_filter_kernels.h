@@ -50,6 +50,15 @@ DEJAG_SIMD_DECLARE(void kernelFilterRow(const KernelFilterRowArgs& args);
                    // pixel's kernel x kernel input neighbourhood (args.in, edges repeated) spans at most
                    // `span` in every channel: the filter, a convex combination of that neighbourhood, would
                    // move such a pixel by no more than span. Returns how many groups are marked.
-                   int64_t kernelFlatGroups(const KernelFilterRowArgs& args, float span, uint8_t* flat);)
+                   int64_t kernelFlatGroups(const KernelFilterRowArgs& args, float span, uint8_t* flat);
+                   // One input row's share of that test, for rows seen one at a time (a streamed frame's
+                   // bands): per group g of kPassGroup output columns and channel c, the least and the
+                   // greatest value of rows[c] over the group's columns widened by radius (clamped to the
+                   // row), at low/high[g * channels + c], and bad[g] = 1 when one of them is a NaN or an
+                   // infinity. The group is flat in a row when, over its kernel rows, no row is bad and in
+                   // every channel the greatest high minus the least low is at most the span: the same
+                   // floats kernelFlatGroups() compares, so the same decision.
+                   void kernelRowRanges(const float* const* rows, int channels, int64_t width, int radius,
+                                        float* low, float* high, uint8_t* bad);)
 
 }  // namespace dejag::nn

@@ -117,6 +117,21 @@ void expectRowsMatch(const CollectedRows& got, const Tensor& want, int64_t first
         }
 }
 
+// A tensor's rows as a streamed input, counting the rows asked for.
+struct TensorRows final : InputRowSource {
+    const Tensor* input = nullptr;
+    std::vector<int> asked;  // per row (several threads: counted under a lock)
+    std::mutex lock;
+    explicit TensorRows(const Tensor& t) : input(&t), asked(size_t(t.shape()[2]), 0) {}
+    void row(int64_t n, int64_t y, float* const* channels) override {
+        const Shape& s = input->shape();
+        for (int64_t c = 0; c < s[1]; ++c)
+            std::copy_n(input->data() + ((n * s[1] + c) * s[2] + y) * s[3], s[3], channels[c]);
+        std::lock_guard<std::mutex> hold(lock);
+        ++asked[size_t(y)];
+    }
+};
+
 // The input written through inputRow() and the rows [first, last) taken from runInPlace(), and the same
 // rows of runStreamed() (where the plan can stream its input), equal run()'s
 // bit for bit; every other row is left out, each wanted one comes once.
@@ -131,25 +146,27 @@ void expectInPlaceRunMatchesRun(InferencePlan& plan, const Tensor& input, int64_
     plan.runInPlace(inPlace, first, last);
     expectRowsMatch(inPlace, want, first, last);
     // Streamed (the input's rows asked for as the first layers and the output stage need them).
-    struct InputRows final : InputRowSource {
-        const Tensor* input = nullptr;
-        std::vector<int> asked;  // per row (several threads: counted under a lock)
-        std::mutex lock;
-        void row(int64_t n, int64_t y, float* const* channels) override {
-            const Shape& s = input->shape();
-            for (int64_t c = 0; c < s[1]; ++c)
-                std::copy_n(input->data() + ((n * s[1] + c) * s[2] + y) * s[3], s[3], channels[c]);
-            std::lock_guard<std::mutex> hold(lock);
-            ++asked[size_t(y)];
-        }
-    } source;
-    source.input = &input;
-    source.asked.assign(size_t(s[2]), 0);
+    TensorRows source(input);
     if (plan.canStreamInput()) {
         CollectedRows streamed(want.shape());
         plan.runStreamed(source, streamed, first, last);
         expectRowsMatch(streamed, want, first, last);
         for (int64_t y = 0; y < s[2]; ++y) EXPECT_GT(source.asked[size_t(y)], 0) << "input row " << y;
+        // With pass-through (a kernel-predicting network's; others ignore it) over a flat left part: the
+        // marks streamed from the first layer's bands — and, for rows no band holds (a stride-3 first
+        // layer skips the last), from the source — give run()'s rows.
+        Tensor flatLeft = input.clone();
+        for (int64_t c = 0; c < s[1]; ++c)
+            for (int64_t y = 0; y < s[2]; ++y)
+                std::fill_n(flatLeft.data() + (c * s[2] + y) * s[3], std::min<int64_t>(s[3], 34),
+                            0.25f + 0.1f * float(c));
+        plan.setPassThrough(1.0f / 1024);
+        const Tensor passed = plan.run(flatLeft).clone();
+        TensorRows flatSource(flatLeft);
+        CollectedRows streamedPassed(want.shape());
+        plan.runStreamed(flatSource, streamedPassed, first, last);
+        expectRowsMatch(streamedPassed, passed, first, last);
+        plan.setPassThrough(0.0f);
     } else {
         EXPECT_THROW(plan.runStreamed(source, inPlace, first, last), Error);
     }
@@ -223,6 +240,12 @@ TEST_P(Inference, KpnFamilyMatchesTheReference) {
                       {"centre_bias", -1.0}}});
     Model wide = Model::fromArchitecture({{"name", "k5"}, {"input_channels", 2}, {"nodes", nodes}});
     expectPlanMatchesReference(wide, {2, 2, 21, 39});
+    // One image (streamed), its first layer a 1x1 of stride 2 that reads only every other row.
+    json sparse = nodes;
+    sparse[0]["kernel"] = 1, sparse[0]["stride"] = 2, sparse[1]["out_channels"] = 4 * 25;
+    sparse[2]["factor"] = 2;
+    Model skipping = Model::fromArchitecture({{"name", "k5s"}, {"input_channels", 2}, {"nodes", sparse}});
+    expectPlanMatchesReference(skipping, {1, 2, 22, 40});
 }
 
 TEST_P(Inference, EveryOpMatchesTheReference) {
@@ -261,6 +284,7 @@ TEST_P(Inference, KpnPassesFlatGroupsThrough) {
     auto at = [&](const Tensor& t, int64_t c, int64_t y, int64_t x) { return t.data()[(c * H + y) * W + x]; };
     const int64_t groups = (W + 31) / 32;
     int64_t passed = 0;
+    std::vector<char> flatGroups(size_t(H * groups));
     for (int64_t y = 0; y < H; ++y)
         for (int64_t g = 0; g < groups; ++g) {
             bool flat = true;
@@ -272,6 +296,7 @@ TEST_P(Inference, KpnPassesFlatGroupsThrough) {
                 flat = flat && high - low <= span;
             }
             passed += flat;
+            flatGroups[size_t(y * groups + g)] = flat;
             for (int64_t x = 32 * g; x < std::min(W, 32 * g + 32); ++x)
                 for (int64_t c = 0; c < C; ++c) {
                     if (flat) {
@@ -285,11 +310,37 @@ TEST_P(Inference, KpnPassesFlatGroupsThrough) {
     EXPECT_GT(passed, 0);
     EXPECT_LT(passed, H * groups);
     EXPECT_DOUBLE_EQ(plan.passedThroughFraction(), double(passed) / double(H * groups));
-    // A NaN inside a flat area is filtered (NaN), never passed as if flat.
+    // Streamed, the marks taken from the first layer's bands: the same rows, bit for bit (the arena
+    // filled with the other input's activations again).
+    ASSERT_TRUE(plan.canStreamInput());
+    for (auto [first, last] : {std::pair<int64_t, int64_t>{0, H}, {3, H - 2}}) {
+        plan.setPassThrough(0.0f);
+        plan.run(randomTensor(input.shape(), 34));
+        plan.setPassThrough(span);
+        TensorRows source(input);
+        CollectedRows streamed(got.shape());
+        plan.runStreamed(source, streamed, first, last);
+        expectRowsMatch(streamed, got, first, last);
+        int64_t passedInRows = 0;
+        for (int64_t y = first; y < last; ++y)
+            for (int64_t g = 0; g < groups; ++g) passedInRows += flatGroups[size_t(y * groups + g)];
+        EXPECT_DOUBLE_EQ(plan.passedThroughFraction(),
+                         double(passedInRows) / double((last - first) * groups));
+    }
+    // A NaN inside a flat area is filtered (NaN), never passed as if flat; an infinity likewise.
     Tensor poisoned = input.clone();
     poisoned.data()[(0 * H + 5) * W + 10] = NAN;
+    poisoned.data()[(1 * H + 20) * W + 12] = INFINITY;
     const Tensor& withNan = plan.runUnchecked(poisoned);
     EXPECT_TRUE(std::isnan(withNan.data()[(0 * H + 5) * W + 11]));
+    EXPECT_FALSE(withNan.data()[(1 * H + 20) * W + 13] == at(input, 1, 20, 13));
+    {
+        TensorRows source(poisoned);
+        CollectedRows streamed(got.shape());
+        plan.runStreamed(source, streamed, 0, H);
+        EXPECT_TRUE(std::isnan(streamed.rows.data()[(0 * H + 5) * W + 11]));
+        EXPECT_FALSE(streamed.rows.data()[(1 * H + 20) * W + 13] == at(input, 1, 20, 13));
+    }
     // Off again: run()'s result.
     plan.setPassThrough(0.0f);
     const Tensor& off = plan.run(input);
