@@ -13,6 +13,7 @@
 #include "base/simd.h"
 #include "base/thread_pool.h"
 #include "nn/init.h"
+#include "nn/kernel_filter_kernels.h"
 #include "tests/alloc_counter.h"
 #include "tests/test_util.h"
 
@@ -345,6 +346,86 @@ TEST_P(Inference, KpnPassesFlatGroupsThrough) {
     plan.setPassThrough(0.0f);
     const Tensor& off = plan.run(input);
     for (int64_t i = 0; i < off.numel(); ++i) ASSERT_EQ(off.data()[i], exact.data()[i]);
+}
+
+// The pass-through test split by rows (kernelRowRanges, what a streamed frame's bands compute) decides
+// every group as kernelFlatGroups() does on the three rows together: widths under a vector, partial
+// groups, 1 to 4 channels, spreads at and around the span, and NaN, infinities and signed zeros.
+TEST_P(Inference, RowRangesDecideAsTheFlatGroupTest) {
+    Rng rng(41);
+    const float span = 1.0f / 1024, inf = std::numeric_limits<float>::infinity();
+    int64_t flatCount = 0, total = 0;
+    for (int64_t width : {5, 16, 33, 70, 100, 129})
+        for (int channels = 1; channels <= 4; ++channels)
+            for (int trial = 0; trial < 40; ++trial) {
+                const int64_t groups = (width + kPassGroup - 1) / kPassGroup;
+                std::vector<float> data(size_t(3 * channels * width));
+                for (int64_t x = 0; x < width; ++x)
+                    for (int c = 0; c < channels; ++c) {
+                        const float base = 0.5f + 0.1f * float(c);
+                        for (int dy = 0; dy < 3; ++dy) {
+                            // Mostly flat rows: a spread of about the span (half of them under it).
+                            float v = base + span * rng.uniform(0.0f, trial % 2 ? 0.9f : 1.1f);
+                            if (rng.below(200) == 0) v = base + 0.01f;
+                            if (trial % 5 == 4 && rng.below(150) == 0) {
+                                const float specials[] = {NAN, inf, -inf, 0.0f, -0.0f};
+                                v = specials[rng.below(5)];
+                            }
+                            data[size_t((c * 3 + dy) * width + x)] = v;
+                        }
+                    }
+                const float* in[12];
+                for (int c = 0; c < channels; ++c)
+                    for (int dy = 0; dy < 3; ++dy) in[c * 3 + dy] = data.data() + (c * 3 + dy) * width;
+                KernelFilterRowArgs args;
+                args.in = in, args.width = width, args.channels = channels, args.kernel = 3;
+                std::vector<uint8_t> want(static_cast<size_t>(groups), 0);
+                DEJAG_SIMD_CALL(kernelFlatGroups, args, span, want.data());
+                std::vector<float> low(size_t(3 * groups * channels)), high(low.size());
+                std::vector<uint8_t> bad(static_cast<size_t>(3 * groups), 0);
+                for (int dy = 0; dy < 3; ++dy) {
+                    const float* rows[4];
+                    for (int c = 0; c < channels; ++c) rows[c] = in[c * 3 + dy];
+                    DEJAG_SIMD_CALL(kernelRowRanges, rows, channels, width, 1,
+                                    low.data() + dy * groups * channels, high.data() + dy * groups * channels,
+                                    bad.data() + dy * groups);
+                    // Each range exactly: the least and greatest of the group's columns and one each side.
+                    for (int64_t g = 0; g < groups; ++g)
+                        for (int c = 0; c < channels; ++c) {
+                            float lo = inf, hi = -inf;
+                            bool finite = true;
+                            for (int c2 = 0; c2 < channels; ++c2)
+                                for (int64_t x = std::max<int64_t>(0, g * kPassGroup - 1);
+                                     x <= std::min<int64_t>(width - 1, g * kPassGroup + kPassGroup); ++x) {
+                                    finite = finite && std::isfinite(rows[c2][x]);
+                                    if (c2 == c) lo = std::min(lo, rows[c][x]), hi = std::max(hi, rows[c][x]);
+                                }
+                            ASSERT_EQ(bool(bad[size_t(dy * groups + g)]), !finite)
+                                << "width " << width << " group " << g;
+                            if (!finite) continue;  // the range is then not used
+                            const size_t at = size_t((dy * groups + g) * channels + c);
+                            ASSERT_EQ(low[at], lo) << "width " << width << " group " << g << " channel " << c;
+                            ASSERT_EQ(high[at], hi)
+                                << "width " << width << " group " << g << " channel " << c;
+                        }
+                }
+                for (int64_t g = 0; g < groups; ++g) {
+                    bool flat = !bad[size_t(g)] && !bad[size_t(groups + g)] && !bad[size_t(2 * groups + g)];
+                    for (int c = 0; c < channels && flat; ++c) {
+                        float lo = inf, hi = -inf;
+                        for (int dy = 0; dy < 3; ++dy) {
+                            lo = std::min(lo, low[size_t((dy * groups + g) * channels + c)]);
+                            hi = std::max(hi, high[size_t((dy * groups + g) * channels + c)]);
+                        }
+                        flat = flat && hi - lo <= span;
+                    }
+                    ASSERT_EQ(flat, bool(want[size_t(g)])) << "width " << width << ", " << channels
+                                                           << " channels, trial " << trial << ", group " << g;
+                    flatCount += flat, ++total;
+                }
+            }
+    EXPECT_GT(flatCount, total / 10);  // both decisions well represented
+    EXPECT_LT(flatCount, total * 9 / 10);
 }
 
 // An input the plan holds blocked (more than 4 channels): inputRow() writes a staging tensor.
