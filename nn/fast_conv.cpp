@@ -297,6 +297,7 @@ void BlockedConv::forward(float* out, const BlockedShape& outShape, const float*
             a.bias = paddedBias_.data();
             a.activation = activation_;
             a.inBf16 = inBf16, a.outBf16 = outBf16;
+            a.streamBytes = streamBytes_;
             const int64_t bands = items[p].bands;
             a.image = index / (blockGroups * bands);
             const int64_t group = (index / bands) % blockGroups;
@@ -356,6 +357,7 @@ void BlockedConv::forwardBanded(float* out, const BlockedShape& outShape, const 
                 a.bias = paddedBias_.data();
                 a.activation = activation_;
                 a.outBf16 = outBf16;
+                a.streamBytes = streamBytes_;
                 a.outBlockBegin = 0, a.outBlockEnd = outShape.channelBlocks();
                 DEJAG_SIMD_CALL(convForwardRows, a);
             }

@@ -105,6 +105,14 @@ class BlockedConv {
     // not by another convolution.
     void useCompactOutput();
 
+    // Outputs larger than this many bytes (as stored, bf16 or float) are written with non-temporal stores
+    // that bypass the caches, so a 1080p frame's 133 MB activation does not first read every line it
+    // overwrites; smaller ones stay in the caches for the next layer, which reads them at once. The
+    // default, 32 MB, was measured: dejag-fast's largest bf16 activation at 1080p (16.6 MB) streamed took
+    // its frames 3 % longer. Tests lower it to run the streamed path on smaller layers.
+    static constexpr int64_t kDefaultStreamedOutputBytes = int64_t(32) << 20;
+    void setStreamedOutputBytes(int64_t bytes) { streamBytes_ = bytes; }
+
     int block() const { return block_; }
     int64_t macs() const { return macs_; }
 
@@ -154,6 +162,7 @@ class BlockedConv {
     bool transposed_ = false;  // weights (Cin, Cout, kh, kw) instead of (Cout, Cin, kh, kw)
     bool pool_ = false;        // fused 2x2 max pooling
     bool bf16Input_ = false;   // pairWeights packed
+    int64_t streamBytes_ = kDefaultStreamedOutputBytes;
     int64_t kernelArea_ = 1;
     std::vector<Pass> passes_;
     std::vector<float> paddedBias_;

@@ -143,10 +143,10 @@ inline void storeFence() {
 #endif
 }
 
-// Outputs larger than this are streamed past the caches (a 1080p frame's: 130 MB).
-constexpr int64_t kStreamOutputBytes = int64_t(8) << 20;
+// Outputs larger than a.streamBytes as stored (bf16 or float) are streamed past the caches.
 inline bool largeOutput(const ConvRowsArgs& a) {
-    return a.outShape.batch * a.outShape.imageStride() * int64_t(sizeof(float)) > kStreamOutputBytes;
+    const int64_t bytes = a.outBf16 ? int64_t(sizeof(uint16_t)) : int64_t(sizeof(float));
+    return a.outShape.batch * a.outShape.imageStride() * bytes > a.streamBytes;
 }
 
 // ---- The wide kernel: lanes = output channels ------------------------------------------------------

@@ -50,6 +50,8 @@ struct ConvRowsArgs {
     // left as they were), other kernels compute everything.
     const uint8_t* keep = nullptr;
     int64_t keepRowStride = 0, keepGroup = 0;
+    // Outputs of more bytes than this (as stored: bf16 or float) are streamed past the caches.
+    int64_t streamBytes = int64_t(32) << 20;
 };
 
 // Weight gradient of one (pass, tap, output block, input block): for every image and lattice point,

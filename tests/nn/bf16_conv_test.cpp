@@ -189,8 +189,8 @@ TEST(Bf16Conv, TransposedAndLargeLayersMatchTheReference) {
         for (const bool outBf16 : {false, true})
             expectClose(runBlocked(conv, input, int64_t(want.size()), true, outBf16), want, outBf16);
     }
-    // 16 -> 32 at 301 x 297: 11.6 MB of float output (streamed), 5.8 MB as bf16; and 12 -> 8 at
-    // 601 x 597 (half a vector of outputs: two pixels per vector), 23 and 11.5 MB.
+    // 16 -> 32 at 301 x 297: 11.6 MB of float output, 5.8 MB as bf16; and 12 -> 8 at 601 x 597 (half a
+    // vector of outputs: two pixels per vector), 23 and 11.5 MB: all streamed past a threshold of 4 MB.
     for (const int outChannels : {32, 8}) {
         Conv2dDesc d;
         d.inChannels = outChannels == 8 ? 12 : 16, d.outChannels = outChannels;
@@ -203,6 +203,7 @@ TEST(Bf16Conv, TransposedAndLargeLayersMatchTheReference) {
         const auto bias = randomValues(size_t(outChannels), rng);
         BlockedConv conv(d, weight.data(), bias.data(), c.activation);
         conv.useBf16Input();
+        conv.setStreamedOutputBytes(int64_t(4) << 20);  // bf16 outputs of 5.8 and 11.5 MB streamed too
         const std::vector<float> want = reference(c, input, weight, bias, true);
         for (const bool outBf16 : {false, true})
             expectClose(runBlocked(conv, input, int64_t(want.size()), true, outBf16), want, outBf16);

@@ -124,6 +124,10 @@ TEST_P(FastConv, Conv2dMatchesTheReferenceOnRandomShapes) {
     }
 }
 
+// Layers whose output exceeds this stream their stores past the caches in these tests (the default,
+// 32 MB, would need frames four times the size).
+constexpr int64_t kStreamedTestBytes = int64_t(8) << 20;
+
 // A layer with a few outputs over a large frame streams its stores past the caches (above 8 MB of
 // output); that path, its row remainders and its border must match the reference like the cached one.
 TEST_P(FastConv, NarrowLayerOverALargeFrameMatchesTheReference) {
@@ -134,7 +138,8 @@ TEST_P(FastConv, NarrowLayerOverALargeFrameMatchesTheReference) {
     d.padTop = d.padBottom = d.padLeft = d.padRight = 1;
     const RandomConv data(d, rng);
     const ActivationDesc relu{Activation::ReLU};
-    const BlockedConv conv(d, data.weight.data(), data.bias.data(), relu);
+    BlockedConv conv(d, data.weight.data(), data.bias.data(), relu);
+    conv.setStreamedOutputBytes(kStreamedTestBytes);
     expectClose(runBlocked(conv, data.input, int64_t(data.linear.size())), data.activated(relu));
 }
 
@@ -154,6 +159,7 @@ TEST_P(FastConv, NarrowLayerWithCompactOutputOverALargeFrameMatchesTheReference)
         activation.low = 0.1f, activation.high = 0.5f;  // a clamp whose low end is not zero
         const std::vector<float> want = data.activated(activation);
         BlockedConv conv(d, data.weight.data(), data.bias.data(), activation);
+        conv.setStreamedOutputBytes(kStreamedTestBytes);
         if (GetParam() == SimdLevel::Scalar) {  // no narrow kernel: the scalar layout is planar already
             EXPECT_EQ(conv.compactOutputBlock(), 0);
             EXPECT_EQ(conv.outputShape(1).block, 1);
@@ -329,6 +335,7 @@ TEST_P(FastConv, WideLayersOverALargeFrameMatchTheReference) {
         const ActivationDesc relu{Activation::ReLU};
         std::vector<float> want = data.activated(relu);
         BlockedConv conv(d, data.weight.data(), data.bias.data(), relu, 1);
+        conv.setStreamedOutputBytes(kStreamedTestBytes);
         int64_t outCount = int64_t(want.size());
         if (pooled) {
             MaxPool2dDesc pool;
@@ -350,6 +357,7 @@ TEST_P(FastConv, WideLayersOverALargeFrameMatchTheReference) {
     const RandomConv data(d, rng);
     const ActivationDesc relu{Activation::ReLU};
     BlockedConv conv(d, data.weight.data(), data.bias.data(), relu, 1);
+    conv.setStreamedOutputBytes(kStreamedTestBytes);
     ASSERT_GT(conv.outputShape(1).floatCount() * int64_t(sizeof(float)), int64_t(8) << 20);
     const std::vector<float> want = data.activated(relu);
     expectClose(runBlocked(conv, data.input, int64_t(want.size())), want);
