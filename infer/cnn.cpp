@@ -114,6 +114,14 @@ struct FrameRows final : nn::OutputRowSink {
                             count, int(C), o);
         }
     }
+    // A row the network passes through: the frame's, clamped as row() clamps (an RGB network's; a grey
+    // network's rows are made).
+    bool passRow(int64_t, int64_t y) override {
+        if (grey) return false;
+        const size_t at = (size_t(ry0 + y) * width + size_t(cx0)) * C;
+        DEJAG_SIMD_CALL(clampRgbRow, in + at, int(C), cx1 - cx0, out + at);
+        return true;
+    }
 };
 
 // The rows of a tile's input region, as the network reads them: planes of R, G, B (or the luma of a grey

@@ -36,6 +36,18 @@ void joinRgbRowClamped(const float* r, const float* g, const float* b, int64_t c
     }
 }
 
+void clampRgbRow(const float* pixels, int channels, int64_t count, float* out) {
+    int64_t x = 0;
+    if (channels == 3) {  // R G B R G B ...: the values in order
+        for (; x + kFloatLanes <= 3 * count; x += kFloatLanes)
+            storeu(out + x, clamp01(loadu<VFloat>(pixels + x)));
+        for (; x < 3 * count; ++x) out[x] = std::clamp(pixels[x], 0.0f, 1.0f);
+        return;
+    }
+    for (; x < count; ++x)
+        for (int c = 0; c < 3; ++c) out[x * channels + c] = std::clamp(pixels[x * channels + c], 0.0f, 1.0f);
+}
+
 namespace {
 // Luma as the gate computes it everywhere (this file is built without contracted multiply-adds, so
 // every level rounds as the scalar code does).

@@ -16,6 +16,10 @@ DEJAG_SIMD_DECLARE(
     // pixels' other channels are left as they are.
     void joinRgbRowClamped(const float* r, const float* g, const float* b, int64_t count, int channels,
                            float* pixels);
+    // R G B of `count` interleaved pixels (`channels` floats each), each value clamped to [0, 1], into
+    // the same places of `out` (as joinRgbRowClamped() of the split row writes them); the pixels' other
+    // channels are left as they are.
+    void clampRgbRow(const float* pixels, int channels, int64_t count, float* out);
     // The gate's test of one row (infer/cnn.h): whether a pixel x in [first, last] has a luma
     // (0.21 R + 0.72 G + 0.07 B) step above `threshold` to its right neighbour or to the pixel below
     // (`below`: the next row, or the row itself on the last one; past the row's end the pixel itself).

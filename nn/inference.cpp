@@ -1222,6 +1222,17 @@ void InferencePlan::Impl::finish(const float* planes, OutputRowSink* sink, int64
         const int64_t f = m.kernelFactor;
         const int k = d.kernel, r = k / 2, taps = k * k;
         forEachOutputRow([&](int64_t part, int64_t n, int64_t y) {
+            // A row passed through whole is copied by the sink from the frame, when it can: no input
+            // rows, logits or filter for it.
+            if (m.flatMarked && sink) {
+                const uint8_t* flat = m.flatRows.data() + y * m.passGroupsPerRow;
+                if (std::all_of(flat, flat + m.passGroupsPerRow,
+                                [](uint8_t isFlat) { return isFlat != 0; }) &&
+                    sink->passRow(n, y)) {
+                    m.passCounts[size_t(part)] += m.passGroupsPerRow;
+                    return;
+                }
+            }
             float* logits = m.kernelScratch.data() + part * taps * W;
             const float* in[kKernelMaxChannels * 7];
             float* out[kKernelMaxChannels];

@@ -39,6 +39,13 @@ class InputRowSource {
 class OutputRowSink {
   public:
     virtual void row(int64_t n, int64_t y, const float* const* channels) = 0;
+    // Row y of image n is the input's, bit for bit (a kernel-predicting network passing the whole row
+    // through, setPassThrough()): a sink that can copy it from where the input came from does so and
+    // returns true, and the row is not made; false (the default) has it made and given to row().
+    virtual bool passRow(int64_t n, int64_t y) {
+        (void)n, (void)y;
+        return false;
+    }
 
   protected:
     ~OutputRowSink() = default;

@@ -82,6 +82,16 @@ TEST_P(CnnRows, SplitAndJoinMatchThePixelLoops) {
                         EXPECT_EQ(got, std::clamp(v, 0.0f, 1.0f)) << "channel " << c << " of pixel " << x;
                 }
             EXPECT_EQ(joined[frame.size()], 9.0f) << "written past the row";
+            // A passed row clamped straight from the frame: what the join of its split gives.
+            std::vector<float> clamped(frame.size() + size_t(channels), 9.0f);
+            DEJAG_SIMD_CALL(clampRgbRow, frame.data(), channels, count, clamped.data());
+            for (size_t i = 0; i < frame.size(); ++i) {
+                if (std::isnan(joined[i]))
+                    EXPECT_TRUE(std::isnan(clamped[i])) << "element " << i;
+                else
+                    EXPECT_EQ(clamped[i], joined[i]) << "element " << i;
+            }
+            EXPECT_EQ(clamped[frame.size()], 9.0f) << "written past the row";
         }
 }
 
@@ -262,6 +272,21 @@ TEST(Cnn, KpnPassesFlatRunsThroughWithinTheSpan) {
         ASSERT_LE(std::abs(ungated[i] - frame[i]), on.passSpan * 1.001f) << "element " << i;
         ++passed;
     }
+    // Flat rows outside [0, 1] (an HDR frame): passed through whole, they are clamped as made rows are.
+    std::vector<float> bright = frame;
+    for (int y = 0; y < 40; ++y)
+        for (int x = 0; x < W; ++x)
+            for (int c = 0; c < C; ++c) bright[size_t((y * W + x) * C + c)] = c == 0 ? 1.5f : -0.25f;
+    std::vector<float> brightUngated(frame.size()), brightGated(frame.size());
+    all.apply(bright.data(), brightUngated.data(), W, H, C);
+    some.apply(bright.data(), brightGated.data(), W, H, C);
+    for (int y = 0; y < 39; ++y)
+        for (int x = 0; x < W; ++x)
+            for (int c = 0; c < C; ++c) {
+                const size_t i = size_t((y * W + x) * C + c);
+                ASSERT_EQ(brightGated[i], c == 0 ? 1.0f : 0.0f) << "row " << y << " column " << x;
+                ASSERT_EQ(brightGated[i], brightUngated[i]) << "row " << y << " column " << x;
+            }
     on.passSpan = 0.0f;
     CnnFilter none(seeded("kpn", 7), on);
     none.apply(frame.data(), exact.data(), W, H, C);

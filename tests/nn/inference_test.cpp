@@ -327,6 +327,37 @@ TEST_P(Inference, KpnPassesFlatGroupsThrough) {
             for (int64_t g = 0; g < groups; ++g) passedInRows += flatGroups[size_t(y * groups + g)];
         EXPECT_DOUBLE_EQ(plan.passedThroughFraction(),
                          double(passedInRows) / double((last - first) * groups));
+        // A sink that copies whole passed rows itself (OutputRowSink::passRow) is asked for exactly the
+        // rows whose every group is flat, and given every other row, made as before.
+        struct PassingRows final : OutputRowSink {
+            CollectedRows made;
+            std::vector<int> passed;  // per row
+            explicit PassingRows(const Shape& shape) : made(shape), passed(size_t(shape[2]), 0) {}
+            void row(int64_t n, int64_t y, const float* const* channels) override {
+                made.row(n, y, channels);
+            }
+            bool passRow(int64_t, int64_t y) override {
+                ++passed[size_t(y)];
+                return true;
+            }
+        } passing(got.shape());
+        plan.runStreamed(source, passing, first, last);
+        int64_t wholeRows = 0;
+        for (int64_t y = 0; y < H; ++y) {
+            bool whole = y >= first && y < last;
+            for (int64_t g = 0; g < groups; ++g) whole = whole && flatGroups[size_t(y * groups + g)];
+            wholeRows += whole;
+            ASSERT_EQ(passing.passed[size_t(y)], whole ? 1 : 0) << "row " << y;
+            ASSERT_EQ(passing.made.deliveries[size_t(y)], y >= first && y < last && !whole ? 1 : 0)
+                << "row " << y;
+            for (int64_t c = 0; c < C && passing.made.deliveries[size_t(y)]; ++c)
+                for (int64_t x = 0; x < W; ++x)
+                    ASSERT_EQ(at(passing.made.rows, c, y, x), at(got, c, y, x))
+                        << "row " << y << " column " << x;
+        }
+        EXPECT_GT(wholeRows, 0);
+        EXPECT_DOUBLE_EQ(plan.passedThroughFraction(),
+                         double(passedInRows) / double((last - first) * groups));
     }
     // A NaN inside a flat area is filtered (NaN), never passed as if flat; an infinity likewise.
     Tensor poisoned = input.clone();
