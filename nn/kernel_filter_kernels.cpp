@@ -313,6 +313,20 @@ inline float laneSum(VFloat v) {
 }
 #endif
 
+#if !defined(DEJAG_SIMD_LEVEL_scalar)
+// Columns [x0, x1] of a row (at least a vector of them) into lane-wise extremes and a sum that turns NaN
+// at a NaN or an infinity: whole vectors, then the last columns by an overlapping load.
+inline void takeWindow(const float* row, int64_t x0, int64_t x1, VFloat& low, VFloat& high, VFloat& bad) {
+    auto take = [&](int64_t x) {
+        const VFloat v = loadu<VFloat>(row + x);
+        low = v < low ? v : low, high = high < v ? v : high, bad = bad + (v - v);
+    };
+    int64_t x = x0;
+    for (; x + kFloatLanes <= x1 + 1; x += kFloatLanes) take(x);
+    if (x <= x1) take(x1 + 1 - kFloatLanes);
+}
+#endif
+
 int64_t kernelFlatGroups(const KernelFilterRowArgs& a, float span, uint8_t* flat) {
     const int K = a.kernel, r = K / 2;
     const int64_t W = a.width, groups = (W + kPassGroup - 1) / kPassGroup;
@@ -327,16 +341,7 @@ int64_t kernelFlatGroups(const KernelFilterRowArgs& a, float span, uint8_t* flat
 #if !defined(DEJAG_SIMD_LEVEL_scalar)
             if (x1 - x0 + 1 >= kFloatLanes) {
                 VFloat low = loadu<VFloat>(a.in[c * K] + x0), high = low, bad = low - low;
-                for (int dy = 0; dy < K; ++dy) {
-                    const float* row = a.in[c * K + dy];
-                    auto take = [&](int64_t x) {
-                        const VFloat v = loadu<VFloat>(row + x);
-                        low = v < low ? v : low, high = high < v ? v : high, bad = bad + (v - v);
-                    };
-                    int64_t x = x0;
-                    for (; x + kFloatLanes <= x1 + 1; x += kFloatLanes) take(x);
-                    if (x <= x1) take(x1 + 1 - kFloatLanes);  // the last columns, overlapping
-                }
+                for (int dy = 0; dy < K; ++dy) takeWindow(a.in[c * K + dy], x0, x1, low, high, bad);
                 isFlat = laneSpread(high, low) <= span && laneSum(bad) == 0.0f;
                 continue;
             }
@@ -367,13 +372,7 @@ void kernelRowRanges(const float* const* rows, int channels, int64_t width, int 
 #if !defined(DEJAG_SIMD_LEVEL_scalar)
             if (x1 - x0 + 1 >= kFloatLanes) {
                 VFloat lo = loadu<VFloat>(row + x0), hi = lo, sum = lo - lo;
-                auto take = [&](int64_t x) {
-                    const VFloat v = loadu<VFloat>(row + x);
-                    lo = v < lo ? v : lo, hi = hi < v ? v : hi, sum = sum + (v - v);
-                };
-                int64_t x = x0;
-                for (; x + kFloatLanes <= x1 + 1; x += kFloatLanes) take(x);
-                if (x <= x1) take(x1 + 1 - kFloatLanes);  // the last columns, overlapping
+                takeWindow(row, x0, x1, lo, hi, sum);
                 low[g * channels + c] = laneMin(lo), high[g * channels + c] = laneMax(hi);
                 badSum += laneSum(sum);
                 continue;
