@@ -1077,7 +1077,7 @@ void InferencePlan::Impl::markFlat(const float* planes, InputRowSource* streamed
 // The marks of output rows [markBegin, markEnd) from the rows' ranges: a group is flat in row y when
 // rows y - r ... y + r (clamped) are not bad and in every channel the greatest of their highs minus the
 // least of their lows is at most the span — the floats kernelFlatGroups() would compare. Rows no band
-// held (a convolution that skips the image's last rows) are read from the source for it.
+// held (a first layer that skips rows, as a 1x1 of stride 2 does) are read from the source for it.
 void InferencePlan::Impl::markFlatFromRanges(InputRowSource& source) {
     rangesWanted = false;
     const int64_t C = inputShape[1], H = inputShape[2], W = inputShape[3], G = passGroupsPerRow;
