@@ -110,7 +110,6 @@ class BlockedConv {
     // overwrites; smaller ones stay in the caches for the next layer, which reads them at once. The
     // default, 32 MB, was measured: dejag-fast's largest bf16 activation at 1080p (16.6 MB) streamed took
     // its frames 3 % longer. Tests lower it to run the streamed path on smaller layers.
-    static constexpr int64_t kDefaultStreamedOutputBytes = int64_t(32) << 20;
     void setStreamedOutputBytes(int64_t bytes) { streamBytes_ = bytes; }
 
     int block() const { return block_; }

@@ -28,6 +28,10 @@ struct ConvPass {
     const uint16_t* pairWeights = nullptr;
 };
 
+// Above this many bytes as stored, a layer's output is streamed past the caches by default
+// (BlockedConv::setStreamedOutputBytes tells why).
+inline constexpr int64_t kDefaultStreamedOutputBytes = int64_t(32) << 20;
+
 struct ConvRowsArgs {
     const float* in = nullptr;  // blocked input; every tap of the lattice lies inside its border
     BlockedShape inShape;
@@ -51,7 +55,7 @@ struct ConvRowsArgs {
     const uint8_t* keep = nullptr;
     int64_t keepRowStride = 0, keepGroup = 0;
     // Outputs of more bytes than this (as stored: bf16 or float) are streamed past the caches.
-    int64_t streamBytes = int64_t(32) << 20;
+    int64_t streamBytes = kDefaultStreamedOutputBytes;
 };
 
 // Weight gradient of one (pass, tap, output block, input block): for every image and lattice point,
