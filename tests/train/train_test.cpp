@@ -7,7 +7,9 @@
 #include <gtest/gtest.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <filesystem>
 #include <fstream>
 #include <map>
@@ -293,6 +295,7 @@ TEST_F(Training, ExportThenLoadGivesIdenticalOutputsAndACard) {
     EXPECT_NE(card.find("### Test split"), std::string::npos);
     EXPECT_NE(card.find("| network |"), std::string::npos);
     EXPECT_TRUE(fs::exists(root_ + "/models/tiny-export.md"));
+    EXPECT_EQ(card.find("thesis' protocol"), std::string::npos) << "an RGB card has only the test targets";
 
     std::map<std::string, std::string> metadata;
     const nn::Model best = nn::loadModel(c.out + "/best.safetensors");
@@ -329,6 +332,42 @@ TEST_F(Training, AKernelPredictingNetworkLearnsExportsAndLoads) {
     const nn::Model best = nn::loadModel(c.out + "/best.safetensors"), shipped = nn::loadModel(modelPath);
     ModelRunner a(best), b(shipped);  // they keep a reference to their model
     EXPECT_EQ(a.run(items[0].input).pixels, b.run(items[0].input).pixels);
+}
+
+// A grey network (the seed2020 replica's kind) is also judged on the thesis' own protocol: the validation
+// split, held-out images of the families it trained on. The stand-ins for no AA and FXAA both return a
+// black image, so the network beats them, but FXAA equals no AA: the strict ordering network > FXAA >
+// no AA does not hold and the card must say so.
+TEST_F(Training, AGreyNetworksCardJudgesThePublishedOrderingOnTheValidationSplit) {
+    TrainConfig c = tinyConfig("grey");
+    const std::string arch = root_ + "/tiny-grey.json";
+    std::ofstream(arch) << R"({"name": "tiny-grey", "input_channels": 1, "init": "glorot_uniform",
+        "nodes": [{"name": "conv1", "op": "conv2d", "inputs": ["input"], "out_channels": 4, "kernel": 3,
+                   "padding": "same", "activation": "relu"},
+                  {"name": "conv2", "op": "conv2d", "inputs": ["conv1"], "out_channels": 1, "kernel": 3,
+                   "padding": "same", "activation": "sigmoid"}],
+        "output": "conv2"})";
+    c.arch = arch;
+    c.steps = 20;
+    auto black = [](const Image& im) {
+        Image out = im;
+        std::fill(out.pixels.begin(), out.pixels.end(), 0.0f);
+        return out;
+    };
+    const std::vector<Baseline> methods = {{"no AA", black}, {"FXAA", black}};
+    trainModel(c, methods);
+    fs::create_directories(root_ + "/models");
+    const std::string card = exportModel(c.out, root_ + "/models/tiny-grey.safetensors", methods, 2, true);
+    const size_t section = card.find("### The thesis' protocol");
+    ASSERT_NE(section, std::string::npos) << card;
+    const std::string line = "- network > FXAA > no AA (PSNR): **not met** (";
+    const size_t verdict = card.find(line, section);
+    ASSERT_NE(verdict, std::string::npos) << card.substr(section);
+    double network = 0, fxaa = 0, none = 0;
+    ASSERT_EQ(std::sscanf(card.c_str() + verdict + line.size(), "%lf > %lf > %lf", &network, &fxaa, &none),
+              3);
+    EXPECT_GT(network, fxaa);
+    EXPECT_EQ(fxaa, none);
 }
 
 TEST_F(Training, EarlyStoppingEndsAfterPatienceEvaluationsWithoutProgress) {
