@@ -100,6 +100,12 @@ void registerTrainCommand(CLI::App& app) {
             "of the steps, on top of the clean ones --steps counts (default 0)")
         ->check(CLI::Range(0.0, 0.9));
     trainCommand
+        ->add_option("--uniform-patches", config->uniformPatches,
+                     "share of the patches placed uniformly over the frames; the rest are centred near an "
+                     "aliasing pixel")
+        ->check(CLI::Range(0.0, 1.0))
+        ->capture_default_str();
+    trainCommand
         ->add_option("--skip-outliers", config->outlierFactor,
                      "skip a step whose loss exceeds K times its running average, or whose input's "
                      "detail lies above K times or below 1/K^2 of its own (0: off; K > 1)")

@@ -98,6 +98,7 @@ json configToJson(const TrainConfig& c) {
             {"families", c.families},
             {"adversarial", c.adversarialFraction},
             {"outlier_factor", c.outlierFactor},
+            {"uniform_patches", c.uniformPatches},
             {"threads", threadCount()}};
 }
 
@@ -114,7 +115,8 @@ void requireSameRun(const json& saved, const json& now) {
                                                  {"seed", nullptr},
                                                  {"families", json::array()},
                                                  {"adversarial", json(0.0)},
-                                                 {"outlier_factor", json(0.0)}};
+                                                 {"outlier_factor", json(0.0)},
+                                                 {"uniform_patches", json(0.25)}};
     for (const auto& [key, absent] : keys) {
         const json before = saved.contains(key) ? saved.at(key) : absent;
         if (before != now.at(key))
@@ -524,6 +526,8 @@ TrainResult trainModel(const TrainConfig& config, const std::vector<Baseline>& b
         throw Error("give --steps N or --epochs E (positive)");
     if (!(config.outlierFactor == 0 || (config.outlierFactor > 1 && std::isfinite(config.outlierFactor))))
         throw Error("--skip-outliers must be 0 (off) or above 1");
+    if (!(config.uniformPatches >= 0 && config.uniformPatches <= 1))
+        throw Error("--uniform-patches must be between 0 and 1");
     if (!(config.adversarialFraction >= 0 && config.adversarialFraction <= 0.9))
         throw Error("--adversarial must be between 0 and 0.9");
     if (config.evalEvery < 1 || config.checkpointEvery < 1)
@@ -565,6 +569,7 @@ TrainResult trainModel(const TrainConfig& config, const std::vector<Baseline>& b
 
     data::PatchOptions patches;
     patches.patchSize = config.patch, patches.batchSize = config.batch, patches.seed = config.seed;
+    patches.uniformFraction = config.uniformPatches;
     // Adversarial steps are inserted between the clean ones: the clean batches are the same, in the same
     // order, as in a run without them.
     int64_t cleanBatches = 0;  // clean batches taken before step state.step

@@ -55,6 +55,9 @@ struct TrainConfig {
     // The outlier guard: a step whose loss exceeds this many times the running average of the recent
     // losses is skipped (not counted as a failure, the learning rate kept). 0: off.
     double outlierFactor = 0;
+    // The share of each batch's patches placed uniformly over the frames; the others are centred near an
+    // aliasing pixel (data::PatchOptions::uniformFraction).
+    double uniformPatches = 0.25;
     int64_t stopAfterSteps = 0;         // tests: end the session after this many steps, checkpointed,
                                         // as if killed then (0: run to the end)
     std::string commandLine;            // recorded in run.json and the model card

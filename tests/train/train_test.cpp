@@ -120,6 +120,24 @@ TEST_F(Training, ResumedRunEqualsTheUninterruptedOneBitForBit) {
     EXPECT_THROW(trainModel(broken, baselines()), Error);
 }
 
+// --uniform-patches changes which patches a batch holds, so it is part of the run: recorded, and a resume
+// with another value is refused.
+TEST_F(Training, TheShareOfUniformPatchesChangesTheBatchesAndMustMatchOnResume) {
+    TrainConfig centred = tinyConfig("centred"), uniform = tinyConfig("uniform");
+    centred.steps = uniform.steps = 10;
+    uniform.uniformPatches = 1.0;
+    trainModel(centred, baselines());
+    trainModel(uniform, baselines());
+    EXPECT_NE(lossesOf(centred.out), lossesOf(uniform.out));
+    const auto run = nlohmann::json::parse(std::ifstream(uniform.out + "/run.json"));
+    EXPECT_EQ(run["config"]["uniform_patches"], 1.0);
+    uniform.resume = true, uniform.uniformPatches = 0.5;
+    EXPECT_THROW(trainModel(uniform, baselines()), Error);
+    TrainConfig wrong = tinyConfig("wrong-share");
+    wrong.uniformPatches = 1.5;
+    EXPECT_THROW(trainModel(wrong, baselines()), Error);
+}
+
 TEST_F(Training, ANanBatchIsSkippedAndTheWeightsStayClean) {
     TrainConfig clean = tinyConfig("clean");
     clean.steps = 10, clean.checkpointEvery = 5;
