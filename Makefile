@@ -47,8 +47,8 @@ dataset: build
 # The shipped models (models/*.md record each command, its wall time and its scores). Each run is
 # resumable: an interrupted `make models` continues where it stopped and ends with the same weights.
 RUNS ?= out/runs
-SEED_RECIPE = --arch seed2020 --families shapes --loss ssim --steps 6000 --batch 8 --patch 128 --lr 2e-3 \
-	--eval-every 500 --checkpoint-every 500 --val-images 0 --threads 1
+SEED_RECIPE = --arch seed2020 --families shapes --loss ssim --steps 16000 --batch 8 --patch 128 --lr 2e-3 \
+	--uniform-patches 0.5 --eval-every 1000 --checkpoint-every 1000 --val-images 0 --threads 2
 FAST_RECIPE = --arch kpn:8x3 --loss '0.84*ssim+0.16*l1' --steps 24000 --batch 12 --patch 128 --lr 2e-3 \
 	--eval-every 1000 --checkpoint-every 1000 --val-images 48 --threads 2
 models: dataset
