@@ -105,18 +105,19 @@ json configToJson(const TrainConfig& c) {
 // The settings that must not change when a run is resumed (they change the batches or the updates).
 void requireSameRun(const json& saved, const json& now) {
     // A setting missing from an older run's record had the value it took before the option existed.
-    const std::pair<const char*, json> keys[] = {{"arch", nullptr},
-                                                 {"loss", nullptr},
-                                                 {"batch", nullptr},
-                                                 {"patch", nullptr},
-                                                 {"lr", nullptr},
-                                                 {"warmup_steps", nullptr},
-                                                 {"clip_norm", nullptr},
-                                                 {"seed", nullptr},
-                                                 {"families", json::array()},
-                                                 {"adversarial", json(0.0)},
-                                                 {"outlier_factor", json(0.0)},
-                                                 {"uniform_patches", json(0.25)}};
+    const std::pair<const char*, json> keys[] = {
+        {"arch", nullptr},
+        {"loss", nullptr},
+        {"batch", nullptr},
+        {"patch", nullptr},
+        {"lr", nullptr},
+        {"warmup_steps", nullptr},
+        {"clip_norm", nullptr},
+        {"seed", nullptr},
+        {"families", json::array()},
+        {"adversarial", json(0.0)},
+        {"outlier_factor", json(0.0)},
+        {"uniform_patches", json(data::PatchOptions().uniformFraction)}};
     for (const auto& [key, absent] : keys) {
         const json before = saved.contains(key) ? saved.at(key) : absent;
         if (before != now.at(key))
@@ -1031,8 +1032,8 @@ std::string exportModel(const std::string& run, const std::string& modelPath,
         return nullptr;
     };
     const MethodScores *none = find(test, "no AA"), *fxaa = find(test, "FXAA"), *net = find(test, "network");
+    auto verdict = [](bool ok) { return ok ? "**met**" : "**not met**"; };
     if (none && fxaa && net) {
-        auto verdict = [](bool ok) { return ok ? "**met**" : "**not met**"; };
         md << "\n### Targets on the test split\n\n";
         std::snprintf(line, sizeof line, "- network > FXAA > no AA (PSNR): %s (%.2f > %.2f > %.2f dB)\n",
                       verdict(net->summary.psnr[0] > fxaa->summary.psnr[0] &&
@@ -1045,7 +1046,6 @@ std::string exportModel(const std::string& run, const std::string& modelPath,
     const MethodScores *valNone = find(validation, "no AA"), *valFxaa = find(validation, "FXAA"),
                        *valNet = find(validation, "network");
     if (grey && valNone && valFxaa && valNet) {
-        auto verdict = [](bool ok) { return ok ? "**met**" : "**not met**"; };
         std::snprintf(line, sizeof line,
                       "\n### The thesis' protocol (its test images were of the scene it trained on: here "
                       "the validation split)\n\n- network > FXAA > no AA (PSNR): %s (%.2f > %.2f > %.2f "
@@ -1058,7 +1058,6 @@ std::string exportModel(const std::string& run, const std::string& modelPath,
     if (none && fxaa && net && !grey) {  // dejag-fast's targets; the grey replica: the published ordering
         const double netGain = net->summary.psnr[0] - none->summary.psnr[0],
                      fxaaGain = fxaa->summary.psnr[0] - none->summary.psnr[0];
-        auto verdict = [](bool ok) { return ok ? "**met**" : "**not met**"; };
         std::snprintf(line, sizeof line,
                       "- PSNR gain over no AA at least twice FXAA's: %s (%+.2f dB against 2 x %+.2f dB)\n",
                       verdict(netGain >= 2 * fxaaGain), netGain, fxaaGain);

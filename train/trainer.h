@@ -21,6 +21,7 @@
 #include <vector>
 
 #include "data/evaluation.h"
+#include "data/patches.h"
 #include "nn/model.h"
 
 namespace dejag::train {
@@ -57,7 +58,7 @@ struct TrainConfig {
     double outlierFactor = 0;
     // The share of each batch's patches placed uniformly over the frames; the others are centred near an
     // aliasing pixel (data::PatchOptions::uniformFraction).
-    double uniformPatches = 0.25;
+    double uniformPatches = data::PatchOptions().uniformFraction;
     int64_t stopAfterSteps = 0;         // tests: end the session after this many steps, checkpointed,
                                         // as if killed then (0: run to the end)
     std::string commandLine;            // recorded in run.json and the model card
