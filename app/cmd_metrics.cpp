@@ -40,15 +40,42 @@ std::string formatDecibels(double value) {
 
 void runMetrics(const MetricsArguments& args) {
     applyRuntimeOptions(args.runtime);
-    const Image reference = readScoredImage(args.reference);
-    const Image test = readScoredImage(args.test);
+    Image reference = readScoredImage(args.reference);
+    Image test = readScoredImage(args.test);
+    const std::string referenceDescription = reference.describe(), testDescription = test.describe();
     if (reference.width != test.width || reference.height != test.height)
         throw Error("'" + args.test + "' is " + std::to_string(test.width) + "x" +
                     std::to_string(test.height) + " but '" + args.reference + "' is " +
                     std::to_string(reference.width) + "x" + std::to_string(reference.height));
-    if (reference.channels() != test.channels())
-        throw Error("'" + args.test + "' has " + std::to_string(test.channels()) + " channels but '" +
-                    args.reference + "' has " + std::to_string(reference.channels()));
+    // Different channel counts: score the channels the two share by name (a dataset input holds R, G, B
+    // and its G-buffers, its truth R, G, B), if one image holds all the other's.
+    std::string matchedNote;
+    if (reference.channels() != test.channels()) {
+        const auto holdsAll = [](const Image& image, const std::vector<std::string>& names) {
+            for (const std::string& name : names)
+                if (image.findChannel(name) < 0) return false;
+            return true;
+        };
+        const auto names = [](const Image& image) {
+            std::string text;
+            for (int c = 0; c < image.channels(); ++c) text += (c ? "," : "") + image.channelNames[c];
+            return text;
+        };
+        if (holdsAll(test, reference.channelNames)) {
+            matchedNote =
+                "channels " + names(reference) + " of the test image's " + std::to_string(test.channels());
+            test = selectChannels(test, reference.channelNames);
+        } else if (holdsAll(reference, test.channelNames)) {
+            matchedNote =
+                "channels " + names(test) + " of the reference's " + std::to_string(reference.channels());
+            reference = selectChannels(reference, test.channelNames);
+        } else {
+            throw Error("'" + args.test + "' has " + std::to_string(test.channels()) + " channels (" +
+                        names(test) + ") but '" + args.reference + "' has " +
+                        std::to_string(reference.channels()) + " (" + names(reference) +
+                        "), and neither holds all the other's");
+        }
+    }
     std::optional<Image> mask;
     if (!args.mask.empty()) {
         mask = readImage(args.mask);
@@ -73,6 +100,7 @@ void runMetrics(const MetricsArguments& args) {
         out["width"] = reference.width;
         out["height"] = reference.height;
         out["channels"] = reference.channelNames;
+        out["matched_by_name"] = !matchedNote.empty();
         out["pixel_type"] = pixelTypeName(reference.storage);
         out["value_scale"] = metrics.valueScale;
         out["data_range"] = metrics.dataRange;
@@ -94,8 +122,9 @@ void runMetrics(const MetricsArguments& args) {
         std::printf("%s\n", out.dump().c_str());
         return;
     }
-    std::printf("reference  %s  (%s)\n", args.reference.c_str(), reference.describe().c_str());
-    std::printf("test       %s  (%s)\n", args.test.c_str(), test.describe().c_str());
+    std::printf("reference  %s  (%s)\n", args.reference.c_str(), referenceDescription.c_str());
+    std::printf("test       %s  (%s)\n", args.test.c_str(), testDescription.c_str());
+    if (!matchedNote.empty()) std::printf("scored     %s, matched by name\n", matchedNote.c_str());
     std::printf(
         "scale      0-%g, data range %g%s\n", metrics.valueScale, metrics.dataRange,
         mask ? (", masked by " + args.mask + " (" + std::to_string(metrics.scoredPixels) + " pixels)").c_str()
@@ -122,7 +151,9 @@ void registerMetricsCommand(CLI::App& app) {
         "values with data range 1 unless --data-range is given. SSIM: 11x11 Gaussian window (sigma 1.5),\n"
         "K1 0.01, K2 0.03, mean over pixels 5 or more from the border, colour = mean of per-channel SSIM.\n"
         "Identical images: PSNR and SNR are infinite (printed 'inf'; in JSON null, with \"identical\": "
-        "true).");
+        "true).\n"
+        "Images with different channel counts are scored on the channels they share by name when one holds\n"
+        "all the other's: a dataset input (R, G, B and its G-buffers) against its truth (R, G, B).");
     command->add_option("REF", args->reference, "Reference image (the truth)")->required();
     command->add_option("TEST", args->test, "Image to score")->required();
     command->add_flag("--json", args->json, "Print one JSON object (keys mse, rmse, psnr, snr, ssim, ...)");

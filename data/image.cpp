@@ -316,6 +316,21 @@ int Image::findChannel(std::string_view name) const {
     return -1;
 }
 
+Image selectChannels(const Image& image, const std::vector<std::string>& names) {
+    std::vector<int> sources;
+    for (const std::string& name : names) {
+        const int c = image.findChannel(name);
+        if (c < 0) throw Error("the image (" + image.describe() + ") has no channel " + name);
+        sources.push_back(c);
+    }
+    Image selected(image.width, image.height, names, image.storage);
+    const size_t from = size_t(image.channels()), to = names.size();
+    for (size_t pixel = 0; pixel < image.pixelCount(); ++pixel)
+        for (size_t c = 0; c < to; ++c)
+            selected.pixels[pixel * to + c] = image.pixels[pixel * from + sources[c]];
+    return selected;
+}
+
 std::string Image::describe() const {
     std::string names;
     for (int c = 0; c < channels(); ++c) names += (c ? "," : "") + channelNames[c];

@@ -46,6 +46,10 @@ struct Image {
     std::string describe() const;
 };
 
+// The named channels of an image, in the order given: e.g. R, G, B of a dataset input that also holds
+// albedo, depth, motion and id. Throws dejag::Error naming the first channel the image lacks.
+Image selectChannels(const Image& image, const std::vector<std::string>& names);
+
 // The most samples (width x height x channels) readImage() accepts: 2^28, e.g. 8192 x 8192 RGBA, 1 GiB
 // of floats. A larger header is refused before any pixel is read.
 inline constexpr int64_t kMaxImageSamples = int64_t(1) << 28;

@@ -131,6 +131,47 @@ TEST(Cli, DifferentChannelCountsAreAnError) {
                        "channels");
 }
 
+TEST(Cli, MetricsScoresADatasetInputOnTheColourChannelsItSharesWithTheTruth) {
+    testing::TempDir dir;
+    Image truth(24, 20, {"R", "G", "B"}, PixelType::Float);
+    Image input(24, 20, {"R", "G", "B", "albedo.R", "albedo.G", "albedo.B", "depth.Z"}, PixelType::Float);
+    Image colour(24, 20, {"R", "G", "B"}, PixelType::Float);
+    for (int y = 0; y < 20; ++y)
+        for (int x = 0; x < 24; ++x)
+            for (int c = 0; c < 3; ++c) {
+                truth.at(x, y, c) = float((x * 7 + y * 3 + c) % 11) / 10.0f;
+                colour.at(x, y, c) = input.at(x, y, c) = float((x * 5 + y * 3 + c) % 13) / 12.0f;
+                input.at(x, y, 3 + c) = 0.5f;
+                input.at(x, y, 6) = 100.0f + float(x);  // far from the colours: would ruin the score if used
+            }
+    writeImage(dir.file("truth.exr"), truth);
+    writeImage(dir.file("input.exr"), input);
+    writeImage(dir.file("colour.exr"), colour);
+    const RunResult matched =
+        run("metrics --json " + dir.file("truth.exr") + " " + dir.file("input.exr"), dir);
+    const RunResult plain =
+        run("metrics --json " + dir.file("truth.exr") + " " + dir.file("colour.exr"), dir);
+    ASSERT_EQ(matched.exitCode, 0) << matched.err;
+    ASSERT_EQ(plain.exitCode, 0) << plain.err;
+    const auto a = nlohmann::json::parse(matched.out), b = nlohmann::json::parse(plain.out);
+    EXPECT_TRUE(a["matched_by_name"].get<bool>());
+    EXPECT_FALSE(b["matched_by_name"].get<bool>());
+    EXPECT_EQ(a["psnr"].get<double>(), b["psnr"].get<double>());
+    EXPECT_EQ(a["ssim"].get<double>(), b["ssim"].get<double>());
+    // Either order: the truth as the test image is matched against the input's colour.
+    const RunResult swapped =
+        run("metrics --json " + dir.file("input.exr") + " " + dir.file("truth.exr"), dir);
+    ASSERT_EQ(swapped.exitCode, 0) << swapped.err;
+    EXPECT_EQ(nlohmann::json::parse(swapped.out)["mse"].get<double>(), a["mse"].get<double>());
+    const RunResult text = run("metrics " + dir.file("truth.exr") + " " + dir.file("input.exr"), dir);
+    EXPECT_NE(text.out.find("matched by name"), std::string::npos) << text.out;
+    // Channels neither image holds all of: still one error line naming both sets.
+    Image other(24, 20, {"R", "G", "depth.Z", "id"}, PixelType::Float);
+    writeImage(dir.file("other.exr"), other);
+    expectOneLineError(run("metrics " + dir.file("truth.exr") + " " + dir.file("other.exr"), dir),
+                       "neither holds all");
+}
+
 TEST(Cli, TruncatedFileIsOneLineAndWritesNothing) {
     testing::TempDir dir;
     const auto size = std::filesystem::file_size(golden("noise_ref.png"));
