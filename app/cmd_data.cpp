@@ -186,6 +186,18 @@ void registerDataCommand(CLI::App& app) {
         }
         std::printf("%d items; aliased PSNR median %.2f dB\n", s["items"].get<int>(),
                     s["aliased_psnr"]["median"].get<double>());
+        if (const nlohmann::json& flat = s["flat_items"]; !flat.empty()) {
+            std::string list;
+            for (size_t i = 0; i < flat.size() && i < 10; ++i)
+                list += std::string(i ? ", " : "") + flat[i]["id"].get<std::string>() + " (" +
+                        flat[i]["family"].get<std::string>() + ", " + flat[i]["split"].get<std::string>() +
+                        ")";
+            if (flat.size() > 10) list += ", ...";
+            std::printf(
+                "%zu item%s with nothing to anti-alias (aliased frame %.0f dB or more against its truth): "
+                "%s\n",
+                flat.size(), flat.size() == 1 ? "" : "s", data::kFlatItemPsnr, list.c_str());
+        }
         if (s.contains("patch_sampler"))
             std::printf(
                 "patch sampler (%d px): %.1f %% aliasing pixels per patch, %.1f %% with uniform crops\n",

@@ -632,9 +632,13 @@ json datasetStats(const std::string& folder) {
     std::map<std::string, std::map<std::string, int>> counts;  // family -> split -> items
     std::map<std::string, std::vector<double>> psnr;           // family -> aliased PSNRs
     std::map<std::string, double> edges;
+    json flat = json::array();
     for (const json& r : records) {
         const std::string family = r["family"], split = r["split"];
         ++counts[family][split];
+        if (r["aliased_psnr"].get<double>() >= kFlatItemPsnr)
+            flat.push_back(
+                {{"id", r["id"]}, {"family", family}, {"split", split}, {"aliased_psnr", r["aliased_psnr"]}});
         psnr[family].push_back(r["aliased_psnr"].get<double>());
         edges[family] += r["edge_fraction"].get<double>();
     }
@@ -662,6 +666,7 @@ json datasetStats(const std::string& folder) {
     out["items"] = records.size();
     out["splits"] = splits;
     out["aliased_psnr"] = summary(all);
+    out["flat_items"] = flat;
     return out;
 }
 

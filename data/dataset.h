@@ -112,7 +112,12 @@ struct VerifyReport {
 };
 VerifyReport verifyDataset(const std::string& folder);
 
-// Items per family and split, fraction of edge pixels, aliased-vs-truth PSNR distribution.
+// An item whose 1-sample frame is this close to its truth (PSNR in dB) has nothing to anti-alias: one
+// flat surface filling the view, say. Such an item scores near-perfectly for every method.
+inline constexpr double kFlatItemPsnr = 80.0;
+
+// Items per family and split, fraction of edge pixels, aliased-vs-truth PSNR distribution, and the flat
+// items ("flat_items": id, family, split, aliased_psnr of each).
 nlohmann::json datasetStats(const std::string& folder);
 
 }  // namespace dejag::data

@@ -78,17 +78,23 @@ TEST(DatasetPlan, RefusesBadSpecs) {
 
 // ---- Through the binary -------------------------------------------------------------------------------
 
-int run(const std::string& arguments, std::string* err = nullptr) {
-    const std::string errFile = fs::temp_directory_path() / ("dejag-data-err-" + std::to_string(::getpid()));
-    const int status = std::system(
-        ("'" + std::string(DEJAG_BINARY) + "' " + arguments + " >/dev/null 2>'" + errFile + "'").c_str());
-    if (err) {
-        std::ifstream in(errFile);
+int run(const std::string& arguments, std::string* err = nullptr, std::string* out = nullptr) {
+    const std::string base = fs::temp_directory_path() / ("dejag-data-" + std::to_string(::getpid()));
+    const std::string errFile = base + "-err", outFile = base + "-out";
+    const std::string command = "'" + std::string(DEJAG_BINARY) + "' " + arguments + " >" +
+                                (out ? "'" + outFile + "'" : std::string("/dev/null")) + " 2>'" + errFile +
+                                "'";
+    const int status = std::system(command.c_str());
+    const auto slurpFile = [](const std::string& path) {
+        std::ifstream in(path);
         std::stringstream s;
         s << in.rdbuf();
-        *err = s.str();
-    }
+        return s.str();
+    };
+    if (err) *err = slurpFile(errFile);
+    if (out) *out = slurpFile(outFile);
     fs::remove(errFile);
+    fs::remove(outFile);
     return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
 }
 
@@ -203,6 +209,19 @@ TEST(DatasetManifest, BadRecordsAreRefusedNamingTheLineAndTheField) {
         return dir.file("d");
     };
     EXPECT_EQ(readManifest(withManifest(valid.dump() + "\n")).size(), 1u);
+    {
+        // A flat item (its 1-sample frame equal to its truth) is listed by `data stats`.
+        nlohmann::json flat = valid;
+        flat["index"] = 1, flat["id"] = "shapes-000001", flat["aliased_psnr"] = 158.3;
+        const std::string folder = withManifest(valid.dump() + "\n" + flat.dump() + "\n");
+        const nlohmann::json stats = datasetStats(folder);
+        ASSERT_EQ(stats["flat_items"].size(), 1u);
+        EXPECT_EQ(stats["flat_items"][0]["id"], "shapes-000001");
+        std::string out;
+        EXPECT_EQ(run("data stats '" + folder + "'", nullptr, &out), 0);
+        EXPECT_NE(out.find("1 item with nothing to anti-alias"), std::string::npos) << out;
+        EXPECT_NE(out.find("shapes-000001 (shapes, train)"), std::string::npos) << out;
+    }
     struct Case {
         std::function<void(nlohmann::json&)> change;
         std::string expected;
