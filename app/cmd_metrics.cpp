@@ -56,23 +56,18 @@ void runMetrics(const MetricsArguments& args) {
                 if (image.findChannel(name) < 0) return false;
             return true;
         };
-        const auto names = [](const Image& image) {
-            std::string text;
-            for (int c = 0; c < image.channels(); ++c) text += (c ? "," : "") + image.channelNames[c];
-            return text;
-        };
         if (holdsAll(test, reference.channelNames)) {
-            matchedNote =
-                "channels " + names(reference) + " of the test image's " + std::to_string(test.channels());
+            matchedNote = "channels " + reference.channelList() + " of the test image's " +
+                          std::to_string(test.channels());
             test = selectChannels(test, reference.channelNames);
         } else if (holdsAll(reference, test.channelNames)) {
-            matchedNote =
-                "channels " + names(test) + " of the reference's " + std::to_string(reference.channels());
+            matchedNote = "channels " + test.channelList() + " of the reference's " +
+                          std::to_string(reference.channels());
             reference = selectChannels(reference, test.channelNames);
         } else {
             throw Error("'" + args.test + "' has " + std::to_string(test.channels()) + " channels (" +
-                        names(test) + ") but '" + args.reference + "' has " +
-                        std::to_string(reference.channels()) + " (" + names(reference) +
+                        test.channelList() + ") but '" + args.reference + "' has " +
+                        std::to_string(reference.channels()) + " (" + reference.channelList() +
                         "), and neither holds all the other's");
         }
     }

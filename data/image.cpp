@@ -331,9 +331,14 @@ Image selectChannels(const Image& image, const std::vector<std::string>& names) 
     return selected;
 }
 
-std::string Image::describe() const {
+std::string Image::channelList() const {
     std::string names;
     for (int c = 0; c < channels(); ++c) names += (c ? "," : "") + channelNames[c];
+    return names;
+}
+
+std::string Image::describe() const {
+    const std::string names = channelList();
     return std::to_string(width) + "x" + std::to_string(height) + ", " + std::to_string(channels()) +
            (channels() == 1 ? " channel (" : " channels (") + names + "), " + pixelTypeName(storage);
 }

@@ -42,6 +42,8 @@ struct Image {
     float& at(int x, int y, int c) { return row(y)[size_t(x) * channels() + c]; }
     float at(int x, int y, int c) const { return row(y)[size_t(x) * channels() + c]; }
     int findChannel(std::string_view name) const;  // -1 if absent
+    // "R,G,B"
+    std::string channelList() const;
     // "800x600, 3 channels (R,G,B), uint8"
     std::string describe() const;
 };

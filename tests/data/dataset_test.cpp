@@ -85,14 +85,8 @@ int run(const std::string& arguments, std::string* err = nullptr, std::string* o
                                 (out ? "'" + outFile + "'" : std::string("/dev/null")) + " 2>'" + errFile +
                                 "'";
     const int status = std::system(command.c_str());
-    const auto slurpFile = [](const std::string& path) {
-        std::ifstream in(path);
-        std::stringstream s;
-        s << in.rdbuf();
-        return s.str();
-    };
-    if (err) *err = slurpFile(errFile);
-    if (out) *out = slurpFile(outFile);
+    if (err) *err = testing::slurp(errFile);
+    if (out) *out = testing::slurp(outFile);
     fs::remove(errFile);
     fs::remove(outFile);
     return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
