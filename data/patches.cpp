@@ -99,9 +99,15 @@ PatchSampler::PatchSampler(const std::string& folder, const PatchOptions& option
     parallelFor(0, int64_t(records.size()), 1, [&](int64_t first, int64_t last) {
         for (int64_t i = first; i < last; ++i) loadItem(records[size_t(i)], items_[size_t(i)]);
     });
-    if (items_.empty())
-        throw Error("'" + folder + "' has no " + std::string(splitName(options.split)) +
-                    " items to sample patches from");
+    if (items_.empty()) {
+        if (!std::filesystem::exists(std::filesystem::path(folder) / "manifest.jsonl"))
+            throw Error("'" + folder +
+                        "' is not a dataset (no manifest.jsonl; dejag data generate makes one)");
+        std::string families;
+        for (const std::string& f : options.families) families += (families.empty() ? "" : ",") + f;
+        throw Error("'" + folder + "' has no " + std::string(splitName(options.split)) + " items" +
+                    (families.empty() ? "" : " of the families " + families) + " to sample patches from");
+    }
     produced_ = options.firstBatch;
     worker_ = std::thread([this] { produce(); });
 }

@@ -119,7 +119,19 @@ TEST_F(Patches, SplitsAndErrors) {
     options.patchSize = 100;  // taller than the 128x96 items
     EXPECT_THROW(PatchSampler(folder_, options), Error);
     options.patchSize = 32;
-    EXPECT_THROW(PatchSampler(folder_ + "-missing", options), Error);
+    // Each refusal names its cause: no dataset at all, or no items of the requested kind.
+    const auto messageOf = [&](const std::string& folder) {
+        try {
+            PatchSampler sampler(folder, options);
+        } catch (const Error& e) {
+            return std::string(e.what());
+        }
+        return std::string("no error");
+    };
+    EXPECT_NE(messageOf(folder_ + "-missing").find("is not a dataset (no manifest.jsonl"), std::string::npos);
+    options.families = {"no-such-family"};
+    EXPECT_NE(messageOf(folder_).find("has no train items of the families no-such-family"),
+              std::string::npos);
 }
 
 }  // namespace
