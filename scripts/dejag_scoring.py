@@ -54,3 +54,8 @@ def srgb_encoded(linear):
 
 def psnr(mse):
     return PSNR_CAP if mse <= 0 else min(10 * np.log10(1.0 / mse), PSNR_CAP)
+
+
+def image_psnr(image, truth):
+    """PSNR of one sRGB-encoded image against another, over all pixels and channels."""
+    return psnr(float(((image - truth) ** 2).mean()))
