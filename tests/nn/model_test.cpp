@@ -95,6 +95,17 @@ TEST(Model, KpnFamilyOnlyMixesTheNeighbourhood) {
     for (int64_t i = 0; i < flat.numel(); ++i) ASSERT_NEAR(same.data()[i], 0.3f, 1e-6f);
 }
 
+// The architecture file docs/train.md measures ("Seven times the multiply-adds"): it loads, keeps the
+// frame's size, and has the parameter and multiply-add counts the document quotes.
+TEST(Model, DocumentedKpnFullArchitectureHasTheQuotedCounts) {
+    std::ifstream file(testing::sourcePath("docs/arch/kpn-full.json"));
+    ASSERT_TRUE(file.good());
+    const Model model = Model::fromArchitecture(nlohmann::json::parse(file));
+    EXPECT_EQ(model.parameterCount(), 93105);
+    EXPECT_EQ(model.outputShape({1, 3, 64, 48}), (Shape{1, 3, 64, 48}));
+    EXPECT_EQ(std::lround(double(model.macs({1, 3, 256, 256})) / (256.0 * 256.0)), 6891);
+}
+
 // 5 Adam steps of seed2020 on one batch against PyTorch (tests/golden/make_nn_golden.py), with the
 // reference kernels and with the fast ones.
 class Seed2020Golden : public ::testing::TestWithParam<bool> {};
