@@ -1,5 +1,7 @@
 #include "app/cli.h"
 
+#include <cmath>
+#include <cstdlib>
 #include <filesystem>
 #include <regex>
 #include <sstream>
@@ -20,6 +22,35 @@ void addRuntimeOptions(CLI::App* command, RuntimeOptions& options) {
 void applyRuntimeOptions(const RuntimeOptions& options) {
     if (!options.simd.empty()) setSimdLevel(*parseSimdLevel(options.simd));
     setThreadCount(options.threads);
+}
+
+void guardNumericOptions(CLI::App& app) {
+    // CLI11 parses "nan" and "inf" into a float and lets them through a Range (every comparison with NaN
+    // is false), and strtoull turns "-1" into 2^64 - 1: both are refused here, for every option at once.
+    static const CLI::Validator finite(
+        [](std::string& text) -> std::string {
+            char* end = nullptr;
+            const double value = std::strtod(text.c_str(), &end);
+            if (end == text.c_str() || *end != '\0') return "'" + text + "' is not a number";
+            return std::isfinite(value) ? std::string() : "'" + text + "' is not a finite number";
+        },
+        "", "finite");
+    static const CLI::Validator unsignedNumber(
+        [](std::string& text) -> std::string {
+            const size_t first = text.find_first_not_of(" \t");
+            return first != std::string::npos && text[first] == '-' ? "'" + text + "' is negative"
+                                                                    : std::string();
+        },
+        "", "unsigned");
+    for (CLI::Option* option : app.get_options()) {
+        const std::string type = option->get_type_name();
+        if (type.rfind("FLOAT", 0) == 0)
+            option->check(finite);
+        else if (type.rfind("UINT", 0) == 0)
+            option->check(unsignedNumber);
+    }
+    for (CLI::App* command : app.get_subcommands([](const CLI::App*) { return true; }))
+        guardNumericOptions(*command);
 }
 
 std::string shippedModelPath(const std::string& path) {

@@ -16,6 +16,10 @@ struct RuntimeOptions {
 void addRuntimeOptions(CLI::App* command, RuntimeOptions& options);
 void applyRuntimeOptions(const RuntimeOptions& options);
 
+// Every float option of `app` and its subcommands refuses NaN and infinities, every unsigned one a
+// negative number (which would wrap); called once, after all subcommands are registered.
+void guardNumericOptions(CLI::App& app);
+
 struct Size {
     int width = 0, height = 0;
 };

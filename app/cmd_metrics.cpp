@@ -15,7 +15,7 @@ namespace dejag::cli {
 namespace {
 
 struct MetricsArguments {
-    std::string reference, test, mask, ssimMap;
+    std::string reference, test, mask, ssimMap, space = "auto";
     double dataRange = 0.0;
     bool json = false;
     RuntimeOptions runtime;
@@ -31,6 +31,41 @@ Image readScoredImage(const std::string& path) {
     return image;
 }
 
+const char* spaceOf(const Image& image) {
+    return holdsLinearLight(image.storage) ? "linear light" : "sRGB-encoded values";
+}
+
+// Like is compared with like: an EXR holds linear light, a PNG sRGB-encoded values, and the error between
+// the two encodings of one frame is no measure of anything. Mixed inputs are refused unless --space names
+// the space to score in; then each image is converted into it (colour channels only). Returns the note the
+// report prints ("" when nothing was converted).
+std::string bringIntoOneSpace(Image& reference, Image& test, const MetricsArguments& args) {
+    const bool referenceLinear = holdsLinearLight(reference.storage), testLinear = holdsLinearLight(test.storage);
+    if (args.space == "auto") {
+        if (referenceLinear == testLinear) return "";
+        throw Error("'" + args.reference + "' holds " + spaceOf(reference) + " and '" + args.test + "' " +
+                    spaceOf(test) + "; score them in one space with --space srgb or --space linear");
+    }
+    const bool linear = args.space == "linear";
+    std::string converted;
+    for (auto [image, path] : {std::pair{&reference, &args.reference}, std::pair{&test, &args.test}}) {
+        if (holdsLinearLight(image->storage) == linear) continue;
+        if (linear)
+            convertSrgbToLinear(*image);
+        else
+            convertLinearToSrgb(*image);
+        converted += (converted.empty() ? "'" : ", '") + *path + "'";
+    }
+    // The scale follows the space: linear light on its raw values (data range 1), sRGB on the integer
+    // scale of whichever file had one.
+    const PixelType scale = linear ? PixelType::Float
+                            : !holdsLinearLight(reference.storage) ? reference.storage
+                            : !holdsLinearLight(test.storage)      ? test.storage
+                                                                   : PixelType::Float;
+    if (linear || referenceLinear != testLinear) reference.storage = test.storage = scale;
+    return converted.empty() ? "" : converted + (linear ? " decoded to linear light" : " encoded to sRGB");
+}
+
 std::string formatDecibels(double value) {
     if (std::isinf(value)) return value > 0 ? "inf" : "-inf";
     char text[64];
@@ -43,6 +78,7 @@ void runMetrics(const MetricsArguments& args) {
     Image reference = readScoredImage(args.reference);
     Image test = readScoredImage(args.test);
     const std::string referenceDescription = reference.describe(), testDescription = test.describe();
+    const std::string spaceNote = bringIntoOneSpace(reference, test, args);
     if (reference.width != test.width || reference.height != test.height)
         throw Error("'" + args.test + "' is " + std::to_string(test.width) + "x" +
                     std::to_string(test.height) + " but '" + args.reference + "' is " +
@@ -96,6 +132,8 @@ void runMetrics(const MetricsArguments& args) {
         out["height"] = reference.height;
         out["channels"] = reference.channelNames;
         out["matched_by_name"] = !matchedNote.empty();
+        out["space"] = holdsLinearLight(reference.storage) ? "linear" : "srgb";
+        out["converted"] = !spaceNote.empty();
         out["pixel_type"] = pixelTypeName(reference.storage);
         out["value_scale"] = metrics.valueScale;
         out["data_range"] = metrics.dataRange;
@@ -120,6 +158,7 @@ void runMetrics(const MetricsArguments& args) {
     std::printf("reference  %s  (%s)\n", args.reference.c_str(), referenceDescription.c_str());
     std::printf("test       %s  (%s)\n", args.test.c_str(), testDescription.c_str());
     if (!matchedNote.empty()) std::printf("scored     %s, matched by name\n", matchedNote.c_str());
+    if (!spaceNote.empty()) std::printf("space      %s\n", spaceNote.c_str());
     std::printf(
         "scale      0-%g, data range %g%s\n", metrics.valueScale, metrics.dataRange,
         mask ? (", masked by " + args.mask + " (" + std::to_string(metrics.scoredPixels) + " pixels)").c_str()
@@ -157,7 +196,18 @@ void registerMetricsCommand(CLI::App& app) {
                         "Score only pixels whose mask value is above 0.5 (first channel)");
     command
         ->add_option("--data-range", args->dataRange, "Data range L on the reported scale (default: by type)")
-        ->check(CLI::PositiveNumber);
+        ->check(CLI::Validator(
+            [](std::string& text) {
+                return std::strtod(text.c_str(), nullptr) > 0 ? std::string()
+                                                              : "must be above 0, not " + text;
+            },
+            "> 0", "positive"));
+    command
+        ->add_option("--space", args->space,
+                     "auto (both files must hold one kind: sRGB PNG/JPEG or linear EXR), srgb or linear: "
+                     "the space to score mixed inputs in")
+        ->check(CLI::IsMember({"auto", "srgb", "linear"}))
+        ->capture_default_str();
     addRuntimeOptions(command, args->runtime);
     command->callback([args] { runMetrics(*args); });
 }

@@ -7,6 +7,7 @@
 #include "app/cli.h"
 #include "app/commands.h"
 #include "base/error.h"
+#include "base/files.h"
 #include "base/thread_pool.h"
 
 namespace {
@@ -27,6 +28,7 @@ std::string commandPath(const CLI::App& app) {
 
 int main(int argc, char** argv) {
     dejag::flushDenormalsOnThisThread();
+    dejag::installTemporaryFileCleanup();
     for (int i = 0; i < argc; ++i) {
         std::string word = i == 0 ? std::string("dejag") : std::string(argv[i]);
         if (word.find_first_of(" \t'\"*?[]$&;|<>(){}!~`") != std::string::npos) word = "'" + word + "'";
@@ -45,6 +47,7 @@ int main(int argc, char** argv) {
     dejag::cli::registerMetricsCommand(app);
     dejag::cli::registerBenchCommand(app);
     dejag::cli::registerDemoCommand(app);
+    dejag::cli::guardNumericOptions(app);
 
     try {
         app.parse(argc, argv);

@@ -1,5 +1,6 @@
 #include "data/image.h"
 
+#include <OpenImageIO/filesystem.h>
 #include <OpenImageIO/imageio.h>
 #include <fcntl.h>
 #include <unistd.h>
@@ -274,6 +275,10 @@ const char* pixelTypeName(PixelType type) {
     return "unknown";
 }
 
+bool holdsLinearLight(PixelType type) {
+    return type == PixelType::Half || type == PixelType::Float;
+}
+
 double valueScale(PixelType type) {
     switch (type) {
         case PixelType::UInt8:
@@ -427,24 +432,46 @@ void writeImage(const std::string& path, const Image& image, const WriteOptions&
         throw Error("cannot write '" + path + "': JPEG holds 1 or 3 channels, the image has " +
                     std::to_string(image.channels()));
 
-    writeFileAtomically(path, [&](const std::string& temporary) {
-        auto output = OIIO::ImageOutput::create(path);
-        if (!output) throw Error("cannot write '" + path + "': " + oneLine(OIIO::geterror()));
-        OIIO::ImageSpec spec(image.width, image.height, image.channels(), typeDescOf(storage));
-        spec.channelnames = image.channelNames;
-        spec.alpha_channel = image.findChannel("A");
-        spec.attribute("oiio:UnassociatedAlpha", 1);
-        // No time stamp (the EXR writer would add the current time): the same image gives the same bytes,
-        // so datasets can be checksummed and compared.
-        spec.attribute("DateTime", "");
-        if (extension == ".jpg" || extension == ".jpeg")
-            spec.attribute("Compression", "jpeg:" + std::to_string(options.jpegQuality));
-        if (!output->open(temporary, spec))
-            throw Error("cannot write '" + path + "': " + oneLine(output->geterror()));
-        if (!output->write_image(OIIO::TypeDesc::FLOAT, image.pixels.data()))
-            throw Error("cannot write '" + path + "': " + oneLine(output->geterror()));
-        if (!output->close()) throw Error("cannot write '" + path + "': " + oneLine(output->geterror()));
-    });
+    // Colour follows the file: integer formats hold sRGB-encoded values, half and float ones linear light.
+    // An image bound for a file of the other kind is converted here, at the boundary (colour channels only).
+    const Image* source = &image;
+    Image converted;
+    if (holdsLinearLight(image.storage) != holdsLinearLight(storage)) {
+        converted = image;
+        if (holdsLinearLight(storage)) {
+            convertSrgbToLinear(converted);
+        } else {
+            for (float& v : converted.pixels) v = std::isfinite(v) ? v : 0.0f;
+            convertColourChannels(converted, [](float v) { return linearToSrgb(std::max(v, 0.0f)); });
+        }
+        source = &converted;
+    }
+
+    auto output = OIIO::ImageOutput::create(path);
+    if (!output) throw Error("cannot write '" + path + "': " + oneLine(OIIO::geterror()));
+    OIIO::ImageSpec spec(image.width, image.height, image.channels(), typeDescOf(storage));
+    spec.channelnames = image.channelNames;
+    spec.alpha_channel = image.findChannel("A");
+    spec.attribute("oiio:UnassociatedAlpha", 1);
+    // No time stamp (the EXR writer would add the current time): the same image gives the same bytes,
+    // so datasets can be checksummed and compared.
+    spec.attribute("DateTime", "");
+    if (extension == ".jpg" || extension == ".jpeg")
+        spec.attribute("Compression", "jpeg:" + std::to_string(options.jpegQuality));
+    // Encoded into memory, where a write cannot fail, then written by one checked path (AtomicFile): the
+    // codecs' own file writers do not all report a failed write (libpng returned success on a full disk,
+    // libjpeg ended the process). Every format dejag writes takes OpenImageIO's I/O proxy.
+    std::vector<unsigned char> bytes;
+    OIIO::Filesystem::IOVecOutput memory(bytes);
+    if (!output->supports("ioproxy") || !output->set_ioproxy(&memory))
+        throw Error("cannot write '" + path +
+                    "': this format cannot be encoded in memory (use .png or .exr)");
+    if (!output->open(path, spec) || !output->write_image(OIIO::TypeDesc::FLOAT, source->pixels.data()) ||
+        !output->close())
+        throw Error("cannot write '" + path + "': " + oneLine(output->geterror()));
+    AtomicFile file(path);
+    file.write(bytes.data(), bytes.size());
+    file.commit();
 }
 
 float srgbToLinear(float encoded) {

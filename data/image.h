@@ -6,8 +6,10 @@
 // float files keep their raw values. `storage` remembers the file's pixel type so that writing an image
 // back keeps 8-bit as 8-bit, 16-bit as 16-bit and float as float.
 //
-// Colour is never converted implicitly: PNG and JPEG values stay sRGB-encoded until convertSrgbToLinear()
-// is called, and EXR values are whatever linear data the renderer wrote.
+// Colour follows the file: 8- and 16-bit files (PNG, JPEG, integer TIFF) hold sRGB-encoded values, half and
+// float files (EXR, float TIFF) linear light. In memory an image keeps the encoding of its `storage`, and
+// writeImage() converts the colour channels (R, G, B, Y) when the file it writes holds the other kind.
+// Reading never converts.
 #pragma once
 
 #include <cstddef>
@@ -66,13 +68,19 @@ struct WriteOptions {
     int jpegQuality = 95;
 };
 
-// Writes atomically (temporary name, then rename). The format follows the extension. Throws dejag::Error
-// if the format cannot hold the image (e.g. 5 channels in a PNG) or the file cannot be written.
+// Writes atomically and durably (base/files.h: encoded in memory, then a temporary file, fsync, rename). The
+// format follows the extension; colour channels are encoded or decoded when the file's kind (sRGB or
+// linear) differs from the image's. Throws dejag::Error if the format cannot hold the image (e.g. 5
+// channels in a PNG) or the file cannot be written, naming the file and the reason; an earlier file of
+// that name is then intact.
 void writeImage(const std::string& path, const Image& image, const WriteOptions& options = {});
 
 // The value scale of a pixel type: 255 for 8-bit, 65535 for 16-bit, 1 for half and float. Multiplying an
 // in-memory sample by it gives the value on the file's own scale (the 0-255 scale of 8-bit metrics).
 double valueScale(PixelType type);
+
+// True for half and float storage (linear light), false for 8- and 16-bit (sRGB-encoded).
+bool holdsLinearLight(PixelType type);
 
 // sRGB transfer function, IEC 61966-2-1 (piecewise: linear below 0.04045 / 0.0031308).
 float srgbToLinear(float encoded);

@@ -143,18 +143,13 @@ void writeSafetensors(const std::string& path, const std::vector<TensorToWrite>&
     }
     std::string text = header.dump();
     while ((8 + text.size()) % 8) text += ' ';  // data starts 8-byte aligned
-    writeFileAtomically(path, [&](const std::string& temporary) {
-        std::ofstream out(temporary, std::ios::binary | std::ios::trunc);
-        if (!out) throw Error("cannot write '" + path + "'");
-        unsigned char length[8];
-        for (int i = 0; i < 8; ++i) length[i] = (uint64_t(text.size()) >> (8 * i)) & 0xff;
-        out.write(reinterpret_cast<const char*>(length), 8);
-        out.write(text.data(), std::streamsize(text.size()));
-        for (const TensorToWrite& t : tensors)
-            out.write(reinterpret_cast<const char*>(t.data), std::streamsize(shapeNumel(t.shape) * 4));
-        out.flush();
-        if (!out) throw Error("cannot write '" + path + "': write failed");
-    });
+    AtomicFile out(path);
+    unsigned char length[8];
+    for (int i = 0; i < 8; ++i) length[i] = (uint64_t(text.size()) >> (8 * i)) & 0xff;
+    out.write(length, 8);
+    out.write(text);
+    for (const TensorToWrite& t : tensors) out.write(t.data, size_t(shapeNumel(t.shape)) * 4);
+    out.commit();
 }
 
 }  // namespace dejag::nn

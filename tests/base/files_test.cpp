@@ -35,12 +35,13 @@ TEST(Files, AtomicWriteReplacesTheTarget) {
 TEST(Files, FailedWriteKeepsTheOldFileAndLeavesNoTemporary) {
     testing::TempDir dir;
     writeTextFileAtomically(dir.file("a.txt"), "precious");
-    EXPECT_THROW(writeFileAtomically(dir.file("a.txt"),
-                                     [](const std::string& temporary) {
-                                         std::ofstream(temporary) << "half";
-                                         throw Error("disk full");
-                                     }),
-                 Error);
+    EXPECT_THROW(
+        {
+            AtomicFile file(dir.file("a.txt"));
+            file.write("half");
+            throw Error("disk full");
+        },
+        Error);
     EXPECT_EQ(readAll(dir.file("a.txt")), "precious");
     EXPECT_EQ(filesIn(dir.path()), 1u);
 }

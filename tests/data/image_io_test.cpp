@@ -111,7 +111,8 @@ TEST(ImageIo, JpegRoundTripIsClose) {
     expectSamePixels(smooth, back, 0.05f);
 }
 
-TEST(ImageIo, FloatToPngBecomesSixteenBitAndClamps) {
+// A float image holds linear light; a PNG holds sRGB-encoded values: the write encodes (and clamps).
+TEST(ImageIo, FloatToPngBecomesSixteenBitSrgbAndClamps) {
     testing::TempDir dir;
     Image image(4, 4, {"Y"}, PixelType::Float);
     image.pixels.assign(16, 0.5f);
@@ -122,7 +123,41 @@ TEST(ImageIo, FloatToPngBecomesSixteenBitAndClamps) {
     EXPECT_EQ(back.storage, PixelType::UInt16);
     EXPECT_EQ(back.pixels[0], 1.0f);
     EXPECT_EQ(back.pixels[1], 0.0f);
-    EXPECT_NEAR(back.pixels[2], 0.5f, 1.0f / 65535.0f);
+    EXPECT_NEAR(back.pixels[2], linearToSrgb(0.5f), 1.0f / 65535.0f);
+}
+
+// Colour follows the file both ways: PNG -> EXR decodes to linear light, EXR -> PNG encodes back, and
+// an 8-bit image survives the round trip exactly. Alpha and G-buffer channels are never converted.
+TEST(ImageIo, ColourSpaceFollowsTheFileAcrossExtensions) {
+    testing::TempDir dir;
+    Image srgb(256, 1, {"R", "G", "B", "A"}, PixelType::UInt8);
+    for (int x = 0; x < 256; ++x)
+        for (int c = 0; c < 4; ++c) srgb.at(x, 0, c) = float((x + 37 * c) % 256) / 255.0f;
+    writeImage(dir.file("a.png"), srgb);
+    const Image png = readImage(dir.file("a.png"));
+    writeImage(dir.file("a.exr"), png);
+    const Image exr = readImage(dir.file("a.exr"));
+    ASSERT_EQ(exr.channels(), 4);
+    for (int x = 0; x < 256; ++x) {
+        for (int c = 0; c < 3; ++c)
+            EXPECT_NEAR(exr.at(x, 0, c), srgbToLinear(srgb.at(x, 0, c)),
+                        2e-3f * srgbToLinear(srgb.at(x, 0, c)) + 1e-7f)
+                << "x " << x << " channel " << c;
+        EXPECT_NEAR(exr.at(x, 0, 3), srgb.at(x, 0, 3), 1e-3f) << "alpha is not colour";
+    }
+    writeImage(dir.file("b.png"), exr);
+    const Image back = readImage(dir.file("b.png"));
+    EXPECT_EQ(back.storage, PixelType::UInt16) << "half holds more than 8 bits";
+    for (int x = 0; x < 256; ++x)
+        for (int c = 0; c < 3; ++c)
+            EXPECT_EQ(std::lround(back.at(x, 0, c) * 255.0f), std::lround(srgb.at(x, 0, c) * 255.0f))
+                << "x " << x << " channel " << c;
+    // Buffers keep their values whatever the format: depth is not colour.
+    Image buffers(4, 1, {"R", "G", "B", "depth.Z"}, PixelType::Float);
+    for (int x = 0; x < 4; ++x) buffers.at(x, 0, 3) = 0.25f * float(x);
+    writeImage(dir.file("c.tif"), buffers, WriteOptions{PixelType::UInt16});
+    const Image tif = readImage(dir.file("c.tif"));
+    for (int x = 0; x < 4; ++x) EXPECT_NEAR(tif.at(x, 0, 3), 0.25f * float(x), 1.0f / 65535.0f);
 }
 
 TEST(ImageIo, RefusesWhatTheFormatCannotHold) {
