@@ -131,7 +131,12 @@ ImageStage makeStage(const std::string& method, const FilterArguments& args) {
             if (!(options.gateThreshold >= 0 && options.gateThreshold <= 1))
                 throw Error("--gate '" + args.gate + "' is not off, auto or a luma threshold in [0, 1]");
         }
-        stage.cnn.emplace(nn::loadModel(args.model), options);
+        nn::Model model = nn::loadModel(args.model);
+        try {
+            stage.cnn.emplace(std::move(model), options);
+        } catch (const Error& e) {
+            throw Error("--model '" + args.model + "': " + e.what());
+        }
     } else {
         throw Error("--method/--chain: '" + method + "' is not one of fxaa, cnn, taa, taa-sobel");
     }
@@ -146,42 +151,78 @@ bool isImageFile(const fs::path& path) {
            ext == ".exr";
 }
 
-// "frame_%04d.png" -> the path of frame i; throws unless the pattern has exactly one integer field.
+// "frame_%04d.png" -> the path of frame i (isPattern has checked the pattern).
 std::string formatPattern(const std::string& pattern, int index) {
     char text[4096];
-    std::snprintf(text, sizeof text, pattern.c_str(), index);
+    const int n = std::snprintf(text, sizeof text, pattern.c_str(), index);
+    if (n < 0 || size_t(n) >= sizeof text)
+        throw Error("'" + pattern + "': the file name it gives is too long");
     return text;
 }
+// True for a printf-style sequence pattern: one field %d, %Nd or %0Nd with N at most 2 digits.
 bool isPattern(const std::string& path) {
     const size_t percent = path.find('%');
     if (percent == std::string::npos) return false;
+    const std::string bad = "'" + path + "': a sequence pattern holds one integer field such as %04d";
     size_t i = percent + 1;
-    while (i < path.size() && (std::isdigit(static_cast<unsigned char>(path[i])) || path[i] == '0')) ++i;
-    if (i >= path.size() || path[i] != 'd' || path.find('%', i) != std::string::npos)
-        throw Error("'" + path + "': a sequence pattern holds one integer field such as %04d");
+    if (i < path.size() && path[i] == '0') ++i;
+    const size_t digits = i;
+    while (i < path.size() && std::isdigit(static_cast<unsigned char>(path[i]))) ++i;
+    if (i - digits > 2) throw Error(bad + " (a field at most 99 digits wide)");
+    if (i >= path.size() || path[i] != 'd' || path.find('%', i) != std::string::npos) throw Error(bad);
+    if (fs::path(path).parent_path().string().find('%') != std::string::npos)
+        throw Error(bad + " in the file name, not in a folder");
     return true;
 }
 
-// The (input, output) pairs: one file, a folder of images, or a printf-style numbered sequence.
+// The frame numbers of a pattern that exist, in order: the files of its folder whose names it gives.
+std::vector<int> sequenceFrames(const std::string& pattern) {
+    const fs::path folder =
+        fs::path(pattern).parent_path().empty() ? fs::path(".") : fs::path(pattern).parent_path();
+    const std::string name = fs::path(pattern).filename().string();
+    const size_t percent = name.find('%'), field = name.find('d', percent);
+    const std::string prefix = name.substr(0, percent), suffix = name.substr(field + 1);
+    std::vector<int> frames;
+    std::error_code ec;
+    for (const auto& entry : fs::directory_iterator(folder, ec)) {
+        const std::string file = entry.path().filename().string();
+        if (file.size() <= prefix.size() + suffix.size() || file.compare(0, prefix.size(), prefix) != 0 ||
+            file.compare(file.size() - suffix.size(), suffix.size(), suffix) != 0)
+            continue;
+        const std::string number = file.substr(prefix.size(), file.size() - prefix.size() - suffix.size());
+        if (number.size() > 9 ||
+            !std::all_of(number.begin(), number.end(), [](unsigned char c) { return std::isdigit(c); }))
+            continue;
+        const int index = std::stoi(number);
+        if (formatPattern(name, index) == file) frames.push_back(index);
+    }
+    std::sort(frames.begin(), frames.end());
+    return frames;
+}
+
+// The (input, output) pairs: one file, a folder of images, or a printf-style numbered sequence. Hidden
+// files (dejag's temporary ".NAME.tmp-PID-N.EXT" among them) are not frames. A sequence with a gap in
+// its numbering is refused: its later frames would otherwise be dropped without a word.
 std::vector<std::pair<std::string, std::string>> framePairs(const std::string& input,
                                                             const std::string& output) {
     std::vector<std::pair<std::string, std::string>> pairs;
     if (isPattern(input)) {
         if (!isPattern(output))
             throw Error("input '" + input + "' is a sequence: OUTPUT must be a pattern too");
-        int first = -1;
-        for (int i = 0; i <= 1; ++i)
-            if (fs::exists(formatPattern(input, i))) {
-                first = i;
-                break;
-            }
-        if (first < 0) throw Error("no frame of '" + input + "' found (tried indices 0 and 1)");
-        for (int i = first; fs::exists(formatPattern(input, i)); ++i)
-            pairs.emplace_back(formatPattern(input, i), formatPattern(output, i));
+        const std::vector<int> frames = sequenceFrames(input);
+        if (frames.empty()) throw Error("no frame matches '" + input + "'");
+        for (size_t k = 1; k < frames.size(); ++k)
+            if (frames[k] != frames[k - 1] + 1)
+                throw Error("'" + input + "' has a gap: frame " + std::to_string(frames[k - 1] + 1) +
+                            " is missing between " + formatPattern(input, frames[k - 1]) + " and " +
+                            formatPattern(input, frames[k]) + " (filter each run of frames on its own)");
+        for (int i : frames) pairs.emplace_back(formatPattern(input, i), formatPattern(output, i));
     } else if (fs::is_directory(input)) {
         std::vector<fs::path> files;
         for (const auto& entry : fs::directory_iterator(input))
-            if (entry.is_regular_file() && isImageFile(entry.path())) files.push_back(entry.path());
+            if (entry.is_regular_file() && isImageFile(entry.path()) &&
+                entry.path().filename().string().front() != '.')
+                files.push_back(entry.path());
         std::sort(files.begin(), files.end());
         if (files.empty()) throw Error("folder '" + input + "' holds no PNG, JPEG, TIFF or EXR image");
         if (fs::exists(output) && !fs::is_directory(output))
@@ -193,6 +234,17 @@ std::vector<std::pair<std::string, std::string>> framePairs(const std::string& i
         pairs.emplace_back(input, output);
     }
     return pairs;
+}
+
+// Refuses a frame the filters turned non-finite (a NaN can only come from a model whose weights the
+// load-time check could not judge on every input): nothing is written for it.
+void requireFiniteOutput(const Image& image, const std::string& in, const std::string& method) {
+    const size_t C = size_t(image.channels());
+    for (size_t i = 0; i < image.pixels.size(); ++i)
+        if (!std::isfinite(image.pixels[i]))
+            throw Error(method + " turned '" + in + "' into a non-finite value at pixel (" +
+                        std::to_string((i / C) % size_t(image.width)) + ", " +
+                        std::to_string((i / C) / size_t(image.width)) + "); nothing written for it");
 }
 
 void makeParentFolder(const std::string& path) {
@@ -247,6 +299,7 @@ void runImageChain(const FilterArguments& args, std::vector<ImageStage>& stages)
                                   {"processed_fraction", stage.lastFraction}});
         }
         const double ms = total.elapsedMs();
+        requireFiniteOutput(image, in, args.chain.empty() ? args.method : args.chain);
         if (linear) decodeColour(image);
         frames.push_back({{"input", in},
                           {"output", out},
@@ -401,6 +454,8 @@ void runFilter(const FilterArguments& args) {
     } else {
         methods = splitList(args.chain);
         if (methods.empty()) throw Error("--chain is empty");
+        if (std::count(args.chain.begin(), args.chain.end(), ',') + 1 != std::ptrdiff_t(methods.size()))
+            throw Error("--chain '" + args.chain + "' has an empty method (two commas, or one at an end)");
     }
     std::string taaMethod;
     std::vector<ImageStage> stages;  // built (models loaded and checked) before any input is read

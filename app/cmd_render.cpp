@@ -4,6 +4,7 @@
 
 #include <cstdio>
 #include <filesystem>
+#include <limits>
 #include <nlohmann/json.hpp>
 
 #include "app/cli.h"
@@ -65,6 +66,10 @@ void runRender(const RenderArguments& args) {
     if (args.scene.empty()) throw Error("--scene is required (see --list)");
     if (args.out.empty()) throw Error("--out is required");
     if (args.frames < 1) throw Error("--frames must be at least 1, not " + std::to_string(args.frames));
+    if (args.start < 0 || args.start > std::numeric_limits<int>::max() - (args.frames - 1))
+        throw Error("--start " + std::to_string(args.start) + " with --frames " +
+                    std::to_string(args.frames) + ": frame numbers run from 0 to " +
+                    std::to_string(std::numeric_limits<int>::max()));
     if (args.truth < 0) throw Error("--truth must be 0 (none) or a sample count");
     if (args.jitter != "none" && args.jitter != "halton16")
         throw Error("--jitter must be none or halton16, not '" + args.jitter + "'");

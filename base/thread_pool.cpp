@@ -130,9 +130,10 @@ int defaultThreadCount() {
     if (const char* env = std::getenv("DEJAG_THREADS"); env && *env) {
         char* endPtr = nullptr;
         long value = std::strtol(env, &endPtr, 10);
-        if (*endPtr != '\0' || value < 1 || value > 1024)
-            throw Error("DEJAG_THREADS='" + std::string(env) + "' is not a thread count from 1 to 1024");
-        return int(value);
+        if (*endPtr != '\0' || value < 0 || value > 1024)
+            throw Error("DEJAG_THREADS='" + std::string(env) +
+                        "' is not a thread count from 1 to 1024 (or 0, the core count)");
+        if (value > 0) return int(value);
     }
     return hardwareThreadCount();
 }

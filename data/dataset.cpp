@@ -2,6 +2,8 @@
 
 #include <fcntl.h>
 #include <poll.h>
+#include <signal.h>
+#include <sys/prctl.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
@@ -425,6 +427,7 @@ GenerateResult generateDataset(const DatasetSpec& spec, const std::string& folde
     fs::create_directories(folder, ec);
     if (ec || !fs::is_directory(folder) || ::access(folder.c_str(), W_OK) != 0)
         throw Error("cannot write to the dataset folder '" + folder + "'");
+    const FolderLock lock(folder, "a dataset generation");
     const fs::path description = fs::path(folder) / "dataset.json";
     if (fs::exists(description)) {
         std::ifstream in(description);
@@ -439,7 +442,9 @@ GenerateResult generateDataset(const DatasetSpec& spec, const std::string& folde
             throw Error("'" + folder + "' holds a different dataset (" + existing.dump() +
                         "); choose another folder or repeat its arguments");
     } else {
-        if (!fs::is_empty(folder)) throw Error("'" + folder + "' is not empty and holds no dataset.json");
+        for (const auto& entry : fs::directory_iterator(folder))
+            if (entry.path().filename() != FolderLock::kFileName)
+                throw Error("'" + folder + "' is not empty and holds no dataset.json");
         writeTextFileAtomically(description.string(), spec.toJson().dump(2) + "\n");
     }
     // Temporary files of an interrupted run.
@@ -487,9 +492,14 @@ GenerateResult generateDataset(const DatasetSpec& spec, const std::string& folde
                 argv.push_back(nullptr);
             }
             std::fflush(nullptr);
+            const pid_t parent = ::getpid();
             const pid_t pid = ::fork();
             if (pid < 0) throw Error("cannot start a worker process");
             if (pid == 0) {
+                // A worker ends with its parent (SIGTERM, so it removes its temporary files), whatever
+                // ended the parent, SIGKILL included; and if the parent died before this line, at once.
+                ::prctl(PR_SET_PDEATHSIG, SIGTERM);
+                if (::getppid() != parent) _exit(1);
                 ::close(fds[0]);
                 for (int other : pipes) ::close(other);
                 if (argv.empty()) runWorker(spec, folder, share, fds[1]);

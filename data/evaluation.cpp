@@ -172,6 +172,16 @@ ImageScore scoreImage(const EvaluationItem& item, const Image& output) {
         throw Error("scoring needs 1 or 3 channels, got " + output.describe());
     }
     ImageScore score;
+    // A non-finite output is the worst score there is, never a perfect one (a NaN error compared as no
+    // error at all): PSNR 0 dB and SSIM -1 on every region, and the image is counted as non-finite.
+    const bool finite =
+        std::all_of(output.pixels.begin(), output.pixels.end(), [](float v) { return std::isfinite(v); });
+    if (!finite) {
+        score.nonFinite = true;
+        for (int r = 0; r < int(Region::Count); ++r)
+            if (item.hasRegion[r]) score.region[r] = {kWorstPsnr, -1.0, true};
+        return score;
+    }
     for (int r = 0; r < int(Region::Count); ++r) {
         if (!item.hasRegion[r]) continue;
         MetricOptions options;
@@ -188,6 +198,7 @@ ImageScore scoreImage(const EvaluationItem& item, const Image& output) {
 }
 
 void ScoreSummary::add(const ImageScore& score) {
+    nonFiniteImages += score.nonFinite;
     for (int r = 0; r < int(Region::Count); ++r) {
         if (!score.region[r].scored) continue;
         // An identical region has infinite PSNR; cap it so one perfect image does not swamp the mean.

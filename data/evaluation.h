@@ -48,7 +48,9 @@ struct RegionScore {
 };
 struct ImageScore {
     RegionScore region[int(Region::Count)];
+    bool nonFinite = false;  // the output held a NaN or an infinity: scored kWorstPsnr and SSIM -1
 };
+inline constexpr double kWorstPsnr = 0.0;
 // Scores `output` (same size as the item; 3 channels, or 1 channel compared with the truth's luma).
 ImageScore scoreImage(const EvaluationItem& item, const Image& output);
 
@@ -56,6 +58,7 @@ ImageScore scoreImage(const EvaluationItem& item, const Image& output);
 struct ScoreSummary {
     double psnr[int(Region::Count)]{}, ssim[int(Region::Count)]{};
     int images[int(Region::Count)]{};
+    int nonFiniteImages = 0;  // images whose output was not finite (each scored as the worst)
     void add(const ImageScore& score);
     void finish();  // turns the sums into means (NaN for a region no image has)
 };

@@ -146,6 +146,46 @@ struct RegionRows final : nn::InputRowSource {
     }
 };
 
+// What the filter will do with a model, checked before its first frame rather than in the middle of one:
+// an output of the input's size for a frame the network can take (a super-resolution or downscaling graph
+// is no anti-aliasing filter), finite weights, and, on a test pattern in [0, 1] (a hard edge, a ramp and a
+// checkerboard, the content a filter meets), a finite output within kProbeBound of that range: weights
+// that are finite but huge (1e38) give infinities or NaN there, as they would on every frame.
+constexpr float kProbeBound = 4.0f;
+void checkModelForFrames(const nn::Model& model, int stride) {
+    const std::string name = "model '" + model.name() + "'";
+    const int64_t side = (32 + stride - 1) / stride * stride, C = model.inputChannels();
+    const nn::Shape out = model.outputShape({1, C, side, side});
+    if (out[2] != side || out[3] != side)
+        throw Error(name + " returns " + std::to_string(out[3]) + "x" + std::to_string(out[2]) +
+                    " pixels for a " + std::to_string(side) + "x" + std::to_string(side) +
+                    " frame; an anti-aliasing filter returns the size it is given");
+    const float* weights = model.parameterData();
+    for (int64_t i = 0; i < model.parameterCount(); ++i)
+        if (!std::isfinite(weights[i])) throw Error(name + " has a non-finite weight");
+    nn::Tensor probe({1, C, side, side});
+    for (int64_t c = 0; c < C; ++c)
+        for (int64_t y = 0; y < side; ++y)
+            for (int64_t x = 0; x < side; ++x) {
+                const float edge = x * 3 > y * 2 ? 1.0f : 0.0f, ramp = float(x + y) / float(2 * side),
+                            checker = float((x + y) & 1);
+                probe.at(0, c, y, x) = y < side / 3       ? edge
+                                       : y < 2 * side / 3 ? ramp
+                                                          : checker * (0.8f - 0.2f * c);
+            }
+    nn::InferencePlan plan(model, probe.shape());
+    const nn::Tensor& result = plan.run(probe);
+    for (int64_t i = 0; i < result.numel(); ++i) {
+        const float v = result.data()[i];
+        if (!std::isfinite(v) || v < -kProbeBound || v > 1 + kProbeBound)
+            throw Error(
+                name + " gives " +
+                (std::isfinite(v) ? std::to_string(v) : std::string("a non-finite value")) +
+                " on a test pattern in [0, 1]; its weights are unusable (a filter's output stays within " +
+                std::to_string(int(kProbeBound)) + " of the input range)");
+    }
+}
+
 }  // namespace
 
 CnnFilter::CnnFilter(nn::Model model, const CnnOptions& options)
@@ -167,6 +207,7 @@ CnnFilter::CnnFilter(nn::Model model, const CnnOptions& options)
     const int a = impl_->field.stride;
     impl_->halo = (impl_->field.radius + a - 1) / a * a;  // the receptive field, rounded up to the stride
     impl_->tile = (options.tileSize + a - 1) / a * a;
+    checkModelForFrames(impl_->model, a);
 }
 
 nn::InferencePrecision cnnPrecision(const std::string& name) {

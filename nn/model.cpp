@@ -13,6 +13,12 @@
 namespace dejag::nn {
 namespace {
 
+// Bounds on an architecture, far above any image filter (dejag-fast: 64 channels, 3x3 kernels): a typo
+// or a hostile file is one error line instead of an allocation of terabytes.
+constexpr int kMaxChannels = 4096;
+constexpr int kMaxKernel = 31;
+constexpr int64_t kMaxParameters = int64_t(1) << 27;  // 512 MB of float weights
+
 using Op = GraphOp;
 
 // A graph node plus what forward() keeps for backward().
@@ -250,6 +256,21 @@ Model Model::fromArchitecture(const nlohmann::json& a) {
                     if (n.outChannels < 1 || n.kernel < 1 || n.stride < 1 || n.dilation < 1 || n.padding < 0)
                         throw Error("node '" + n.name +
                                     "': out_channels, kernel, stride and dilation must be >= 1");
+                    // Bounds far above any image filter, so a typo is one line rather than an allocation
+                    // of terabytes: channels, kernel, stride, dilation and padding.
+                    const auto atMost = [&](const char* field, int value, int limit) {
+                        if (value > limit)
+                            throw Error("node '" + n.name + "': " + field + " " + std::to_string(value) +
+                                        " is above " + std::to_string(limit));
+                    };
+                    atMost("out_channels", n.outChannels, kMaxChannels);
+                    atMost("kernel", n.kernel, kMaxKernel);
+                    atMost("stride", n.stride, kMaxKernel);
+                    atMost("dilation", n.dilation, kMaxKernel);
+                    atMost("padding", n.padding, kMaxKernel * kMaxKernel);
+                    if (n.outputPadding < 0 || (n.outputPadding > 0 && n.outputPadding >= n.stride))
+                        throw Error("node '" + n.name +
+                                    "': output_padding must be >= 0 and below the stride");
                     const int64_t weights = int64_t(n.inChannels) * n.outChannels * n.kernel * n.kernel;
                     ParameterInfo w;
                     w.name = n.name + ".weight";
@@ -327,6 +348,12 @@ Model Model::fromArchitecture(const nlohmann::json& a) {
             }
             if ((n.op == Op::Upsample || n.op == Op::PixelShuffle) && (n.factor < 1 || n.factor > 16))
                 throw Error("node '" + n.name + "': factor must be 1..16");
+            if (n.outChannels > kMaxChannels)
+                throw Error("node '" + n.name + "' has " + std::to_string(n.outChannels) +
+                            " channels, above " + std::to_string(kMaxChannels));
+            if (offset > kMaxParameters)
+                throw Error("node '" + n.name + "' brings the model to " + std::to_string(offset) +
+                            " parameters, above the " + std::to_string(kMaxParameters) + " dejag accepts");
             indexOf[n.name] = int(impl->nodes.size());
             channels.push_back(n.outChannels);
             impl->nodes.push_back(std::move(n));
@@ -394,8 +421,9 @@ nlohmann::json Model::builtinArchitecture(const std::string& name, const ModelOp
         // 1/2 and a pixel shuffle brings them to full resolution. The coarse levels see far along an edge
         // for a few multiply-adds per pixel (docs/train.md).
         const int w = options.width, c = options.channels, levels = options.depth;
-        if (w < 2 || w % 2 != 0 || levels < 2 || levels > 6 || c < 1)
-            throw Error("the fast and kpn families need an even width >= 2 and depth (levels) in 2..6");
+        if (w < 2 || w % 2 != 0 || w > kMaxChannels || levels < 2 || levels > 6 || c < 1)
+            throw Error("the fast and kpn families need an even width from 2 to " +
+                        std::to_string(kMaxChannels) + " and a depth (levels) in 2..6");
         json nodes = json::array();
         nodes.push_back(conv("enc1", "input", w, 3, "relu", 2));
         std::vector<std::string> encoder = {"enc1"};  // the output of each level
@@ -795,6 +823,13 @@ Model loadModel(const std::string& path, std::map<std::string, std::string>* met
             throw fail(e.what());
         }
     }();
+    // A training checkpoint holds the architecture too, but its weights as one flat tensor with the
+    // optimizer's moments: it is no model file until `dejag train export` makes one of the run.
+    if (auto format = file.metadata.find("dejag.format");
+        format != file.metadata.end() && format->second.rfind("dejag-checkpoint", 0) == 0)
+        throw fail(
+            "a training checkpoint, not a model; export the run with dejag train export RUN "
+            "MODEL.safetensors");
     for (const ParameterInfo& p : model.parameters()) {
         auto tensor = file.tensors.find(p.name);
         if (tensor == file.tensors.end()) throw fail("parameter '" + p.name + "' is missing");

@@ -4,6 +4,7 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <exception>
 #include <filesystem>
 #include <fstream>
 #include <map>
@@ -41,6 +42,15 @@ std::string readText(const std::string& path) {
     std::stringstream s;
     s << in.rdbuf();
     return s.str();
+}
+
+// A JSON file dejag wrote (run.json, dataset.json); a truncated or edited one is one error line.
+json readJsonFile(const std::string& path) {
+    try {
+        return json::parse(readText(path));
+    } catch (const json::exception& e) {
+        throw Error("'" + path + "' is corrupt (not valid JSON: " + e.what() + ")");
+    }
 }
 
 }  // namespace
@@ -542,9 +552,37 @@ TrainResult trainModel(const TrainConfig& config, const std::vector<Baseline>& b
     if (model.outputChannels() != model.inputChannels())
         throw Error("the architecture outputs " + std::to_string(model.outputChannels()) + " channels for " +
                     std::to_string(model.inputChannels()) + " in");
-    model.outputShape({config.batch, model.inputChannels(), config.patch, config.patch});  // throws if unfit
+    // The network learns to map a patch to its truth: its output has the patch's size (the loss and the
+    // validation compare them pixel by pixel). Checked for the patch and for the stride-padded frames of
+    // validation alike.
+    for (const int side : {config.patch, 64}) {
+        const nn::Shape out = model.outputShape({1, model.inputChannels(), side, side});  // throws if unfit
+        if (out[2] != side || out[3] != side)
+            throw Error("the architecture returns " + std::to_string(out[3]) + "x" + std::to_string(out[2]) +
+                        " pixels for a " + std::to_string(side) + "x" + std::to_string(side) +
+                        " input; an anti-aliasing network returns the size it is given");
+    }
 
-    fs::create_directories(config.out);
+    // One process per run folder; a folder this call made is removed again if the run fails before
+    // writing anything into it (a typo in --data leaves no empty run behind).
+    const bool madeFolder = !fs::exists(config.out);
+    std::error_code madeError;
+    fs::create_directories(config.out, madeError);
+    if (madeError || !fs::is_directory(config.out))
+        throw Error("cannot make the run folder '" + config.out +
+                    "': " + (madeError ? madeError.message() : std::string("a file of that name exists")));
+    struct RemoveIfUnused {
+        std::string folder;
+        bool active;
+        ~RemoveIfUnused() {
+            if (!active || std::uncaught_exceptions() == 0) return;
+            std::error_code ec;
+            for (const auto& entry : fs::directory_iterator(folder, ec))
+                if (entry.path().filename() != FolderLock::kFileName) return;
+            fs::remove_all(folder, ec);
+        }
+    } removeIfUnused{config.out, madeFolder};
+    const FolderLock lock(config.out, "a training run");
     const std::string checkpointPath = (fs::path(config.out) / "checkpoint.safetensors").string();
     json runConfig = configToJson(config);
     nn::OptimizerConfig adam;
@@ -625,7 +663,7 @@ TrainResult trainModel(const TrainConfig& config, const std::vector<Baseline>& b
             {"macs_per_pixel", double(model.macs({1, model.inputChannels(), 256, 256})) / (256.0 * 256.0)},
             {"validation_items", validation.size()}};
         const std::string datasetJson = (fs::path(config.data) / "dataset.json").string();
-        if (fs::exists(datasetJson)) run["dataset"] = json::parse(readText(datasetJson));
+        if (fs::exists(datasetJson)) run["dataset"] = readJsonFile(datasetJson);
         json baselineJson = json::object();
         for (const MethodScores& b : baselineScores)
             for (int k = 0; k < int(data::Region::Count); ++k)
@@ -665,6 +703,7 @@ TrainResult trainModel(const TrainConfig& config, const std::vector<Baseline>& b
         row.evaluated = true;
         for (int k = 0; k < int(data::Region::Count); ++k)
             row.psnr[k] = s[0].summary.psnr[k], row.ssim[k] = s[0].summary.ssim[k];
+        return s[0].summary.nonFiniteImages;
     };
 
     auto saveModelFile = [&](const std::string& name, int64_t step) {
@@ -807,8 +846,14 @@ TrainResult trainModel(const TrainConfig& config, const std::vector<Baseline>& b
             row.loss = lossCount ? lossSum / double(lossCount) : NAN;
             lossSum = 0, lossCount = 0;
             if (evaluationStep) {
-                evaluate(row);
-                if (row.psnr[0] > state.bestPsnr + kMinimumImprovementDb) {
+                const int nonFinite = evaluate(row);
+                if (nonFinite > 0)
+                    std::fprintf(
+                        stderr,
+                        "dejag train: step %lld: the network's output is not finite on %d validation "
+                        "images; scored as the worst, never kept as the best model\n",
+                        (long long)state.step, nonFinite);
+                if (nonFinite == 0 && row.psnr[0] > state.bestPsnr + kMinimumImprovementDb) {
                     state.bestPsnr = row.psnr[0], state.bestStep = state.step, state.evaluationsSinceBest = 0;
                     saveModelFile("best.safetensors", state.step);
                 } else if (config.patience > 0 && ++state.evaluationsSinceBest >= config.patience) {
@@ -847,7 +892,7 @@ TrainResult trainModel(const TrainConfig& config, const std::vector<Baseline>& b
     state.seconds = elapsed();
     saveCheckpoint(checkpointPath, model, optimizer, state, runConfig);
     {
-        json run = json::parse(readText((fs::path(config.out) / "run.json").string()));
+        json run = readJsonFile((fs::path(config.out) / "run.json").string());
         run["finished"] = {{"steps", state.step},         {"seconds", state.seconds},
                            {"skipped", state.skipped},    {"best_step", state.bestStep},
                            {"best_psnr", state.bestPsnr}, {"stopped_early", result.stoppedEarly}};
@@ -900,12 +945,7 @@ std::string exportModel(const std::string& run, const std::string& modelPath,
     const std::string bestPath = (fs::path(run) / "best.safetensors").string();
     requireReadableFile(runJsonPath);
     requireReadableFile(bestPath);
-    json runJson;
-    try {
-        runJson = json::parse(readText(runJsonPath));
-    } catch (const json::exception& e) {
-        throw Error("'" + runJsonPath + "' is not valid JSON: " + e.what());
-    }
+    const json runJson = readJsonFile(runJsonPath);
     if (!runJson.contains("finished"))
         throw Error("the run in '" + run + "' has not finished (resume it first)");
     std::map<std::string, std::string> metadata;
