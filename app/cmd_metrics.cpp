@@ -40,7 +40,8 @@ const char* spaceOf(const Image& image) {
 // the space to score in; then each image is converted into it (colour channels only). Returns the note the
 // report prints ("" when nothing was converted).
 std::string bringIntoOneSpace(Image& reference, Image& test, const MetricsArguments& args) {
-    const bool referenceLinear = holdsLinearLight(reference.storage), testLinear = holdsLinearLight(test.storage);
+    const bool referenceLinear = holdsLinearLight(reference.storage),
+               testLinear = holdsLinearLight(test.storage);
     if (args.space == "auto") {
         if (referenceLinear == testLinear) return "";
         throw Error("'" + args.reference + "' holds " + spaceOf(reference) + " and '" + args.test + "' " +
@@ -58,7 +59,7 @@ std::string bringIntoOneSpace(Image& reference, Image& test, const MetricsArgume
     }
     // The scale follows the space: linear light on its raw values (data range 1), sRGB on the integer
     // scale of whichever file had one.
-    const PixelType scale = linear ? PixelType::Float
+    const PixelType scale = linear                                 ? PixelType::Float
                             : !holdsLinearLight(reference.storage) ? reference.storage
                             : !holdsLinearLight(test.storage)      ? test.storage
                                                                    : PixelType::Float;
@@ -187,7 +188,8 @@ void registerMetricsCommand(CLI::App& app) {
         "Identical images: PSNR and SNR are infinite (printed 'inf'; in JSON null, with \"identical\": "
         "true).\n"
         "Images with different channel counts are scored on the channels they share by name when one holds\n"
-        "all the other's: a dataset input (R, G, B and its G-buffers) against its truth (R, G, B).");
+        "all the other's: a dataset input (R, G, B and its G-buffers) against its truth (R, G, B).\n"
+        "A PNG/JPEG holds sRGB-encoded values, an EXR linear light: mixing them needs --space srgb|linear.");
     command->add_option("REF", args->reference, "Reference image (the truth)")->required();
     command->add_option("TEST", args->test, "Image to score")->required();
     command->add_flag("--json", args->json, "Print one JSON object (keys mse, rmse, psnr, snr, ssim, ...)");
