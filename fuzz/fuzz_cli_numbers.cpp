@@ -1,8 +1,10 @@
 // Fuzz target: what the command line turns into numbers — frame sizes (WIDTHxHEIGHT), comma lists,
 // loss specs (0.84*ssim+0.16*l1) — and CLI11's own integer and float options with their range checks,
-// as the subcommands declare them. The input is split at NUL bytes into the strings tried.
+// as the subcommands declare them, behind the guard main() puts on every option (no NaN or infinity in a
+// float, no negative number in an unsigned one). The input is split at NUL bytes into the strings tried.
 #include <CLI/CLI.hpp>
 #include <algorithm>
+#include <cmath>
 #include <cstdint>
 #include <string>
 #include <vector>
@@ -39,11 +41,16 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
     app.add_option("--lr", lr)->check(CLI::PositiveNumber);
     app.add_option("--gate", gate);
     app.add_option("--size", frameSize);
+    uint64_t seed = 1;
+    app.add_option("--seed", seed);
+    dejag::cli::guardNumericOptions(app);
     std::vector<std::string> args;
     for (size_t i = 0; i < words.size(); ++i) args.push_back((i % 2 == 0 ? "--" : "") + words[i]);
     std::reverse(args.begin(), args.end());  // CLI11 parses a vector from the back
     try {
         app.parse(args);
+        // What the guard promises: no NaN or infinity gets into a float option.
+        if (!std::isfinite(lr) || !std::isfinite(gate)) __builtin_trap();
         if (!frameSize.empty()) (void)dejag::cli::parseSize(frameSize, "--size");
     } catch (const CLI::Error&) {
     } catch (const dejag::Error&) {
