@@ -489,7 +489,9 @@ void registerFilterCommand(CLI::App& app) {
                      "CNN: off | auto | T (run tiles whose luma steps exceed T; gated, a kernel-predicting "
                      "network also passes through runs of pixels it could move by at most 1/1024)")
         ->capture_default_str();
-    command->add_option("--tile", args->tile, "CNN: tile side in pixels")->capture_default_str();
+    command->add_option("--tile", args->tile, "CNN: tile side in pixels")
+        ->check(CLI::Range(16, 4096))
+        ->capture_default_str();
     command
         ->add_option("--precision", args->precision,
                      "CNN: fp32 | bf16 (AVX-512 BF16 CPUs: bf16 activations, float sums) | auto (bf16 where "

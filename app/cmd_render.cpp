@@ -70,7 +70,12 @@ void runRender(const RenderArguments& args) {
         throw Error("--start " + std::to_string(args.start) + " with --frames " +
                     std::to_string(args.frames) + ": frame numbers run from 0 to " +
                     std::to_string(std::numeric_limits<int>::max()));
-    if (args.truth < 0) throw Error("--truth must be 0 (none) or a sample count");
+    if (args.truth < 0 || args.truth > 1 << 20)
+        throw Error("--truth must be 0 (none) or a sample count up to 1048576");
+    if (!(args.spread >= 0 && args.spread <= 64))
+        throw Error("--jitter-spread must be from 0 to 64 pixels, not " + std::to_string(args.spread));
+    if (!(args.tolerance > 0) || !(args.pixelTolerance > 0))
+        throw Error("--tolerance and --pixel-tolerance must be above 0");
     if (args.jitter != "none" && args.jitter != "halton16")
         throw Error("--jitter must be none or halton16, not '" + args.jitter + "'");
     if (args.camera != "regular" && args.camera != "tilted")

@@ -543,6 +543,15 @@ TrainResult trainModel(const TrainConfig& config, const std::vector<Baseline>& b
         throw Error("--adversarial must be between 0 and 0.9");
     if (config.evalEvery < 1 || config.checkpointEvery < 1)
         throw Error("evaluation and checkpoint intervals must be >= 1");
+    // A batch is allocated whole (inputs, targets, every activation of it): bounded like an image.
+    if (double(config.batch) * config.patch * config.patch * 3 > double(kMaxImageSamples))
+        throw Error("--batch " + std::to_string(config.batch) + " of --patch " +
+                    std::to_string(config.patch) +
+                    " patches is more than dejag allocates (batch x patch^2 x 3 at most 2^28 samples)");
+    if (config.warmupSteps < 0) throw Error("--warmup must be >= 0");
+    if (!(config.clipNorm >= 0)) throw Error("--clip must be >= 0 (0: off)");
+    if (config.validationImages < 0) throw Error("--val-images must be >= 0 (0: all)");
+    if (config.patience < 0) throw Error("--patience must be >= 0 (0: never stop early)");
     const nn::CompositeLoss loss = nn::CompositeLoss::parse(config.loss);
     nn::Model model = nn::Model::fromArchitecture(architectureFor(config.arch));
     const bool grey = model.inputChannels() == 1;

@@ -481,6 +481,17 @@ TEST(Reliability, BadNumbersSizesAndPatternsAreOneLine) {
     expectOneLineError(run(train + "--epochs inf", dir), "--epochs");
     expectOneLineError(run(train + "--lr nan", dir), "--lr");
     expectOneLineError(run(train + "--seed -1", dir), "--seed");
+    // Out of range, found by sweeping every numeric flag of every subcommand with -1, 0, +-2^31, +-1e30.
+    expectOneLineError(run(train + "--batch 2147483647", dir), "--batch");  // was std::bad_alloc in a thread
+    for (const char* flag : {"--warmup", "--clip", "--val-images", "--patience"})
+        expectOneLineError(run(train + flag + " -1", dir), flag);
+    for (const std::string flag :
+         {"--jitter-spread -1", "--tolerance -1", "--pixel-tolerance 0", "--truth 2147483647"})
+        expectOneLineError(run("render --scene pipe --size 8x8 --out '" + dir.file("r") + "' " + flag, dir),
+                           flag.substr(0, flag.find(' ')));
+    expectOneLineError(
+        run("filter --method cnn --tile -1 '" + dir.file("a.png") + "' '" + dir.file("b.png") + "'", dir),
+        "--tile");
     expectOneLineError(
         run("render --scene pipe --size 8x8 --start 2147483646 --frames 3 --out '" + dir.file("r") + "'",
             dir),
