@@ -1,6 +1,7 @@
 // dejag filter: anti-aliasing post-processes on images and sequences — FXAA 3.11, the CNN, U-TAA and
 // T-TAA — alone or chained (--chain taa,cnn).
 #include <algorithm>
+#include <atomic>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
@@ -239,12 +240,22 @@ std::vector<std::pair<std::string, std::string>> framePairs(const std::string& i
 // Refuses a frame the filters turned non-finite (a NaN can only come from a model whose weights the
 // load-time check could not judge on every input): nothing is written for it.
 void requireFiniteOutput(const Image& image, const std::string& in, const std::string& method) {
-    const size_t C = size_t(image.channels());
-    for (size_t i = 0; i < image.pixels.size(); ++i)
-        if (!std::isfinite(image.pixels[i]))
-            throw Error(method + " turned '" + in + "' into a non-finite value at pixel (" +
-                        std::to_string((i / C) % size_t(image.width)) + ", " +
-                        std::to_string((i / C) / size_t(image.width)) + "); nothing written for it");
+    const size_t C = size_t(image.channels()), count = image.pixels.size();
+    std::atomic<size_t> first{count};
+    parallelFor(0, int64_t(count), 1 << 16, [&](int64_t begin, int64_t end) {
+        for (int64_t i = begin; i < end; ++i)
+            if (!std::isfinite(image.pixels[size_t(i)])) {
+                size_t seen = first.load();
+                while (size_t(i) < seen && !first.compare_exchange_weak(seen, size_t(i))) {
+                }
+                return;
+            }
+    });
+    const size_t i = first.load();
+    if (i < count)
+        throw Error(method + " turned '" + in + "' into a non-finite value at pixel (" +
+                    std::to_string((i / C) % size_t(image.width)) + ", " +
+                    std::to_string((i / C) / size_t(image.width)) + "); nothing written for it");
 }
 
 void makeParentFolder(const std::string& path) {

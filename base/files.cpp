@@ -119,9 +119,9 @@ void AtomicFile::discard() {
     slot_ = -1;
 }
 
-void AtomicFile::fail(const std::string& step, int error) {
+void AtomicFile::fail(int error) {
     discard();
-    throw Error("cannot write '" + path_ + "': " + step + systemErrorText(error));
+    throw Error("cannot write '" + path_ + "': " + systemErrorText(error));
 }
 
 void AtomicFile::write(const void* data, size_t bytes) {
@@ -130,7 +130,7 @@ void AtomicFile::write(const void* data, size_t bytes) {
     while (bytes > 0) {
         const ssize_t n = ::write(fd_, p, std::min<size_t>(bytes, size_t(1) << 30));
         if (n < 0 && errno == EINTR) continue;
-        if (n <= 0) fail("", n < 0 ? errno : EIO);
+        if (n <= 0) fail(n < 0 ? errno : EIO);
         p += n, bytes -= size_t(n);
     }
 }
@@ -138,11 +138,11 @@ void AtomicFile::write(const void* data, size_t bytes) {
 void AtomicFile::commit() {
     if (fd_ < 0) throw Error("cannot write '" + path_ + "': the file is already closed");
     // fsync reports what the page cache could not write back (a full thin-provisioned disk, NFS quota).
-    if (::fsync(fd_) != 0 && errno != EINVAL) fail("", errno);
+    if (::fsync(fd_) != 0 && errno != EINVAL) fail(errno);
     const int fd = fd_;
     fd_ = -1;
-    if (::close(fd) != 0 && errno != EINTR) fail("", errno);
-    if (::rename(temporary_.c_str(), path_.c_str()) != 0) fail("", errno);
+    if (::close(fd) != 0 && errno != EINTR) fail(errno);
+    if (::rename(temporary_.c_str(), path_.c_str()) != 0) fail(errno);
     committed_ = true;
     unregisterTemporary(slot_);
     slot_ = -1;

@@ -32,7 +32,7 @@ class AtomicFile {
     const std::string& temporaryPath() const { return temporary_; }
 
   private:
-    [[noreturn]] void fail(const std::string& step, int error);
+    [[noreturn]] void fail(int error);  // removes the temporary file, throws naming the reason
     void discard();
     std::string path_, temporary_;
     int fd_ = -1;
