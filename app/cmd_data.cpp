@@ -178,7 +178,8 @@ void registerDataCommand(CLI::App& app) {
         std::printf("%-13s %6s %6s %6s %6s %7s   aliased PSNR dB: min / median / max\n", "family", "items",
                     "train", "val", "test", "edges");
         for (const auto& [family, f] : s["families"].items()) {
-            auto count = [&](const char* split) { return f["splits"].value(split, 0); };
+            const nlohmann::json& splits = f["splits"];
+            auto count = [&](const char* split) { return splits.value(split, 0); };
             std::printf("%-13s %6d %6d %6d %6d %6.1f%%   %.2f / %.2f / %.2f\n", family.c_str(),
                         f["items"].get<int>(), count("train"), count("validation"), count("test"),
                         100 * f["edge_fraction"].get<double>(), f["aliased_psnr"]["min"].get<double>(),
