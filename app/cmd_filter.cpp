@@ -512,7 +512,7 @@ void registerFilterCommand(CLI::App& app) {
     command->add_flag("--green-luma", args->greenLuma, "FXAA: use green as luma");
     command->add_flag("--no-sharpen", args->noSharpen, "TAA: skip the final sharpen (see docs/infer.md)");
     command->add_flag("--motion-blur", args->motionBlur,
-                      "TAA: blur the output along the motion vectors (spec/taa.md step 7; off by default)");
+                      "TAA: blur the output along the motion vectors (docs/taa.md step 7; off by default)");
     command
         ->add_option("--motion-blur-scale", args->motionBlurScale,
                      "TAA: motion blur length, the frame rate over the target frame rate")
@@ -545,7 +545,7 @@ void registerFilterCommand(CLI::App& app) {
         "CNN: a trained model (models/*.safetensors, see models/*.md) run in tiles with a receptive-field "
         "halo,\n"
         "only on tiles with a luma step above the gate (auto = 0.04); skipped tiles pass through unchanged.\n"
-        "TAA (taa = the baseline U-TAA, taa-sobel = T-TAA of spec/taa.md): INPUT is a folder written by\n"
+        "TAA (taa = the baseline U-TAA, taa-sobel = T-TAA of docs/taa.md): INPUT is a folder written by\n"
         "dejag render --jitter halton16 --buffers color,albedo,depth,motion,id,prevdepth; OUTPUT a folder\n"
         "of sRGB PNGs, one per frame. History starts with the first frame and restarts at each --cuts frame "
         "and\n"

@@ -180,7 +180,7 @@ void runMetrics(const MetricsArguments& args) {
 void registerMetricsCommand(CLI::App& app) {
     auto args = std::make_shared<MetricsArguments>();
     CLI::App* command =
-        app.add_subcommand("metrics", "Score TEST against REF: MSE, RMSE, PSNR, SNR, SSIM (spec/metrics.md)");
+        app.add_subcommand("metrics", "Score TEST against REF: MSE, RMSE, PSNR, SNR, SSIM (docs/metrics.md)");
     command->footer(
         "8-bit images are scored on the 0-255 scale (data range 255), 16-bit on 0-65535, float on their raw\n"
         "values with data range 1 unless --data-range is given. SSIM: 11x11 Gaussian window (sigma 1.5),\n"

@@ -218,7 +218,7 @@ void registerRenderCommand(CLI::App& app) {
     command->add_option("--seed", args->seed, "seed of random scenes and textures")->capture_default_str();
     command->add_option("--jitter", args->jitter, "none | halton16 (camera jitter per frame, for TAA)")
         ->capture_default_str();
-    command->add_option("--jitter-spread", args->spread, "jitter spread in pixels (spec/taa.md: 1.7)")
+    command->add_option("--jitter-spread", args->spread, "jitter spread in pixels (docs/taa.md: 1.7)")
         ->capture_default_str();
     command->add_option("--truth", args->truth, "also accumulate N Halton-jittered samples as ground truth")
         ->capture_default_str();

@@ -70,7 +70,7 @@ std::vector<json> runDemo(const DemoOptions& options) {
 
         // TAA: `historyFrames` Halton-jittered frames of the still camera, the last one scored; time =
         // median per frame after the first two.
-        // As spec/taa.md has them (with their sharpen), and T-TAA without its sharpen (docs/infer.md: the
+        // As docs/taa.md has them (with their sharpen), and T-TAA without its sharpen (docs/infer.md: the
         // sharpen costs several dB on edge-dense frames).
         infer::TaaOptions u, t, tFlat;
         t.improved = true;
@@ -125,7 +125,7 @@ std::vector<json> runDemo(const DemoOptions& options) {
         std::to_string(W) + "×" + std::to_string(H) +
         " frames; truth: " + std::to_string(options.truthSamples) +
         " Halton samples per pixel (adaptive). No AA, FXAA and the networks filter one unjittered frame; "
-        "U-TAA and T-TAA (spec/taa.md, with their sharpen; and T-TAA without it) the last of " +
+        "U-TAA and T-TAA (docs/taa.md, with their sharpen; and T-TAA without it) the last of " +
         std::to_string(options.historyFrames) +
         " jittered frames. Scores on sRGB values in [0, 1]; edge = within 1 px of a geometric edge, "
         "texture = detailed pixels 3 px or more from one.";

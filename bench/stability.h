@@ -31,7 +31,7 @@ struct StabilityRow {
 
 std::vector<StabilityRow> benchStability(const StabilityOptions& options);
 
-// The 1 - SSIM loss on degenerate patches (spec: finite and continuous): constant images (zero
+// The 1 - SSIM loss on degenerate patches (docs/metrics.md: finite and continuous): constant images (zero
 // variance), a single bright pixel, HDR values up to 1e4, tiny values (1e-8), a checkerboard at Nyquist.
 // For each, in double: the loss and gradient are finite; the gradient's derivative along a random
 // direction matches the central difference; and the loss is continuous there — the largest

@@ -1,7 +1,7 @@
 // dejag/data: whole-image evaluation of an anti-aliasing method on one split of a dataset.
 //
 // Every method (no AA, FXAA, a network) is scored the same way: on the sRGB-encoded image in [0, 1]
-// against the truth, over three regions (spec/seed-cnn.md asks for the last two):
+// against the truth, over three regions (docs/seed-cnn.md asks for the last two):
 //   whole    every pixel;
 //   edge     pixels within 1 px of a geometric edge (an object-ID change, or a depth jump between
 //            4-neighbours: inverse depth extrapolated from either side misses the other by > 5 %, which

@@ -12,7 +12,7 @@
 namespace dejag {
 namespace {
 
-constexpr double kK1 = 0.01, kK2 = 0.03, kSigma = 1.5;  // spec/metrics.md
+constexpr double kK1 = 0.01, kK2 = 0.03, kSigma = 1.5;  // docs/metrics.md
 
 void requireSameShape(const Image& reference, const Image& test) {
     if (reference.width != test.width || reference.height != test.height)

@@ -1,4 +1,4 @@
-// dejag/data: image quality metrics as the anti-aliasing literature computes them (spec/metrics.md).
+// dejag/data: image quality metrics as the anti-aliasing literature computes them (docs/metrics.md).
 //
 // All metrics compare a test image X against a reference R (the supersampled truth):
 //   MSE  = mean over pixels and channels of (X - R)^2, on the reference's value scale

@@ -41,7 +41,7 @@ inline V filterTaps(const float* row, int j, const Window<V>& w) {
     return sum;
 }
 
-// SSIM of spec/metrics.md from the five filtered moments (of samples shifted by -offset).
+// SSIM of docs/metrics.md from the five filtered moments (of samples shifted by -offset).
 template <class V>
 inline V ssimFromMoments(const float* moments, int stride, int j, float offset, float c1, float c2) {
     const V meanXs = loadu<V>(moments + j), meanYs = loadu<V>(moments + stride + j);

@@ -8,7 +8,7 @@
 
 namespace dejag {
 
-// SSIM window of spec/metrics.md: Gaussian, sigma 1.5, truncated at 3.5 sigma -> radius 5, 11 taps
+// SSIM window of docs/metrics.md: Gaussian, sigma 1.5, truncated at 3.5 sigma -> radius 5, 11 taps
 // (scipy.ndimage.gaussian_filter's truncation, which scikit-image uses).
 inline constexpr int kSsimRadius = 5;
 inline constexpr int kSsimTaps = 2 * kSsimRadius + 1;

@@ -1,4 +1,4 @@
-// dejag/infer: temporal anti-aliasing as spec/taa.md describes it — U-TAA, the Uncharted 4 / INSIDE
+// dejag/infer: temporal anti-aliasing as docs/taa.md describes it — U-TAA, the Uncharted 4 / INSIDE
 // style baseline, and T-TAA, the Sobel-improved variant (Sobel of albedo, lit luma and depth stabilised
 // by its own 1-channel TAA, object-ID and depth pseudo-variance terms that shrink the colour box to the
 // current colour where a pixel is not aliased, and a normalised sharpen).
@@ -17,10 +17,10 @@ namespace dejag::infer {
 struct TaaOptions {
     bool improved = false;          // false: U-TAA, true: T-TAA
     float feedbackMin = 0.925f;     // history weight where current and history lumas differ
-    float feedbackMax = 0.979f;     // ... and where they agree (spec/taa.md, from the thesis' code)
+    float feedbackMax = 0.979f;     // ... and where they agree (docs/taa.md, from the thesis' code)
     float depthThreshold = 0.002f;  // pseudo-variances vanish below this 3x3 depth spread
     bool sharpen = true;
-    // Step 7 of spec/taa.md, off by default: the output (not the history) blurred along each pixel's
+    // Step 7 of docs/taa.md, off by default: the output (not the history) blurred along each pixel's
     // motion as Chapman's per-object motion blur does, which the thesis used to hide ghosting. The motion
     // is scaled by motionBlurScale (the frame rate over the target frame rate: the shutter), a pixel
     // moving s pixels averages clamp(int(s), 1, motionBlurMaxSamples) bilinear samples spread over

@@ -1,5 +1,5 @@
 // The TAA band kernel (infer/taa_kernels.h), compiled once per SIMD level: kFloatLanes pixels of a row
-// at a time, the formulas of spec/taa.md in the order infer/taa.h describes them.
+// at a time, the formulas of docs/taa.md in the order infer/taa.h describes them.
 #include "infer/taa_kernels.h"
 
 #include <algorithm>
@@ -33,7 +33,7 @@ struct Ring {
     }
 };
 
-// History weight from the luma difference of current and history (spec/taa.md).
+// History weight from the luma difference of current and history (docs/taa.md).
 struct Feedback {
     VFloat lo, span;
     VFloat operator()(VFloat current, VFloat history) const {

@@ -22,7 +22,7 @@ double mseLoss(const T* pred, const T* target, int64_t n);
 template <class T>
 void mseLossBackward(T* dpred, const T* pred, const T* target, int64_t n, double scale);
 
-// 1 - SSIM with the constants and window of spec/metrics.md (11x11 Gaussian, sigma 1.5, K1 0.01,
+// 1 - SSIM with the constants and window of docs/metrics.md (11x11 Gaussian, sigma 1.5, K1 0.01,
 // K2 0.03, population covariance), over the valid region of every (N, C) plane (the pixels whose window
 // lies inside the plane: the same pixels scikit-image averages), mean over planes and pixels.
 // Internals are computed in double: stable on flat patches (zero variance; C1 and C2 keep every

@@ -377,7 +377,7 @@ nlohmann::json Model::builtinArchitecture(const std::string& name, const ModelOp
                     {"kernel", k}, {"stride", stride}, {"padding", "same"}, {"activation", act}};
     };
     if (name == "seed2020") {
-        // spec/seed-cnn.md. Activations are not published: ReLU inside, sigmoid at the end (output in
+        // docs/seed-cnn.md. Activations are not published: ReLU inside, sigmoid at the end (output in
         // (0, 1) like the [0, 1] luminance input). Transposed convs: 3x3, stride 2, padding 1,
         // output_padding 1, so each exactly doubles the size (H and W must be multiples of 4).
         json nodes = json::array();

@@ -92,7 +92,7 @@ class Model {
   public:
     // Throws dejag::Error naming the node and field at fault.
     static Model fromArchitecture(const nlohmann::json& architecture);
-    // "seed2020": the reference network of spec/seed-cnn.md. "fast": the residual RGB family.
+    // "seed2020": the reference network of docs/seed-cnn.md. "fast": the residual RGB family.
     static Model builtin(const std::string& name, const ModelOptions& options = {});
     static nlohmann::json builtinArchitecture(const std::string& name, const ModelOptions& options = {});
 

@@ -299,7 +299,7 @@ struct Renderer::Impl {
 
     Mat4 projection(const CameraPose& pose, const Vec2& jitter) const {
         Mat4 p = Mat4::perspective(pose.fovY, double(width) / height, scene.near, scene.far);
-        // spec/taa.md: the NDC offset goes into the third column (multiplying view z = -w), so after the
+        // docs/taa.md: the NDC offset goes into the third column (multiplying view z = -w), so after the
         // divide every vertex moves by exactly the jitter.
         p.at(0, 2) -= 2.0 * jitter.x / width;
         p.at(1, 2) -= 2.0 * jitter.y / height;

@@ -1,4 +1,4 @@
-// dejag/render: the procedural scenes of spec/scenes.md. A Scene is meshes + objects (each with an ID,
+// dejag/render: the procedural scenes of docs/scenes.md. A Scene is meshes + objects (each with an ID,
 // a material and a transform over time) + textures + a camera path + one directional light.
 #pragma once
 

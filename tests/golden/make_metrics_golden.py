@@ -7,7 +7,7 @@ it needs python3-skimage and python3-pil. It writes, next to itself in metrics/:
                                      text, colour, odd sizes, 16-bit, alpha)
   expected.json                     per case: MSE, RMSE, PSNR, SNR, SSIM (mean and per channel)
   edges_ssim_map.f32                the full per-pixel SSIM map of one grey case (float32, row-major)
-SSIM settings are spec/metrics.md's: gaussian_weights=True, sigma=1.5, use_sample_covariance=False,
+SSIM settings are docs/metrics.md's: gaussian_weights=True, sigma=1.5, use_sample_covariance=False,
 data_range = 255 for 8-bit and 65535 for 16-bit. The C++ tests (tests/data/metrics_golden_test.cpp)
 read these files, so CI needs no Python.
 """

@@ -187,7 +187,7 @@ def optimizer_case(name, kind, steps=5, **kw):
 
 
 class Seed2020(torch.nn.Module):
-    """spec/seed-cnn.md as dejag builds it (nn/model.cpp builtinArchitecture("seed2020"))."""
+    """docs/seed-cnn.md as dejag builds it (nn/model.cpp builtinArchitecture("seed2020"))."""
 
     def __init__(self):
         super().__init__()

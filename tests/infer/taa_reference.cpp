@@ -1,5 +1,5 @@
 // The first TAA of dejag, kept as the tests' oracle for infer/taa.cpp's SIMD band kernel: scalar code
-// over interleaved planes, one pass per stage, written straight from spec/taa.md.
+// over interleaved planes, one pass per stage, written straight from docs/taa.md.
 #include "tests/infer/taa_reference.h"
 
 #include <algorithm>
@@ -27,7 +27,7 @@ Rgb maximum(const Rgb& a, const Rgb& b) {
 Rgb mix(const Rgb& a, const Rgb& b, float t) {
     return a + (b - a) * t;
 }
-float luminance(const Rgb& c) {  // spec/taa.md: the feedback's luma
+float luminance(const Rgb& c) {  // docs/taa.md: the feedback's luma
     return 0.25f * c.r + 0.5f * c.g + 0.25f * c.b;
 }
 float luma(const Rgb& c) {  // Rec. 601, for the Sobel of colours
@@ -75,7 +75,7 @@ Rgb clipToBox(const Rgb& lo, const Rgb& hi, const Rgb& q) {
     return unit > 1.0f ? centre + v * (1.0f / unit) : q;
 }
 
-// History weight from the luma difference of current and history (spec/taa.md).
+// History weight from the luma difference of current and history (docs/taa.md).
 float feedback(float current, float history, const TaaOptions& o) {
     const float d = std::abs(current - history) / std::max({current, history, 0.2f});
     const float w = (1.0f - d) * (1.0f - d);

@@ -35,7 +35,7 @@ TEST(Model, Seed2020HasThePublishedParameterCounts) {
     EXPECT_EQ(perLayer["conv2"], 9248);
     EXPECT_EQ(perLayer["conv3"], 2112);
     EXPECT_EQ(perLayer["conv4"], 73856);
-    EXPECT_EQ(perLayer["up1"], 73792);  // not published; 3x3 assumed (spec/seed-cnn.md)
+    EXPECT_EQ(perLayer["up1"], 73792);  // not published; 3x3 assumed (docs/seed-cnn.md)
     EXPECT_EQ(perLayer["up2"], 577);
     EXPECT_EQ(model.parameterCount(), 832 + 9248 + 2112 + 73856 + 73792 + 577);
     EXPECT_EQ(model.outputShape({1, 1, 800, 800}), (Shape{1, 1, 800, 800}));
