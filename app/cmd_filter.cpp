@@ -1,11 +1,13 @@
 // dejag filter: anti-aliasing post-processes on images and sequences — FXAA 3.11, the CNN, U-TAA and
 // T-TAA — alone or chained (--chain taa,cnn).
 #include <algorithm>
+#include <array>
 #include <atomic>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
 #include <future>
+#include <map>
 #include <memory>
 #include <nlohmann/json.hpp>
 #include <optional>
@@ -20,9 +22,7 @@
 #include "base/thread_pool.h"
 #include "base/timer.h"
 #include "data/image.h"
-#include "infer/cnn.h"
-#include "infer/fxaa.h"
-#include "infer/taa.h"
+#include "infer/filter.h"
 #include "nn/model.h"
 
 namespace dejag::cli {
@@ -35,114 +35,17 @@ struct FilterArguments {
     std::string model = "models/dejag-fast.safetensors", gate = "auto", precision = "auto";
     int tile = 2048;
     int preset = 39;
-    bool greenLuma = false, json = false, noSharpen = false, quiet = false;
+    bool greenLuma = false, json = false, noSharpen = false, quiet = false, listMethods = false;
     bool motionBlur = false;
     float motionBlurScale = 1.0f;
-    std::string cuts;  // TAA: frame numbers that start a new shot
+    std::vector<std::string> settings;  // --set NAME=VALUE
+    std::string channelPreset = "dejag";
+    std::vector<std::string> channels;   // --channel BUFFER=NAMES
+    double depthFar = 0;                 // 0: render.json's, else the first frame's largest finite depth
+    std::string cuts;                    // temporal methods: frame numbers that start a new shot
+    infer::FilterParameters parameters;  // the method flags the user gave, by parameter name
     RuntimeOptions runtime;
 };
-
-// The channels of one buffer of a rendered frame, in order (throws naming the file if absent).
-std::vector<float> channelsOf(const Image& image, const std::vector<std::string>& names,
-                              const std::string& path, bool encode = false) {
-    std::vector<int> index;
-    for (const std::string& n : names) {
-        const int c = image.findChannel(n);
-        if (c < 0)
-            throw Error("'" + path + "' has no channel " + n +
-                        " (render it with --buffers color,albedo,depth,motion,id,prevdepth)");
-        index.push_back(c);
-    }
-    std::vector<float> out(image.pixelCount() * names.size());
-    parallelFor(0, int64_t(image.pixelCount()), 1 << 14, [&](int64_t first, int64_t last) {
-        for (size_t p = size_t(first); p < size_t(last); ++p)
-            for (size_t k = 0; k < names.size(); ++k) {
-                float v = image.pixels[p * size_t(image.channels()) + size_t(index[k])];
-                if (encode) v = std::clamp(linearToSrgb(std::max(v, 0.0f)), 0.0f, 1.0f);
-                out[p * names.size() + k] = v;
-            }
-    });
-    return out;
-}
-
-// R, G, B (the first three channels) of linear-light pixels encoded to sRGB in [0, 1] for the filters,
-// or decoded back; on the thread pool (each value on its own: the same result for any thread count).
-void encodeColour(Image& image) {
-    const size_t C = size_t(image.channels());
-    parallelFor(0, int64_t(image.pixelCount()), 1 << 14, [&](int64_t first, int64_t last) {
-        for (size_t p = size_t(first); p < size_t(last); ++p)
-            for (size_t c = 0; c < 3; ++c) {
-                float& v = image.pixels[p * C + c];
-                v = std::clamp(linearToSrgb(std::max(v, 0.0f)), 0.0f, 1.0f);
-            }
-    });
-}
-void decodeColour(Image& image) {
-    const size_t C = size_t(image.channels());
-    parallelFor(0, int64_t(image.pixelCount()), 1 << 14, [&](int64_t first, int64_t last) {
-        for (size_t p = size_t(first); p < size_t(last); ++p)
-            for (size_t c = 0; c < 3; ++c) image.pixels[p * C + c] = srgbToLinear(image.pixels[p * C + c]);
-    });
-}
-
-// One image filter of a chain: works in place on an sRGB-encoded frame (R G B first, other channels
-// left alone). TAA is not one: it needs the rendered buffers and runs first.
-struct ImageStage {
-    std::string name;
-    std::optional<infer::Fxaa> fxaa;
-    std::optional<infer::CnnFilter> cnn;
-    std::vector<float> scratch;
-    double lastFraction = 0;
-    void apply(std::vector<float>& frame, int width, int height, int channels,
-               const infer::CnnBuffers& buffers) {
-        scratch.resize(frame.size());
-        if (fxaa) {
-            fxaa->apply(frame.data(), scratch.data(), width, height, channels);
-            lastFraction = fxaa->processedFraction();
-        } else {
-            cnn->apply(frame.data(), scratch.data(), width, height, channels, buffers);
-            lastFraction = cnn->processedFraction();
-        }
-        frame.swap(scratch);
-    }
-};
-
-ImageStage makeStage(const std::string& method, const FilterArguments& args) {
-    ImageStage stage;
-    stage.name = method;
-    if (method == "fxaa") {
-        infer::FxaaOptions options;
-        options.preset = args.preset;
-        options.greenAsLuma = args.greenLuma;
-        stage.fxaa.emplace(options);
-    } else if (method == "cnn") {
-        infer::CnnOptions options;
-        options.tileSize = args.tile;
-        options.precision = infer::cnnPrecision(args.precision);
-        if (args.gate == "off") {
-            options.gate = false;
-        } else if (args.gate != "auto") {
-            try {
-                size_t used = 0;
-                options.gateThreshold = std::stof(args.gate, &used);
-                if (used != args.gate.size()) throw std::invalid_argument(args.gate);
-            } catch (const std::exception&) {
-                throw Error("--gate '" + args.gate + "' is not off, auto or a luma threshold in [0, 1]");
-            }
-            if (!(options.gateThreshold >= 0 && options.gateThreshold <= 1))
-                throw Error("--gate '" + args.gate + "' is not off, auto or a luma threshold in [0, 1]");
-        }
-        nn::Model model = nn::loadModel(args.model);
-        try {
-            stage.cnn.emplace(std::move(model), options);
-        } catch (const Error& e) {
-            throw Error("--model '" + args.model + "': " + e.what());
-        }
-    } else {
-        throw Error("--method/--chain: '" + method + "' is not one of fxaa, cnn, taa, taa-sobel");
-    }
-    return stage;
-}
 
 bool isImageFile(const fs::path& path) {
     std::string ext = path.extension().string();
@@ -201,12 +104,34 @@ std::vector<int> sequenceFrames(const std::string& pattern) {
     return frames;
 }
 
-// The (input, output) pairs: one file, a folder of images, or a printf-style numbered sequence. Hidden
-// files (dejag's temporary ".NAME.tmp-PID-N.EXT" among them) are not frames. A sequence with a gap in
-// its numbering is refused: its later frames would otherwise be dropped without a word.
-std::vector<std::pair<std::string, std::string>> framePairs(const std::string& input,
-                                                            const std::string& output) {
-    std::vector<std::pair<std::string, std::string>> pairs;
+// One frame of a run: the file read, the file written, and its frame number (-1 if its name has none).
+struct FramePair {
+    std::string input, output;
+    long number = -1;
+};
+
+// The number at the end of a file's stem ("frame_0012.exr" -> 12), or -1.
+long trailingNumber(const fs::path& path) {
+    const std::string stem = path.stem().string();
+    size_t digits = stem.size();
+    while (digits > 0 && std::isdigit(static_cast<unsigned char>(stem[digits - 1]))) --digits;
+    if (digits == stem.size() || stem.size() - digits > 9) return -1;
+    return std::stol(stem.substr(digits));
+}
+
+// A folder written by dejag render: it holds render.json next to its frame_NNNN.exr files.
+bool isRenderFolder(const fs::path& folder) {
+    std::error_code ec;
+    return fs::is_regular_file(folder / "render.json", ec);
+}
+
+// The frames of a run: one file, a folder of images, a folder written by dejag render (its frame_NNNN.exr
+// only; into a folder they come out as frame_NNNN.png, as the render folder's previews), or a printf-style
+// numbered sequence. OUTPUT may be a pattern for a folder too, numbered by the input's frame numbers.
+// Hidden files (dejag's temporary ".NAME.tmp-PID-N.EXT" among them) are not frames. A pattern sequence
+// with a gap in its numbering is refused: its later frames would otherwise be dropped without a word.
+std::vector<FramePair> framePairs(const std::string& input, const std::string& output) {
+    std::vector<FramePair> pairs;
     if (isPattern(input)) {
         if (!isPattern(output))
             throw Error("input '" + input + "' is a sequence: OUTPUT must be a pattern too");
@@ -217,22 +142,41 @@ std::vector<std::pair<std::string, std::string>> framePairs(const std::string& i
                 throw Error("'" + input + "' has a gap: frame " + std::to_string(frames[k - 1] + 1) +
                             " is missing between " + formatPattern(input, frames[k - 1]) + " and " +
                             formatPattern(input, frames[k]) + " (filter each run of frames on its own)");
-        for (int i : frames) pairs.emplace_back(formatPattern(input, i), formatPattern(output, i));
+        for (int i : frames) pairs.push_back({formatPattern(input, i), formatPattern(output, i), i});
     } else if (fs::is_directory(input)) {
+        const bool rendered = isRenderFolder(input);
         std::vector<fs::path> files;
-        for (const auto& entry : fs::directory_iterator(input))
-            if (entry.is_regular_file() && isImageFile(entry.path()) &&
-                entry.path().filename().string().front() != '.')
-                files.push_back(entry.path());
+        for (const auto& entry : fs::directory_iterator(input)) {
+            const std::string name = entry.path().filename().string();
+            if (!entry.is_regular_file() || !isImageFile(entry.path()) || name.front() == '.') continue;
+            if (rendered && (name.rfind("frame_", 0) != 0 || entry.path().extension() != ".exr")) continue;
+            files.push_back(entry.path());
+        }
         std::sort(files.begin(), files.end());
-        if (files.empty()) throw Error("folder '" + input + "' holds no PNG, JPEG, TIFF or EXR image");
-        if (fs::exists(output) && !fs::is_directory(output))
-            throw Error("input '" + input + "' is a folder: OUTPUT '" + output + "' must be a folder too");
-        for (const fs::path& f : files)
-            pairs.emplace_back(f.string(), (fs::path(output) / f.filename()).string());
+        if (files.empty())
+            throw Error(rendered ? "'" + input + "' holds no frame_NNNN.exr"
+                                 : "folder '" + input + "' holds no PNG, JPEG, TIFF or EXR image");
+        const bool pattern = isPattern(output);
+        if (!pattern && fs::exists(output) && !fs::is_directory(output))
+            throw Error("input '" + input + "' is a folder: OUTPUT '" + output +
+                        "' must be a folder or a pattern (out/f_%04d.exr)");
+        for (const fs::path& f : files) {
+            const long number = trailingNumber(f);
+            std::string out;
+            if (pattern) {
+                if (number < 0)
+                    throw Error("'" + f.string() + "' has no frame number for the OUTPUT pattern '" + output +
+                                "'");
+                out = formatPattern(output, int(number));
+            } else {
+                out = (fs::path(output) / (rendered ? f.stem().string() + ".png" : f.filename().string()))
+                          .string();
+            }
+            pairs.push_back({f.string(), out, number});
+        }
     } else {
         requireReadableFile(input);
-        pairs.emplace_back(input, output);
+        pairs.push_back({input, output, trailingNumber(input)});
     }
     return pairs;
 }
@@ -279,94 +223,45 @@ std::future<void> writeBehind(const std::string& path, Image image) {
     return std::async(std::launch::async, [path, image = std::move(image)] { writeImage(path, image); });
 }
 
-// Image filters (FXAA, CNN, chains of them) over single images, folders and numbered sequences.
-void runImageChain(const FilterArguments& args, std::vector<ImageStage>& stages) {
-    const auto pairs = framePairs(args.input, args.output);
-    Progress progress("filter", int64_t(pairs.size()), args.json || args.quiet || pairs.size() == 1);
-    nlohmann::json frames = nlohmann::json::array();
-    // (Frames read one ahead and written one behind: readAhead / writeBehind.)
-    std::future<Image> nextImage = readAhead(pairs.front().first);
-    std::future<void> lastWrite;
-    for (size_t index = 0; index < pairs.size(); ++index) {
-        const auto& [in, out] = pairs[index];
-        Image image = nextImage.get();
-        if (index + 1 < pairs.size()) nextImage = readAhead(pairs[index + 1].first);
-        if (image.findChannel("R") != 0 || image.findChannel("G") != 1 || image.findChannel("B") != 2)
-            throw Error("'" + in + "' has no R, G, B channels first (" + image.describe() + ")");
-        if (auto bad = findNonFinite(image))
-            throw Error("'" + in + "' has a non-finite value at pixel (" + std::to_string(bad->x) + ", " +
-                        std::to_string(bad->y) + ")");
-        // The filters work on display-referred colour: half and float files hold linear light, so they are
-        // encoded to sRGB for the filters and decoded back; 8- and 16-bit files are sRGB-encoded already.
-        const bool linear = image.storage == PixelType::Half || image.storage == PixelType::Float;
-        if (linear) encodeColour(image);
-        nlohmann::json stageTimes = nlohmann::json::array();
-        const Stopwatch total;
-        for (ImageStage& stage : stages) {
-            const Stopwatch clock;
-            stage.apply(image.pixels, image.width, image.height, image.channels(), {});
-            stageTimes.push_back({{"method", stage.name},
-                                  {"ms", clock.elapsedMs()},
-                                  {"processed_fraction", stage.lastFraction}});
-        }
-        const double ms = total.elapsedMs();
-        requireFiniteOutput(image, in, args.chain.empty() ? args.method : args.chain);
-        if (linear) decodeColour(image);
-        frames.push_back({{"input", in},
-                          {"output", out},
-                          {"width", image.width},
-                          {"height", image.height},
-                          {"ms", ms},
-                          {"stages", stageTimes}});
-        if (lastWrite.valid()) lastWrite.get();  // the previous frame's write error, if any, first
-        makeParentFolder(out);
-        lastWrite = writeBehind(out, std::move(image));
-        progress.advance(1);
-    }
-    lastWrite.get();
-    progress.finish();
-    if (args.json) {
-        if (frames.size() == 1) {
-            nlohmann::json j = frames[0];
-            j["method"] = args.chain.empty() ? args.method : args.chain;
-            j["processed_fraction"] = j["stages"].back()["processed_fraction"];
-            if (stages.back().cnn) {
-                j["tiles"] = stages.back().cnn->tileCount();
-                j["tiles_processed"] = stages.back().cnn->tilesProcessed();
-                j["passed_through_fraction"] = stages.back().cnn->passedThroughFraction();
-                j["model"] = args.model;
-                j["gate"] = args.gate;
-                j["precision"] = infer::precisionName(stages.back().cnn->options().precision);
-            }
-            if (stages.back().fxaa) j["preset"] = args.preset;
-            std::printf("%s\n", j.dump().c_str());
-        } else {
-            std::printf("%s\n", nlohmann::json{{"method", args.chain.empty() ? args.method : args.chain},
-                                               {"frames", frames}}
-                                    .dump()
-                                    .c_str());
-        }
-    }
+// R, G, B (the first three channels: what frameFromImage encoded) decoded back to linear light; the
+// other channels were never encoded. On the thread pool, each value on its own.
+void decodeColour(Image& image) {
+    const size_t C = size_t(image.channels());
+    parallelFor(0, int64_t(image.pixelCount()), 1 << 14, [&](int64_t first, int64_t last) {
+        for (size_t p = size_t(first); p < size_t(last); ++p)
+            for (size_t c = 0; c < 3; ++c) image.pixels[p * C + c] = srgbToLinear(image.pixels[p * C + c]);
+    });
 }
 
-// TAA over a sequence written by dejag render (INPUT its folder, OUTPUT a folder of sRGB PNGs), then any
-// image filters of the chain on each TAA frame.
-void runTaaChain(const FilterArguments& args, const std::string& taaMethod, std::vector<ImageStage>& stages) {
-    if (!fs::is_directory(args.input))
-        throw Error("TAA filters a sequence: '" + args.input + "' must be a folder written by dejag render");
-    std::vector<std::string> frames;
-    for (const auto& entry : fs::directory_iterator(args.input)) {
-        const std::string name = entry.path().filename().string();
-        if (name.rfind("frame_", 0) == 0 && entry.path().extension() == ".exr")
-            frames.push_back(entry.path().string());
-    }
-    std::sort(frames.begin(), frames.end());
-    if (frames.empty()) throw Error("'" + args.input + "' holds no frame_NNNN.exr");
-    double far = 200.0;
-    if (std::ifstream sidecar(fs::path(args.input) / "render.json"); sidecar) {
-        const nlohmann::json j = nlohmann::json::parse(sidecar, nullptr, false);
-        if (j.is_object() && j.contains("depth_far")) far = j["depth_far"].get<double>();
-    }
+// Where a sequence's render.json would be: in its folder, or beside its files.
+fs::path renderSidecar(const std::string& input) {
+    const fs::path folder = fs::is_directory(input) ? fs::path(input) : fs::path(input).parent_path();
+    return (folder.empty() ? fs::path(".") : folder) / "render.json";
+}
+
+// The kind of values OUTPUT holds and how the filtered sRGB frame gets there: an EXR holds linear light
+// (the colour decoded back), PNG and JPEG sRGB at 16 or 8 bits (TIFF keeps the input's type). Returns
+// the storage to write; *decode says whether the colour is to be decoded to linear light first.
+PixelType outputStorage(const std::string& out, PixelType input, bool* decode) {
+    std::string ext = fs::path(out).extension().string();
+    std::transform(ext.begin(), ext.end(), ext.begin(),
+                   [](unsigned char c) { return char(std::tolower(c)); });
+    const bool linearInput = holdsLinearLight(input);
+    *decode = false;
+    if (!linearInput) return input;  // sRGB values: writeImage converts for an EXR
+    if (ext == ".png") return PixelType::UInt16;
+    if (ext == ".jpg" || ext == ".jpeg") return PixelType::UInt8;
+    *decode = true;
+    return input;
+}
+
+// Every method, one face: frames from any sequence (colour and the buffers the methods use, channel
+// names mapped), filtered in order, written as OUTPUT says.
+void runFilter(FilterArguments& args, const std::string& methods) {
+    // The filter is built (models loaded and checked, every parameter judged) before any input is read.
+    args.parameters.setPathResolver(shippedModelPath);
+    std::unique_ptr<infer::Filter> filter = infer::makeFilter(methods, args.parameters);
+    const bool temporal = filter->temporal();
     std::set<long> cuts;
     for (const std::string& item : splitList(args.cuts)) {
         char* end = nullptr;
@@ -375,111 +270,182 @@ void runTaaChain(const FilterArguments& args, const std::string& taaMethod, std:
             throw Error("--cuts '" + args.cuts + "' is not a list of frame numbers (e.g. 24,96)");
         cuts.insert(n);
     }
-    std::error_code ec;
-    fs::create_directories(args.output, ec);
-    if (ec || !fs::is_directory(args.output))
-        throw Error("cannot write to the output folder '" + args.output + "'");
-    infer::TaaOptions options;
-    options.improved = taaMethod == "taa-sobel";
-    options.sharpen = !args.noSharpen;
-    options.motionBlur = args.motionBlur, options.motionBlurScale = args.motionBlurScale;
-    infer::Taa taa(options);
-    // The history restarts at a cut: a frame listed in --cuts, or a gap in the numbering (the motion
-    // vectors point into the previous frame number, which is not the frame before).
-    auto frameNumber = [](const std::string& path) -> long {
-        const std::string stem = fs::path(path).stem().string();  // frame_NNNN
-        char* end = nullptr;
-        const long n = std::strtol(stem.c_str() + 6, &end, 10);
-        return end && *end == '\0' && end != stem.c_str() + 6 ? n : -1;
-    };
-    long previousNumber = -2;
-    Progress progress("filter " + (args.chain.empty() ? args.method : args.chain), int64_t(frames.size()),
-                      args.json || args.quiet);
-    std::vector<float> out;
-    nlohmann::json timings = nlohmann::json::array();
-    std::future<Image> nextFrame = readAhead(frames.front());
+    if (!cuts.empty() && !temporal) throw Error("--cuts: " + methods + " keeps no history across frames");
+    infer::FrameOptions frameOptions;
+    frameOptions.channels = infer::ChannelMap::preset(args.channelPreset);
+    for (const std::string& c : args.channels) frameOptions.channels.assign(c);
+    frameOptions.required = filter->needs();
+    frameOptions.wanted = filter->uses();
+    // A method that reads buffers makes the frame its colour (and alpha); the others keep every channel.
+    frameOptions.keepExtraChannels = filter->needs() == 0;
+
+    const std::vector<FramePair> pairs = framePairs(args.input, args.output);
+    // The far plane depth is divided by: --depth-far, the render.json of a dejag render sequence, or the
+    // largest finite depth of the first frame.
+    nlohmann::json sidecar;
+    if (std::ifstream in(renderSidecar(args.input)); in) sidecar = nlohmann::json::parse(in, nullptr, false);
+    std::map<std::string, std::array<float, 2>> jitters;
+    if (sidecar.is_object() && sidecar.contains("frames") && sidecar["frames"].is_array())
+        for (const nlohmann::json& f : sidecar["frames"])
+            if (f.is_object() && f.contains("file") && f["file"].is_string() && f.contains("jitter_pixels") &&
+                f["jitter_pixels"].is_array() && f["jitter_pixels"].size() == 2 &&
+                f["jitter_pixels"][0].is_number() && f["jitter_pixels"][1].is_number())
+                jitters[f["file"].get<std::string>()] = {f["jitter_pixels"][0].get<float>(),
+                                                         f["jitter_pixels"][1].get<float>()};
+    const bool usesDepth = (filter->uses() & (infer::Buffer::Depth | infer::Buffer::PreviousDepth)) != 0;
+    double far = args.depthFar;
+    std::string farSource = "--depth-far";
+    if (far <= 0 && sidecar.is_object()) {
+        far = sidecar.contains("depth_far") && sidecar["depth_far"].is_number()
+                  ? sidecar["depth_far"].get<double>()
+                  : 200.0;
+        farSource = "render.json";
+    }
+
+    Progress progress("filter " + methods, int64_t(pairs.size()),
+                      args.json || args.quiet || pairs.size() == 1);
+    nlohmann::json frames = nlohmann::json::array();
+    // (Frames read one ahead and written one behind: readAhead / writeBehind.)
+    std::future<Image> nextImage = readAhead(pairs.front().input);
     std::future<void> lastWrite;
-    for (size_t index = 0; index < frames.size(); ++index) {
-        const std::string& path = frames[index];
-        const Image frame = nextFrame.get();
-        if (index + 1 < frames.size()) nextFrame = readAhead(frames[index + 1]);
-        const long number = frameNumber(path);
-        const bool cut = path != frames.front() && (cuts.count(number) > 0 || number < 0 ||
-                                                    previousNumber < 0 || number != previousNumber + 1);
-        if (cut) taa.reset();
+    std::vector<float> out;
+    long previousNumber = -2;
+    for (size_t index = 0; index < pairs.size(); ++index) {
+        const FramePair& pair = pairs[index];
+        const Image image = nextImage.get();
+        if (index + 1 < pairs.size()) nextImage = readAhead(pairs[index + 1].input);
+        if (auto bad = findNonFinite(image))
+            throw Error("'" + pair.input + "' has a non-finite value at pixel (" + std::to_string(bad->x) +
+                        ", " + std::to_string(bad->y) + ")");
+        if (far <= 0) {
+            far = usesDepth ? infer::largestFiniteDepth(image, frameOptions.channels) : 1.0;
+            if (!(far > 0)) far = 1.0;
+            farSource = "the first frame's largest finite depth";
+        }
+        frameOptions.depthFar = far;
+        // The methods work on display-referred colour: half and float files hold linear light, so their
+        // colour is encoded to sRGB for the methods and decoded back where OUTPUT holds linear light.
+        infer::FrameData data = infer::frameFromImage(image, frameOptions, pair.input);
+        if (auto j = jitters.find(fs::path(pair.input).filename().string()); j != jitters.end())
+            data.hasJitter = true, data.jitter[0] = j->second[0], data.jitter[1] = j->second[1];
+        // The history restarts at a cut: a frame listed in --cuts, or a gap in the numbering (the motion
+        // vectors point into the previous frame number, which is not the frame before).
+        const long number = pair.number;
+        const bool cut =
+            temporal && index > 0 &&
+            (cuts.count(number) > 0 || number < 0 || previousNumber < 0 || number != previousNumber + 1);
+        if (cut) filter->reset();
         previousNumber = number;
-        const std::vector<float> colour = channelsOf(frame, {"R", "G", "B"}, path, true);
-        std::vector<float> depth = channelsOf(frame, {"depth.Z"}, path);
-        const std::vector<float> motion = channelsOf(frame, {"motion.X", "motion.Y"}, path);
-        for (float& d : depth) d = float(d / far);
-        std::vector<float> albedo, ids, previousDepth;
-        infer::TaaFrame f;
-        f.width = frame.width, f.height = frame.height;
-        f.colour = colour.data(), f.depth = depth.data(), f.motion = motion.data();
-        if (options.improved || !stages.empty()) {
-            ids = channelsOf(frame, {"id.ID"}, path);
-            f.ids = ids.data();
+        const infer::Frame frame = data.frame();
+        out.resize(data.colour.size());
+        filter->apply(frame, out.data());
+        nlohmann::json stageTimes = nlohmann::json::array();
+        std::vector<const infer::Filter*> stages = filter->stages();
+        if (stages.empty()) stages.push_back(filter.get());
+        for (const infer::Filter* stage : stages)
+            stageTimes.push_back({{"method", stage->name()},
+                                  {"ms", stage->figures().ms},
+                                  {"processed_fraction", stage->figures().processedFraction}});
+        Image result(image.width, image.height, data.colourNames, image.storage);
+        result.pixels.swap(out);
+        requireFiniteOutput(result, pair.input, methods);
+        bool decode = false;
+        result.storage = outputStorage(pair.output, image.storage, &decode);
+        if (decode) decodeColour(result);
+        nlohmann::json record = {{"input", pair.input},        {"output", pair.output},
+                                 {"width", image.width},       {"height", image.height},
+                                 {"ms", filter->figures().ms}, {"stages", stageTimes}};
+        if (temporal) {
+            record["frame"] = fs::path(pair.output).filename().string();
+            record["history_reset"] = cut;
         }
-        if (options.improved) {
-            albedo = channelsOf(frame, {"albedo.R", "albedo.G", "albedo.B"}, path, true);
-            previousDepth = channelsOf(frame, {"prevdepth.Z"}, path);
-            for (float& d : previousDepth) d = float(d / far);
-            f.albedo = albedo.data(), f.previousDepth = previousDepth.data();
-        }
-        out.resize(colour.size());
-        const Stopwatch clock;
-        taa.apply(f, out.data());
-        nlohmann::json stageTimes =
-            nlohmann::json::array({{{"method", taaMethod}, {"ms", clock.elapsedMs()}}});
-        for (ImageStage& stage : stages) {
-            const Stopwatch stageClock;
-            stage.apply(out, frame.width, frame.height, 3, {depth.data(), ids.data()});
-            stageTimes.push_back({{"method", stage.name},
-                                  {"ms", stageClock.elapsedMs()},
-                                  {"processed_fraction", stage.lastFraction}});
-        }
-        const double ms = clock.elapsedMs();
-        Image result(frame.width, frame.height, {"R", "G", "B"}, PixelType::UInt8);
-        result.pixels = out;
-        const std::string name = fs::path(path).stem().string() + ".png";
-        if (lastWrite.valid()) lastWrite.get();
-        lastWrite = writeBehind((fs::path(args.output) / name).string(), std::move(result));
-        timings.push_back({{"frame", name}, {"ms", ms}, {"stages", stageTimes}, {"history_reset", cut}});
+        frames.push_back(record);
+        if (lastWrite.valid()) lastWrite.get();  // the previous frame's write error, if any, first
+        makeParentFolder(pair.output);
+        lastWrite = writeBehind(pair.output, std::move(result));
         progress.advance(1);
     }
     lastWrite.get();
     progress.finish();
-    if (args.json)
-        std::printf("%s\n", nlohmann::json{{"method", args.chain.empty() ? args.method : args.chain},
-                                           {"frames", timings}}
-                                .dump()
-                                .c_str());
+    if (!args.json) return;
+    nlohmann::json summary;
+    if (frames.size() == 1 && !temporal) {
+        summary = frames[0];
+        summary["processed_fraction"] = filter->figures().processedFraction;
+        for (const auto& [name, value] : filter->figures().extra) summary[name] = value;
+        for (const auto& [name, value] : filter->figures().settings) summary[name] = value;
+    } else {
+        summary["frames"] = frames;
+    }
+    summary["method"] = methods;
+    if (usesDepth) summary["depth_far"] = {{"value", far}, {"from", farSource}};
+    std::printf("%s\n", summary.dump().c_str());
 }
 
-void runFilter(const FilterArguments& args) {
-    applyRuntimeOptions(args.runtime);
-    if (args.method.empty() == args.chain.empty()) throw Error("give --method M or --chain M1,M2,...");
-    std::vector<std::string> methods;
-    if (!args.method.empty()) {
-        methods.push_back(args.method);
-    } else {
-        methods = splitList(args.chain);
-        if (methods.empty()) throw Error("--chain is empty");
-        if (std::count(args.chain.begin(), args.chain.end(), ',') + 1 != std::ptrdiff_t(methods.size()))
-            throw Error("--chain '" + args.chain + "' has an empty method (two commas, or one at an end)");
+// The method flags the user gave, as the parameters of infer/filter.h (the factory refuses any that
+// no method of the chain reads).
+struct MethodFlag {
+    const char* flag;
+    const char* parameter;
+};
+constexpr MethodFlag kMethodFlags[] = {
+    {"--model", "model"},
+    {"--gate", "gate"},
+    {"--tile", "tile"},
+    {"--precision", "precision"},
+    {"--preset", "preset"},
+    {"--green-luma", "green-luma"},
+    {"--no-sharpen", "sharpen"},
+    {"--motion-blur", "motion-blur"},
+    {"--motion-blur-scale", "motion-blur-scale"},
+};
+
+void collectParameters(CLI::App& command, FilterArguments& args) {
+    for (const MethodFlag& f : kMethodFlags) {
+        if (command.get_option(f.flag)->count() == 0) continue;
+        const std::string flag = f.flag;
+        std::string value;
+        if (flag == "--model")
+            value = args.model;
+        else if (flag == "--gate")
+            value = args.gate;
+        else if (flag == "--tile")
+            value = std::to_string(args.tile);
+        else if (flag == "--precision")
+            value = args.precision;
+        else if (flag == "--preset")
+            value = std::to_string(args.preset);
+        else if (flag == "--green-luma")
+            value = "true";
+        else if (flag == "--no-sharpen")
+            value = "false";
+        else if (flag == "--motion-blur")
+            value = "true";
+        else if (flag == "--motion-blur-scale")
+            value = std::to_string(args.motionBlurScale);
+        args.parameters.set(f.parameter, value, flag);
     }
-    std::string taaMethod;
-    std::vector<ImageStage> stages;  // built (models loaded and checked) before any input is read
-    for (size_t i = 0; i < methods.size(); ++i) {
-        if (methods[i] == "taa" || methods[i] == "taa-sobel") {
-            if (i != 0) throw Error("--chain: TAA needs the rendered buffers, so it must come first");
-            taaMethod = methods[i];
-        } else {
-            stages.push_back(makeStage(methods[i], args));
-        }
+    for (const std::string& s : args.settings) args.parameters.setAssignment(s);
+}
+
+void listMethods(bool json) {
+    if (!json) {
+        std::printf("%s", infer::describeMethods().c_str());
+        return;
     }
-    if (!taaMethod.empty()) return runTaaChain(args, taaMethod, stages);
-    runImageChain(args, stages);
+    nlohmann::json list = nlohmann::json::array();
+    for (const infer::MethodSpec& m : infer::filterMethods()) {
+        nlohmann::json parameters = nlohmann::json::array();
+        for (const infer::ParameterSpec& p : m.parameters)
+            parameters.push_back({{"name", p.name}, {"default", p.defaultValue}, {"help", p.help}});
+        list.push_back({{"name", m.name},
+                        {"summary", m.summary},
+                        {"temporal", m.temporal},
+                        {"needs", infer::bufferList(m.needs)},
+                        {"uses", infer::bufferList(m.optional)},
+                        {"parameters", parameters}});
+    }
+    std::printf("%s\n", list.dump(2).c_str());
 }
 
 }  // namespace
@@ -488,8 +454,15 @@ void registerFilterCommand(CLI::App& app) {
     auto args = std::make_shared<FilterArguments>();
     CLI::App* command = app.add_subcommand(
         "filter", "anti-alias images and sequences: FXAA 3.11, the CNN, U-TAA, T-TAA, alone or chained");
-    command->add_option("--method", args->method, "fxaa | cnn | taa | taa-sobel");
-    command->add_option("--chain", args->chain, "methods in order, e.g. taa,cnn or fxaa,cnn");
+    command->add_option("--method", args->method, "fxaa | cnn | taa | taa-sobel (--list-methods)");
+    command->add_option("--chain", args->chain,
+                        "methods in order, each filtering the one before: taa,cnn or fxaa,cnn");
+    command->add_flag("--list-methods", args->listMethods,
+                      "print every method with its parameters, their defaults and the buffers it needs");
+    command
+        ->add_option("--set", args->settings,
+                     "a method parameter NAME=VALUE (repeatable; --list-methods names them, e.g. subpix=0.5)")
+        ->allow_extra_args(false);
     command
         ->add_option(
             "--model", args->model,
@@ -521,38 +494,62 @@ void registerFilterCommand(CLI::App& app) {
     command->add_option(
         "--cuts", args->cuts,
         "TAA: frame numbers that start a new shot (history restarts; also at a gap in the numbering)");
-    command->add_option("input", args->input, "image, folder of images, or sequence pattern (frame_%04d.png)")
-        ->required();
     command
-        ->add_option("output", args->output, "image, folder or pattern (bit depth and extra channels kept)")
-        ->required();
+        ->add_option("--channels", args->channelPreset,
+                     "the channel names of the input files: dejag (dejag render's) | blender (a Blender "
+                     "multilayer EXR of view layer ViewLayer)")
+        ->capture_default_str();
+    command
+        ->add_option("--channel", args->channels,
+                     "one buffer's channels, BUFFER=NAME[,NAME...] (repeatable): color=R,G,B, "
+                     "albedo=..., depth=Z, motion=X,Y (a leading - negates), id=..., prevdepth=...")
+        ->allow_extra_args(false);
+    command
+        ->add_option("--depth-far", args->depthFar,
+                     "divide depth by this far plane (default: render.json's, else the first frame's largest "
+                     "finite depth)")
+        ->check(CLI::Range(1e-9, 1e30));
+    command->add_option("input", args->input,
+                        "image, folder of images, or sequence pattern (frame_%04d.exr)");
+    command->add_option("output", args->output,
+                        "image, folder or pattern (out/f_%04d.exr); its extension decides what it holds");
     command->add_flag("--json", args->json, "print per-frame timing (and gating) as JSON");
     command->add_flag("--quiet", args->quiet, "no progress bar");
     addRuntimeOptions(command, args->runtime);
     command->footer(
-        "INPUT/OUTPUT: single images (PNG, JPEG, TIFF, EXR), folders (every image, same names), or "
+        "INPUT/OUTPUT: single images (PNG, JPEG, TIFF, EXR), folders (every image, same names), "
         "printf-style\n"
-        "sequences (frame_%04d.png: every number that exists, in order; a gap is an error). Files are\n"
-        "written atomically, and hidden files are not frames;\n"
-        "a sequence reads one frame ahead and writes one behind while it filters (the ms of --json share "
-        "the cores\n"
-        "with that file I/O; dejag bench quality times the filters alone).\n"
-        "FXAA and the CNN run on sRGB-encoded colour: 8/16-bit inputs as they are, half/float (linear) "
-        "inputs\n"
-        "encoded for the filter and decoded back; OUTPUT's format decides what it holds (EXR linear, PNG "
-        "sRGB).\nFXAA constants: subpix 0.75, edge threshold 0.166, min "
-        "0.0833.\n"
-        "CNN: a trained model (models/*.safetensors, see models/*.md) run in tiles with a receptive-field "
-        "halo,\n"
-        "only on tiles with a luma step above the gate (auto = 0.04); skipped tiles pass through unchanged.\n"
-        "TAA (taa = the baseline U-TAA, taa-sobel = T-TAA of docs/taa.md): INPUT is a folder written by\n"
-        "dejag render --jitter halton16 --buffers color,albedo,depth,motion,id,prevdepth; OUTPUT a folder\n"
-        "of sRGB PNGs, one per frame. History starts with the first frame and restarts at each --cuts frame "
+        "sequences (frame_%04d.exr: every number that exists, in order; a gap is an error), or a folder\n"
+        "written by dejag render (its frame_NNNN.exr, its render.json for the far plane and the jitter).\n"
+        "Files are written atomically, and hidden files are not frames; a sequence reads one frame ahead "
         "and\n"
-        "where the frame numbers skip. In a chain TAA comes first.");
-    command->callback([args] {
-        args->model = shippedModelPath(args->model);  // the shipped network from any directory
-        runFilter(*args);
+        "writes one behind while it filters (the ms of --json share the cores with that file I/O).\n"
+        "Every method runs on sRGB-encoded colour: 8/16-bit inputs as they are, half/float (linear) inputs\n"
+        "encoded for the methods; OUTPUT's format decides what it holds (EXR linear light, PNG 16-bit and\n"
+        "JPEG 8-bit sRGB from a linear input; an integer input keeps its bit depth).\n"
+        "Buffers: colour plus albedo, depth, motion, id and prevdepth, read from the channels --channels "
+        "and\n"
+        "--channel name (default dejag render's: albedo.R.., depth.Z, motion.X/Y, id.ID, prevdepth.Z); a\n"
+        "method missing one names the channel it looked for. Depth is divided by the far plane.\n"
+        "TAA (taa = U-TAA, taa-sobel = T-TAA of docs/taa.md) needs depth and motion (T-TAA albedo, id and\n"
+        "prevdepth too); its history starts with the first frame and restarts at each --cuts frame and "
+        "where\n"
+        "the frame numbers skip. A method that reads buffers writes colour (and alpha) only.\n"
+        "CNN: a trained model (models/*.safetensors, see models/*.md) run in tiles with a receptive-field\n"
+        "halo, only on tiles with a luma step above the gate (auto = 0.04), an id change or a depth jump.\n"
+        "Every parameter of every method: dejag filter --list-methods.");
+    command->callback([args, command] {
+        if (args->listMethods) return listMethods(args->json);
+        applyRuntimeOptions(args->runtime);
+        if (args->input.empty() || args->output.empty())
+            throw Error("give INPUT and OUTPUT (or --list-methods)");
+        if (args->method.empty() == args->chain.empty()) throw Error("give --method M or --chain M1,M2,...");
+        if (!args->chain.empty() && splitList(args->chain).empty()) throw Error("--chain is empty");
+        if (!args->chain.empty() && std::count(args->chain.begin(), args->chain.end(), ',') + 1 !=
+                                        std::ptrdiff_t(splitList(args->chain).size()))
+            throw Error("--chain '" + args->chain + "' has an empty method (two commas, or one at an end)");
+        collectParameters(*command, *args);
+        runFilter(*args, args->method.empty() ? args->chain : args->method);
     });
 }
 

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <atomic>
 #include <cmath>
+#include <cstdlib>
 #include <utility>
 
 #include "base/error.h"
@@ -383,6 +384,77 @@ void CnnFilter::apply(const float* in, float* out, int width, int height, int ch
         const double made = double(cy1 - cy0) * double(RW);  // the rows made, halo columns included
         m.processedPixels += made, m.passedPixels += made * plan.passedThroughFraction();
     }
+}
+
+namespace {
+
+class CnnMethodFilter final : public Filter {
+  public:
+    CnnMethodFilter(CnnFilter cnn, std::string model, std::string gate)
+        : Filter("cnn"), cnn_(std::move(cnn)) {
+        figures_.settings = {{"model", std::move(model)},
+                             {"gate", std::move(gate)},
+                             {"precision", precisionName(cnn_.options().precision)}};
+    }
+    BufferSet needs() const override { return 0; }
+    BufferSet uses() const override { return Buffer::Depth | Buffer::Ids; }
+
+  private:
+    void process(const Frame& frame, float* out) override {
+        cnn_.apply(frame.colour, out, frame.width, frame.height, frame.channels, {frame.depth, frame.ids});
+        figures_.processedFraction = cnn_.processedFraction();
+        figures_.extra = {{"tiles", double(cnn_.tileCount())},
+                          {"tiles_processed", double(cnn_.tilesProcessed())},
+                          {"passed_through_fraction", cnn_.passedThroughFraction()}};
+    }
+    CnnFilter cnn_;
+};
+
+}  // namespace
+
+MethodSpec cnnMethod() {
+    const CnnOptions d;
+    MethodSpec spec;
+    spec.name = "cnn";
+    spec.summary =
+        "a trained network (models/*.safetensors, see models/*.md) run in tiles with a receptive-field "
+        "halo, only where a luma step (or an id change or depth jump) can hold aliasing";
+    spec.parameters = {
+        {"model", "models/dejag-fast.safetensors", "the model file"},
+        {"gate", "auto", "off | auto (0.04) | T: run the tiles whose luma steps exceed T in [0, 1]"},
+        {"tile", std::to_string(d.tileSize), "tile side in pixels, 16..4096"},
+        {"precision", "auto", "fp32 | bf16 (AVX-512 BF16 CPUs) | auto (bf16 where the CPU has it)"},
+        {"pass-span", "0.0009765625",
+         "gated, a kernel-predicting network passes through runs of pixels it could move by at most this (0: "
+         "off)"},
+    };
+    spec.optional = Buffer::Depth | Buffer::Ids;
+    spec.make = [](MethodParameters& p) -> std::unique_ptr<Filter> {
+        CnnOptions options;
+        options.tileSize = p.integer("tile", 16, 4096);
+        options.passSpan = float(p.number("pass-span", 0, 1));
+        const std::string precision = p.text("precision");
+        options.precision = cnnPrecision(precision);  // its errors name --precision
+        const std::string gate = p.text("gate");
+        if (gate == "off") {
+            options.gate = false;
+        } else if (gate != "auto") {
+            const std::string bad =
+                p.origin("gate") + ": '" + gate + "' is not off, auto or a luma threshold in [0, 1]";
+            char* end = nullptr;
+            const double t = std::strtod(gate.c_str(), &end);
+            if (gate.empty() || *end != '\0' || !(t >= 0 && t <= 1)) throw Error(bad);
+            options.gateThreshold = float(t);
+        }
+        const std::string path = p.path("model");
+        nn::Model model = nn::loadModel(path);
+        try {
+            return std::make_unique<CnnMethodFilter>(CnnFilter(std::move(model), options), path, gate);
+        } catch (const Error& e) {
+            throw Error("--model '" + path + "': " + e.what());
+        }
+    };
+    return spec;
 }
 
 }  // namespace dejag::infer

@@ -20,6 +20,7 @@
 #include <string>
 #include <vector>
 
+#include "infer/filter.h"
 #include "nn/inference.h"
 #include "nn/model.h"
 
@@ -86,5 +87,9 @@ struct ReceptiveField {
     int stride = 1;
 };
 ReceptiveField receptiveField(const nn::Model& model);
+
+// The method "cnn" of infer/filter.h: parameters model, gate (off | auto | a luma threshold), tile,
+// precision, pass-span; uses the depth and id buffers for gating when the frame has them.
+MethodSpec cnnMethod();
 
 }  // namespace dejag::infer

@@ -133,4 +133,52 @@ void Fxaa::applyInPlace(float* frame, int width, int height, int channels) {
     });
 }
 
+namespace {
+
+class FxaaFilter final : public Filter {
+  public:
+    explicit FxaaFilter(const FxaaOptions& options) : Filter("fxaa"), fxaa_(options) {
+        figures_.settings = {{"preset", std::to_string(options.preset)}};
+    }
+    BufferSet needs() const override { return 0; }
+
+  private:
+    void process(const Frame& frame, float* out) override {
+        fxaa_.apply(frame.colour, out, frame.width, frame.height, frame.channels);
+        figures_.processedFraction = fxaa_.processedFraction();
+    }
+    Fxaa fxaa_;
+};
+
+}  // namespace
+
+MethodSpec fxaaMethod() {
+    const FxaaOptions d;
+    MethodSpec spec;
+    spec.name = "fxaa";
+    spec.summary = "FXAA 3.11 quality (Lottes 2011): edge search along luma steps, one frame, no buffers";
+    spec.parameters = {
+        {"preset", std::to_string(d.preset), "quality preset: 12, 23 or 39 (the search steps)"},
+        {"green-luma", d.greenAsLuma ? "true" : "false",
+         "use green as luma instead of 0.299 R + 0.587 G + 0.114 B"},
+        {"subpix", "0.75", "amount of sub-pixel aliasing removal, [0, 1]"},
+        {"edge-threshold", "0.166", "minimum local contrast relative to the local maximum, [0, 1]"},
+        {"edge-threshold-min", "0.0833", "minimum absolute local contrast (skips dark areas), [0, 1]"},
+    };
+    spec.make = [](MethodParameters& p) -> std::unique_ptr<Filter> {
+        FxaaOptions options;
+        options.preset = p.integer("preset", 0, 99);
+        options.greenAsLuma = p.flag("green-luma");
+        options.subpix = float(p.number("subpix", 0, 1));
+        options.edgeThreshold = float(p.number("edge-threshold", 0, 1));
+        options.edgeThresholdMin = float(p.number("edge-threshold-min", 0, 1));
+        try {
+            return std::make_unique<FxaaFilter>(options);
+        } catch (const Error& e) {
+            throw Error(p.origin("preset") + ": " + e.what());
+        }
+    };
+    return spec;
+}
+
 }  // namespace dejag::infer

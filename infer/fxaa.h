@@ -10,6 +10,8 @@
 #include <cstdint>
 #include <vector>
 
+#include "infer/filter.h"
+
 namespace dejag::infer {
 
 struct FxaaOptions {
@@ -52,5 +54,9 @@ class Fxaa {
     std::vector<float> luma_;  // luma plane, padded rows (infer/fxaa_kernels.h)
     double processedFraction_ = 0;
 };
+
+// The method "fxaa" of infer/filter.h: parameters preset, green-luma, subpix, edge-threshold,
+// edge-threshold-min (FxaaOptions); no buffers.
+MethodSpec fxaaMethod();
 
 }  // namespace dejag::infer

@@ -81,4 +81,83 @@ void Taa::blurAlongMotion(const TaaFrame& f, float* out) {
     });
 }
 
+namespace {
+
+class TaaFilter final : public Filter {
+  public:
+    TaaFilter(const TaaOptions& options, BufferSet needs)
+        : Filter(options.improved ? "taa-sobel" : "taa"), taa_(options), needs_(needs) {}
+    BufferSet needs() const override { return needs_; }
+    bool temporal() const override { return true; }
+    void reset() override { taa_.reset(); }
+
+  private:
+    void process(const Frame& frame, float* out) override {
+        TaaFrame f;
+        f.width = frame.width, f.height = frame.height;
+        f.albedo = frame.albedo, f.depth = frame.depth, f.motion = frame.motion, f.ids = frame.ids;
+        f.previousDepth = frame.previousDepth;
+        const size_t pixels = size_t(frame.width) * size_t(frame.height), C = size_t(frame.channels);
+        if (C == 3) {
+            f.colour = frame.colour;
+            taa_.apply(f, out);
+            return;
+        }
+        // TAA works on R G B alone: the other channels pass through.
+        rgb_.resize(pixels * 3), result_.resize(pixels * 3);
+        parallelFor(0, int64_t(pixels), 1 << 14, [&](int64_t first, int64_t last) {
+            for (size_t p = size_t(first); p < size_t(last); ++p)
+                for (size_t c = 0; c < 3; ++c) rgb_[p * 3 + c] = frame.colour[p * C + c];
+        });
+        f.colour = rgb_.data();
+        taa_.apply(f, result_.data());
+        parallelFor(0, int64_t(pixels), 1 << 14, [&](int64_t first, int64_t last) {
+            for (size_t p = size_t(first); p < size_t(last); ++p)
+                for (size_t c = 0; c < C; ++c)
+                    out[p * C + c] = c < 3 ? result_[p * 3 + c] : frame.colour[p * C + c];
+        });
+    }
+    Taa taa_;
+    BufferSet needs_;
+    std::vector<float> rgb_, result_;
+};
+
+}  // namespace
+
+MethodSpec taaMethod(bool improved) {
+    const TaaOptions d;
+    MethodSpec spec;
+    spec.name = improved ? "taa-sobel" : "taa";
+    spec.summary =
+        improved ? "T-TAA (docs/taa.md): U-TAA with a stabilised Sobel of albedo, luma and depth, id and "
+                   "depth pseudo-variances and a normalised sharpen"
+                 : "U-TAA (docs/taa.md): reprojected history blended with the jittered frame, "
+                   "clipped to the 3x3 colour box (the Uncharted 4 / INSIDE baseline)";
+    spec.parameters = {
+        {"sharpen", "true", "the final sharpen (docs/infer.md)"},
+        {"motion-blur", "false", "blur the output along the motion vectors (docs/taa.md step 7)"},
+        {"motion-blur-scale", "1", "motion blur length: the frame rate over the target frame rate, [0, 100]"},
+        {"feedback-min", "0.925", "history weight where current and history lumas differ"},
+        {"feedback-max", "0.979", "history weight where they agree (below 1)"},
+        {"depth-threshold", "0.002", "pseudo-variances vanish below this 3x3 depth spread (depth / far)"},
+    };
+    spec.needs = improved
+                     ? Buffer::Depth | Buffer::Motion | Buffer::Albedo | Buffer::Ids | Buffer::PreviousDepth
+                     : Buffer::Depth | Buffer::Motion;
+    spec.temporal = true;
+    const BufferSet needs = spec.needs;
+    spec.make = [improved, needs](MethodParameters& p) -> std::unique_ptr<Filter> {
+        TaaOptions options;
+        options.improved = improved;
+        options.sharpen = p.flag("sharpen");
+        options.motionBlur = p.flag("motion-blur");
+        options.motionBlurScale = float(p.number("motion-blur-scale", 0, 100));
+        options.feedbackMin = float(p.number("feedback-min", 0, 1));
+        options.feedbackMax = float(p.number("feedback-max", 0, 1));
+        options.depthThreshold = float(p.number("depth-threshold", 0, 1));
+        return std::make_unique<TaaFilter>(options, needs);
+    };
+    return spec;
+}
+
 }  // namespace dejag::infer

@@ -12,6 +12,8 @@
 #include <cstdint>
 #include <vector>
 
+#include "infer/filter.h"
+
 namespace dejag::infer {
 
 struct TaaOptions {
@@ -63,5 +65,10 @@ class Taa {
     std::vector<float> unblurred_;              // the output before the motion blur (when on)
     int bands_ = 0;
 };
+
+// The methods "taa" (U-TAA) and "taa-sobel" (T-TAA) of infer/filter.h: parameters sharpen, motion-blur,
+// motion-blur-scale, feedback-min, feedback-max, depth-threshold (TaaOptions); they need depth and
+// motion, T-TAA albedo, ids and the previous depth as well.
+MethodSpec taaMethod(bool improved);
 
 }  // namespace dejag::infer

@@ -335,7 +335,7 @@ TEST(Cli, FilterFxaaKeepsBitDepthAndAlphaAndRefusesWhatItCannotDo) {
         run("filter --method blur '" + dir.file("edge.png") + "' '" + dir.file("t.png") + "'", dir), "blur");
     expectOneLineError(
         run("filter --method taa '" + dir.file("edge.png") + "' '" + dir.file("t.png") + "'", dir),
-        "folder written by dejag render");
+        "no channel depth.Z");
     expectOneLineError(
         run("filter --method fxaa --preset 7 '" + dir.file("edge.png") + "' '" + dir.file("t.png") + "'",
             dir),
@@ -414,7 +414,7 @@ TEST(Cli, FilterTaaRunsOverARenderedSequence) {
         EXPECT_EQ(nlohmann::json::parse(r.out)["frames"].size(), 5u);
         const Image last = readImage(out + method + "/frame_0004.png");
         EXPECT_EQ(last.width, 64);
-        EXPECT_EQ(last.storage, PixelType::UInt8);
+        EXPECT_EQ(last.storage, PixelType::UInt16) << "a PNG from linear light keeps 16 bits";
     }
     // A cut restarts the history: with --cuts 3 frame 3 comes out as if the sequence began there, and
     // a gap in the numbering is a cut too.
@@ -454,6 +454,148 @@ TEST(Cli, FilterTaaRunsOverARenderedSequence) {
               0);
     expectOneLineError(run("filter --method taa-sobel '" + colourOnly + "' '" + dir.file("o") + "'", dir),
                        "depth.Z");
+}
+
+// Any EXR sequence feeds any method: a dejag render sequence with its channels renamed as Blender names
+// its passes (and its motion stored the Blender way round) filters to the same frames as the original,
+// OUTPUT's pattern and extension are honoured for TAA too, and a channel that is not there is one line.
+TEST(Cli, FilterRunsAnyExrSequenceWithItsChannelsNamed) {
+    testing::TempDir dir;
+    const std::string frames = dir.file("frames");
+    ASSERT_EQ(run("render --scene corridor --size 48x32 --frames 4 --jitter halton16 "
+                  "--buffers color,albedo,depth,motion,id,prevdepth --quiet --out '" +
+                      frames + "'",
+                  dir)
+                  .exitCode,
+              0);
+    RunResult r =
+        run("filter --method taa --quiet '" + frames + "' '" + dir.file("own/t_%04d.exr") + "'", dir);
+    ASSERT_EQ(r.exitCode, 0) << r.err;
+    const Image own = readImage(dir.file("own/t_0003.exr"));
+    EXPECT_TRUE(holdsLinearLight(own.storage)) << "an EXR holds linear light";
+    EXPECT_EQ(own.channelList(), "R,G,B");
+    // The same frames as Blender would name them, in a folder without render.json.
+    std::ifstream sidecar(frames + "/render.json");
+    const double far = nlohmann::json::parse(sidecar)["depth_far"].get<double>();
+    std::filesystem::create_directories(dir.file("blend"));
+    for (int i = 0; i < 4; ++i) {
+        char name[32];
+        std::snprintf(name, sizeof name, "frame_%04d.exr", i);
+        Image frame = readImage(frames + "/" + name);
+        for (std::string& channel : frame.channelNames) {
+            if (channel == "R" || channel == "G" || channel == "B")
+                channel = "ViewLayer.Combined." + channel;
+            else if (channel == "depth.Z")
+                channel = "ViewLayer.Depth.Z";
+            else if (channel == "motion.X")
+                channel = "ViewLayer.Vector.X";
+            else if (channel == "motion.Y")
+                channel = "ViewLayer.Vector.Y";
+            else if (channel == "albedo.R" || channel == "albedo.G" || channel == "albedo.B")
+                channel = "ViewLayer.DiffCol." + channel.substr(7);
+            else if (channel == "id.ID")
+                channel = "ViewLayer.IndexOB.X";
+        }
+        const int vx = frame.findChannel("ViewLayer.Vector.X");
+        for (size_t p = 0; p < frame.pixelCount(); ++p)
+            frame.pixels[p * size_t(frame.channels()) + size_t(vx)] *= -1;
+        std::snprintf(name, sizeof name, "shot.%03d.exr", i + 10);
+        writeImage(dir.file("blend/") + name, frame);
+    }
+    std::ostringstream farText;
+    farText.precision(17);
+    farText << far;
+    r = run("filter --method taa --channels blender --depth-far " + farText.str() + " --json '" +
+                dir.file("blend/shot.%03d.exr") + "' '" + dir.file("out/f_%04d.exr") + "'",
+            dir);
+    ASSERT_EQ(r.exitCode, 0) << r.err;
+    const nlohmann::json j = nlohmann::json::parse(r.out);
+    ASSERT_EQ(j["frames"].size(), 4u);
+    EXPECT_EQ(j["frames"][3]["output"], dir.file("out/f_0013.exr"));
+    EXPECT_EQ(j["depth_far"]["from"], "--depth-far");
+    const Image blender = readImage(dir.file("out/f_0013.exr"));
+    EXPECT_EQ(blender.channelList(), "ViewLayer.Combined.R,ViewLayer.Combined.G,ViewLayer.Combined.B");
+    EXPECT_EQ(blender.pixels, own.pixels) << "the same frames under other names filter the same";
+    // PNG by the pattern's extension; FXAA on the same files with the colour named one by one.
+    r = run("filter --method taa --channels blender --quiet '" + dir.file("blend/shot.%03d.exr") + "' '" +
+                dir.file("png/f_%04d.png") + "'",
+            dir);
+    ASSERT_EQ(r.exitCode, 0) << r.err;
+    EXPECT_EQ(readImage(dir.file("png/f_0012.png")).storage, PixelType::UInt16);
+    r =
+        run("filter --method fxaa --quiet --channel color=ViewLayer.Combined.R,ViewLayer.Combined.G,"
+            "ViewLayer.Combined.B '" +
+                dir.file("blend/shot.%03d.exr") + "' '" + dir.file("fxaa/f_%04d.exr") + "'",
+            dir);
+    ASSERT_EQ(r.exitCode, 0) << r.err;
+    {
+        // The buffers ride along untouched: only R G B are encoded for the method and decoded back.
+        const Image in = readImage(dir.file("blend/shot.011.exr")),
+                    out = readImage(dir.file("fxaa/f_0011.exr"));
+        ASSERT_EQ(out.channels(), in.channels());
+        for (const char* name : {"ViewLayer.DiffCol.R", "ViewLayer.Depth.Z", "ViewLayer.Vector.X"}) {
+            const int a = in.findChannel(name), b = out.findChannel(name);
+            ASSERT_GE(b, 0) << name;
+            for (size_t p = 0; p < in.pixelCount(); ++p)
+                ASSERT_EQ(out.pixels[p * size_t(out.channels()) + size_t(b)],
+                          in.pixels[p * size_t(in.channels()) + size_t(a)])
+                    << name;
+        }
+    }
+    // Without render.json the far plane is the largest finite depth of the first frame.
+    r = run("filter --method taa --channels blender --json '" + dir.file("blend/shot.%03d.exr") + "' '" +
+                dir.file("auto/f_%04d.exr") + "'",
+            dir);
+    ASSERT_EQ(r.exitCode, 0) << r.err;
+    EXPECT_GT(nlohmann::json::parse(r.out)["depth_far"]["value"].get<double>(), 0.0);
+    // A channel that is not there, a buffer the method needs and dejag's names on Blender's files.
+    expectOneLineError(run("filter --method taa --channels blender --channel depth=ViewLayer.Z '" +
+                               dir.file("blend/shot.%03d.exr") + "' '" + dir.file("x/f_%04d.exr") + "'",
+                           dir),
+                       "has no channel ViewLayer.Z for the depth buffer");
+    expectOneLineError(run("filter --method taa '" + dir.file("blend/shot.%03d.exr") + "' '" +
+                               dir.file("x/f_%04d.exr") + "'",
+                           dir),
+                       "no colour channel R");
+    expectOneLineError(run("filter --method taa --channel normal=N '" + dir.file("blend/shot.%03d.exr") +
+                               "' '" + dir.file("x/f_%04d.exr") + "'",
+                           dir),
+                       "--channel");
+    EXPECT_FALSE(std::filesystem::exists(dir.file("x")));
+}
+
+// The method table: --list-methods prints each method, its parameters and buffers; a parameter no method
+// of the chain reads is refused before any input is read.
+TEST(Cli, FilterListsItsMethodsAndRefusesParametersNoMethodReads) {
+    testing::TempDir dir;
+    RunResult r = run("filter --list-methods", dir);
+    ASSERT_EQ(r.exitCode, 0) << r.err;
+    for (const char* text : {"fxaa\n", "cnn\n", "taa  (temporal", "taa-sobel  (temporal", "preset = 39",
+                             "gate = auto", "needs: depth, motion", "feedback-max = 0.979"})
+        EXPECT_NE(r.out.find(text), std::string::npos) << text;
+    r = run("filter --list-methods --json", dir);
+    ASSERT_EQ(r.exitCode, 0) << r.err;
+    EXPECT_EQ(nlohmann::json::parse(r.out).size(), 4u);
+    Image edge(24, 20, {"R", "G", "B"}, PixelType::UInt8);
+    for (int y = 0; y < 20; ++y)
+        for (int x = 0; x < 24; ++x)
+            for (int c = 0; c < 3; ++c) edge.at(x, y, c) = y > 0.4 * x + 5 ? 1.0f : 0.0f;
+    writeImage(dir.file("edge.png"), edge);
+    expectOneLineError(
+        run("filter --method cnn --preset 12 '" + dir.file("edge.png") + "' '" + dir.file("o.png") + "'",
+            dir),
+        "--preset: cnn has no parameter 'preset'");
+    expectOneLineError(run("filter --method fxaa --set subpixel=0.5 '" + dir.file("edge.png") + "' '" +
+                               dir.file("o.png") + "'",
+                           dir),
+                       "--set subpixel=0.5");
+    r = run("filter --method fxaa --set subpix=0.25 --set edge-threshold=0.2 --json '" +
+                dir.file("edge.png") + "' '" + dir.file("o.png") + "'",
+            dir);
+    ASSERT_EQ(r.exitCode, 0) << r.err;
+    expectOneLineError(
+        run("filter --method fxaa --cuts 3 '" + dir.file("edge.png") + "' '" + dir.file("o.png") + "'", dir),
+        "keeps no history");
 }
 
 TEST(Cli, BenchFilterPrintsEveryMethod) {
@@ -729,7 +871,7 @@ TEST(Cli, FilterRunsFoldersSequencesAndChainsKeepingBitDepthAndAlpha) {
     EXPECT_TRUE(std::filesystem::exists(dir.file("folder-out/frame_0002.png")));
     // Bad chains and sequences are one line.
     expectOneLineError(run("filter --chain fxaa,taa '" + dir.file("in") + "' '" + dir.file("o") + "'", dir),
-                       "first");
+                       "depth.Z");
     expectOneLineError(
         run("filter --method fxaa --chain fxaa '" + dir.file("in") + "' '" + dir.file("o") + "'", dir),
         "--method");
