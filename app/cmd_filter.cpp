@@ -454,7 +454,7 @@ void registerFilterCommand(CLI::App& app) {
     auto args = std::make_shared<FilterArguments>();
     CLI::App* command = app.add_subcommand(
         "filter", "anti-alias images and sequences: FXAA 3.11, the CNN, U-TAA, T-TAA, alone or chained");
-    command->add_option("--method", args->method, "fxaa | cnn | taa | taa-sobel (--list-methods)");
+    command->add_option("--method", args->method, "none | fxaa | cnn | taa | taa-sobel (--list-methods)");
     command->add_option("--chain", args->chain,
                         "methods in order, each filtering the one before: taa,cnn or fxaa,cnn");
     command->add_flag("--list-methods", args->listMethods,

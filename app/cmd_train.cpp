@@ -1,27 +1,35 @@
 // dejag train: trains a network on a dataset (checkpoints, resume, validation, logs, plots) and exports
 // it as a shipped model with its model card.
 #include <cstdio>
+#include <memory>
 #include <sstream>
 
 #include "app/cli.h"
 #include "app/commands.h"
 #include "base/error.h"
-#include "infer/fxaa.h"
+#include "infer/filter.h"
 #include "train/trainer.h"
 
 namespace dejag::cli {
 namespace {
 
+// A method of the filter face as training scores it (sRGB RGB images in and out).
+train::Method filterMethod(const std::string& label, const std::string& method) {
+    std::shared_ptr<infer::Filter> filter = infer::makeFilter(method, {});
+    return {label, [filter](const Image& im) {
+                Image out = im;
+                infer::Frame frame;
+                frame.width = im.width, frame.height = im.height, frame.channels = im.channels();
+                frame.colour = im.pixels.data();
+                filter->apply(frame, out.pixels.data());
+                return out;
+            }};
+}
+
 // The comparison methods of validation and of the model card: the unfiltered frame and FXAA 3.11 at
 // its highest preset (train/ cannot depend on infer/, so they are wired in here).
-std::vector<train::Baseline> standardBaselines() {
-    auto fxaa = std::make_shared<infer::Fxaa>();
-    return {{"no AA", [](const Image& im) { return im; }},
-            {"FXAA", [fxaa](const Image& im) {
-                 Image out = im;
-                 fxaa->applyInPlace(out.pixels.data(), out.width, out.height, out.channels());
-                 return out;
-             }}};
+std::vector<train::Method> standardBaselines() {
+    return {filterMethod("no AA", "none"), filterMethod("FXAA", "fxaa")};
 }
 
 std::vector<int64_t> parseSteps(const std::string& text) {

@@ -8,6 +8,7 @@
 #include <filesystem>
 #include <vector>
 
+#include "base/luma.h"
 #include "base/thread_pool.h"
 #include "base/timer.h"
 #include "nn/inference.h"
@@ -54,8 +55,7 @@ std::vector<float> modelInput(const nn::Model& model, int width, int height) {
     if (model.inputChannels() == 3) return rgb;
     const size_t plane = size_t(width) * size_t(height);
     std::vector<float> luma(plane);
-    for (size_t i = 0; i < plane; ++i)
-        luma[i] = 0.21f * rgb[i] + 0.72f * rgb[plane + i] + 0.07f * rgb[2 * plane + i];
+    for (size_t i = 0; i < plane; ++i) luma[i] = ::dejag::luma(rgb[i], rgb[plane + i], rgb[2 * plane + i]);
     return luma;
 }
 

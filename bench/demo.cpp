@@ -4,6 +4,7 @@
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
+#include <memory>
 
 #include "base/error.h"
 #include "base/progress.h"
@@ -11,7 +12,7 @@
 #include "bench/quality.h"
 #include "data/evaluation.h"
 #include "data/frame_image.h"
-#include "infer/taa.h"
+#include "infer/filter.h"
 #include "render/halton.h"
 #include "render/renderer.h"
 #include "render/scene.h"
@@ -72,10 +73,9 @@ std::vector<json> runDemo(const DemoOptions& options) {
         // median per frame after the first two.
         // As docs/taa.md has them (with their sharpen), and T-TAA without its sharpen (docs/infer.md: the
         // sharpen costs several dB on edge-dense frames).
-        infer::TaaOptions u, t, tFlat;
-        t.improved = true;
-        tFlat.improved = true, tFlat.sharpen = false;
-        infer::Taa taas[3] = {infer::Taa(u), infer::Taa(t), infer::Taa(tFlat)};
+        const std::unique_ptr<infer::Filter> taas[3] = {
+            infer::makeFilter("taa", {}), infer::makeFilter("taa-sobel", {}),
+            infer::makeFilter("taa-sobel", {{"sharpen", "false"}})};
         std::vector<float> outputs[3];
         std::vector<double> times[3];
         for (int i = 0; i < options.historyFrames; ++i) {
@@ -92,15 +92,14 @@ std::vector<json> runDemo(const DemoOptions& options) {
                                      motion = frameChannels(f, 7, 2, false);
             const std::vector<float> ids = frameChannels(f, 9, 1, false),
                                      previousDepth = frameChannels(f, 10, 1, false, 1.0f / far);
-            infer::TaaFrame frame;
+            infer::Frame frame;
             frame.width = W, frame.height = H;
             frame.colour = colour.data(), frame.albedo = albedo.data(), frame.depth = depth.data();
             frame.motion = motion.data(), frame.ids = ids.data(), frame.previousDepth = previousDepth.data();
             for (int k = 0; k < 3; ++k) {
                 outputs[k].resize(colour.size());
-                const Stopwatch clock;
-                taas[k].apply(frame, outputs[k].data());
-                if (i >= 2) times[k].push_back(clock.elapsedMs());
+                taas[k]->apply(frame, outputs[k].data());
+                if (i >= 2) times[k].push_back(taas[k]->figures().ms);
             }
         }
         const char* names[3] = {"U-TAA", "T-TAA", "T-TAA unsharpened"};

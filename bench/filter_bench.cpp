@@ -9,8 +9,7 @@
 #include "base/timer.h"
 #include "bench/bench.h"
 #include "data/frame_image.h"
-#include "infer/fxaa.h"
-#include "infer/taa.h"
+#include "infer/filter.h"
 #include "render/renderer.h"
 
 namespace dejag::bench {
@@ -58,9 +57,9 @@ std::vector<nlohmann::json> benchFilters(const FilterBenchOptions& options) {
     std::vector<float> out(frame.size());
     std::vector<nlohmann::json> rows;
     for (const int preset : {12, 23, 39}) {
-        infer::FxaaOptions fxaaOptions;
-        fxaaOptions.preset = preset;
-        infer::Fxaa fxaa(fxaaOptions);
+        const auto fxaa = infer::makeFilter("fxaa", {{"preset", std::to_string(preset)}});
+        infer::Frame inPlace;
+        inPlace.width = options.width, inPlace.height = options.height, inPlace.colour = out.data();
         for (const int threads : options.threads) {
             setThreadCount(threads);
             // In place, as a frame pipeline runs it; the frame is restored (untimed) before each run.
@@ -68,7 +67,7 @@ std::vector<nlohmann::json> benchFilters(const FilterBenchOptions& options) {
             for (int i = 0; i <= options.repeat; ++i) {
                 std::copy(frame.begin(), frame.end(), out.begin());
                 const Stopwatch clock;
-                fxaa.applyInPlace(out.data(), options.width, options.height, 3);
+                fxaa->apply(inPlace, out.data());
                 if (i > 0) times.push_back(clock.elapsedMs());  // the first run is the warm-up
             }
             const double ms = median(times);
@@ -78,7 +77,7 @@ std::vector<nlohmann::json> benchFilters(const FilterBenchOptions& options) {
                             {"height", options.height},
                             {"ms", ms},
                             {"target_ms", 2.0},
-                            {"processed_fraction", fxaa.processedFraction()},
+                            {"processed_fraction", fxaa->figures().processedFraction},
                             {"floor_ms", floorMs(kFxaaBytesPerPixel, threads)},
                             {"psnr_before", floatPsnr(frame, truth)},
                             {"psnr_after", floatPsnr(out, truth)}});
@@ -93,7 +92,7 @@ std::vector<nlohmann::json> benchFilters(const FilterBenchOptions& options) {
                              depth = frameChannels(all, 6, 1, false, depthScale),
                              motion = frameChannels(all, 7, 2, false), ids = frameChannels(all, 9, 1, false),
                              previousDepth = frameChannels(all, 10, 1, false, depthScale);
-    infer::TaaFrame frameBuffers;
+    infer::Frame frameBuffers;
     frameBuffers.width = options.width, frameBuffers.height = options.height;
     frameBuffers.colour = colour.data(), frameBuffers.albedo = albedo.data(),
     frameBuffers.depth = depth.data();
@@ -114,15 +113,13 @@ std::vector<nlohmann::json> benchFilters(const FilterBenchOptions& options) {
     const std::pair<const char*, const float*> motions[] = {
         {"", motion.data()}, {" zoom", zoom.data()}, {" random motion", random.data()}};
     for (const bool improved : {false, true}) {
-        infer::TaaOptions taaOptions;
-        taaOptions.improved = improved;
         for (const auto& [label, field] : motions) {
-            infer::Taa taa(taaOptions);
+            const auto taa = infer::makeFilter(improved ? "taa-sobel" : "taa", {});
             frameBuffers.motion = field;
             for (const int threads : options.threads) {
                 setThreadCount(threads);
                 const double ms =
-                    medianMilliseconds(options.repeat, [&] { taa.apply(frameBuffers, out.data()); });
+                    medianMilliseconds(options.repeat, [&] { taa->apply(frameBuffers, out.data()); });
                 rows.push_back(
                     {{"name", std::string(improved ? "t-taa" : "u-taa") + label},
                      {"threads", threads},

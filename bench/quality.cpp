@@ -5,7 +5,6 @@
 #include <cstdio>
 #include <filesystem>
 #include <map>
-#include <optional>
 #include <sstream>
 
 #include "base/error.h"
@@ -17,8 +16,7 @@
 #include "data/frame_image.h"
 #include "data/metrics.h"
 #include "data/plot.h"
-#include "infer/cnn.h"
-#include "infer/fxaa.h"
+#include "infer/filter.h"
 #include "nn/model.h"
 #include "render/renderer.h"
 #include "render/scene.h"
@@ -105,61 +103,53 @@ const char* const kKeys[] = {"psnr_whole", "ssim_whole",   "psnr_edge",
 // ---- Single-frame methods -----------------------------------------------------------------------------
 
 struct StillMethods::Impl {
+    // Every row is a filter made by name through the one face (infer/filter.h).
     struct Method {
         std::string name;
-        std::optional<infer::Fxaa> fxaa;        // FXAA, or the first stage of a chain
-        std::unique_ptr<infer::CnnFilter> cnn;  // a network
-        bool identity = false;
+        std::unique_ptr<infer::Filter> filter;
+        bool gated = false;  // a network with its gate on (the note says how much it ran on)
     };
     std::vector<Method> methods;
     std::vector<std::string> notes;
-    std::vector<float> scratch;
+
+    void add(std::string name, const std::string& chain, const infer::FilterParameters& parameters,
+             bool gated = false) {
+        methods.push_back({std::move(name), infer::makeFilter(chain, parameters), gated});
+    }
 
     void apply(Method& m, const Image& in, const float* depth, const float* ids, std::vector<float>& out,
                std::string& note) {
-        const int W = in.width, H = in.height;
         out.resize(in.pixels.size());
-        if (m.identity) {
-            std::copy(in.pixels.begin(), in.pixels.end(), out.begin());
-            return;
-        }
-        const float* source = in.pixels.data();
-        if (m.fxaa) {
-            if (!m.cnn) {
-                m.fxaa->apply(source, out.data(), W, H, 3);
-                return;
-            }
-            scratch.resize(in.pixels.size());
-            m.fxaa->apply(source, scratch.data(), W, H, 3);
-            source = scratch.data();
-        }
-        m.cnn->apply(source, out.data(), W, H, 3, {depth, ids});
+        infer::Frame frame;
+        frame.width = in.width, frame.height = in.height, frame.channels = 3;
+        frame.colour = in.pixels.data(), frame.depth = depth, frame.ids = ids;
+        m.filter->apply(frame, out.data());
+        const infer::FilterFigures& f = m.filter->figures();
+        if (m.filter->stages().empty() && m.filter->name() != "cnn") return;  // no AA, FXAA: no note
+        double passed = 0;
+        for (const auto& [key, value] : f.extra)
+            if (key == "passed_through_fraction") passed = value;
         char text[64];
-        if (m.cnn->options().gate && m.cnn->passedThroughFraction() > 0)  // a kernel-predicting network
+        if (m.gated && passed > 0)  // a kernel-predicting network
             std::snprintf(text, sizeof text, "gated: %.0f %% of tiles, %.0f %% of their pixels passed",
-                          100.0 * m.cnn->processedFraction(), 100.0 * m.cnn->passedThroughFraction());
-        else if (m.cnn->options().gate)
-            std::snprintf(text, sizeof text, "gated: %.0f %% of tiles", 100.0 * m.cnn->processedFraction());
+                          100.0 * f.processedFraction, 100.0 * passed);
+        else if (m.gated)
+            std::snprintf(text, sizeof text, "gated: %.0f %% of tiles", 100.0 * f.processedFraction);
         else
-            std::snprintf(text, sizeof text, "%.0f %% of tiles", 100.0 * m.cnn->processedFraction());
+            std::snprintf(text, sizeof text, "%.0f %% of tiles", 100.0 * f.processedFraction);
         note = text;
     }
 };
 
 StillMethods::StillMethods(const Options& options) : impl_(std::make_unique<Impl>()) {
-    auto& methods = impl_->methods;
-    methods.push_back({"no AA", std::nullopt, nullptr, true});
-    for (int preset : options.fxaaPresets) {
-        Impl::Method m;
-        m.name = options.fxaaPresets.size() == 1 ? "FXAA" : "FXAA " + std::to_string(preset);
-        infer::FxaaOptions o;
-        o.preset = preset;
-        m.fxaa.emplace(o);
-        methods.push_back(std::move(m));
-    }
+    Impl& impl = *impl_;
+    impl.add("no AA", "none", {});
+    for (int preset : options.fxaaPresets)
+        impl.add(options.fxaaPresets.size() == 1 ? "FXAA" : "FXAA " + std::to_string(preset), "fxaa",
+                 {{"preset", std::to_string(preset)}});
     for (const std::string& path : options.models) {
         if (!fs::exists(path)) {
-            impl_->notes.push_back("model " + path + " not found: skipped (make models trains it)");
+            impl.notes.push_back("model " + path + " not found: skipped (make models trains it)");
             continue;
         }
         // Named by the file's stem; two models of the same stem (e.g. a model against its new version)
@@ -174,14 +164,11 @@ StillMethods::StillMethods(const Options& options) : impl_(std::make_unique<Impl
             if (!gate && (!rgb || !options.ungated)) continue;
             if (chain && !options.chains) continue;
             if (bf16 && (!rgb || !options.bf16 || !bf16Available())) continue;
-            Impl::Method m;
-            m.name = chain ? "FXAA > " + name : name + (bf16 ? " bf16" : "") + (gate ? "" : " (ungated)");
-            infer::CnnOptions o;
-            o.gate = gate;
-            if (bf16) o.precision = nn::InferencePrecision::BFloat16;
-            m.cnn = std::make_unique<infer::CnnFilter>(nn::loadModel(path), o);
-            if (chain) m.fxaa.emplace();
-            methods.push_back(std::move(m));
+            impl.add(
+                chain ? "FXAA > " + name : name + (bf16 ? " bf16" : "") + (gate ? "" : " (ungated)"),
+                chain ? "fxaa,cnn" : "cnn",
+                {{"model", path}, {"gate", gate ? "auto" : "off"}, {"precision", bf16 ? "bf16" : "fp32"}},
+                gate);
         }
     }
 }

@@ -3,13 +3,13 @@
 #include <algorithm>
 #include <cmath>
 #include <filesystem>
+#include <memory>
 
 #include "base/progress.h"
 #include "data/frame_image.h"
 #include "data/image.h"
 #include "data/metrics.h"
-#include "infer/fxaa.h"
-#include "infer/taa.h"
+#include "infer/filter.h"
 #include "render/halton.h"
 #include "render/renderer.h"
 
@@ -32,13 +32,10 @@ nlohmann::json metricsJson(const ImageMetrics& m) {
 // U-TAA and T-TAA as specified, and both without their final sharpen (which costs several dB on
 // frames dense in edges).
 struct Taas {
-    static infer::TaaOptions make(bool improved, bool sharpen) {
-        infer::TaaOptions o;
-        o.improved = improved, o.sharpen = sharpen;
-        return o;
-    }
-    infer::Taa filters[4] = {infer::Taa(make(false, true)), infer::Taa(make(true, true)),
-                             infer::Taa(make(false, false)), infer::Taa(make(true, false))};
+    std::unique_ptr<infer::Filter> filters[4] = {infer::makeFilter("taa", {}),
+                                                 infer::makeFilter("taa-sobel", {}),
+                                                 infer::makeFilter("taa", {{"sharpen", "false"}}),
+                                                 infer::makeFilter("taa-sobel", {{"sharpen", "false"}})};
     std::vector<float> outputs[4];
 };
 const char* const kTaaNames[4] = {"u-taa", "t-taa", "u-taa unsharpened", "t-taa unsharpened"};
@@ -50,13 +47,13 @@ void runTaas(Taas& taas, const render::Frame& f, float far) {
                              motion = frameChannels(f, 7, 2, false);
     const std::vector<float> ids = frameChannels(f, 9, 1, false),
                              previousDepth = frameChannels(f, 10, 1, false, 1.0f / far);
-    infer::TaaFrame frame;
+    infer::Frame frame;
     frame.width = f.width, frame.height = f.height;
     frame.colour = colour.data(), frame.albedo = albedo.data(), frame.depth = depth.data();
     frame.motion = motion.data(), frame.ids = ids.data(), frame.previousDepth = previousDepth.data();
     for (int k = 0; k < 4; ++k) {
         taas.outputs[k].resize(colour.size());
-        taas.filters[k].apply(frame, taas.outputs[k].data());
+        taas.filters[k]->apply(frame, taas.outputs[k].data());
     }
 }
 
@@ -102,7 +99,9 @@ std::vector<nlohmann::json> benchTaa(const TaaBenchOptions& options) {
         still.buffers = render::BufferSet::parse("color");
         const std::vector<float> noAa = frameChannels(renderer.render(still), 0, 3, true);
         std::vector<float> fxaaOut(noAa.size());
-        infer::Fxaa().apply(noAa.data(), fxaaOut.data(), W, H, 3);
+        infer::Frame stillFrame;
+        stillFrame.width = W, stillFrame.height = H, stillFrame.colour = noAa.data();
+        infer::makeFilter("fxaa", {})->apply(stillFrame, fxaaOut.data());
         Taas taas;
         for (int i = 0; i < options.historyFrames; ++i)
             runTaas(taas, renderer.render(jittered(0, i)), float(scene.far));

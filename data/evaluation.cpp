@@ -5,6 +5,7 @@
 #include <filesystem>
 
 #include "base/error.h"
+#include "base/luma.h"
 #include "base/thread_pool.h"
 #include "data/metrics.h"
 
@@ -35,7 +36,7 @@ Image encodedColour(const Image& image, const std::string& what) {
 }
 
 float luma(const float* rgb) {
-    return 0.21f * rgb[0] + 0.72f * rgb[1] + 0.07f * rgb[2];
+    return ::dejag::luma(rgb);
 }
 
 }  // namespace

@@ -5,6 +5,7 @@
 #include <filesystem>
 
 #include "base/error.h"
+#include "base/luma.h"
 #include "base/random.h"
 #include "base/thread_pool.h"
 #include "data/image.h"
@@ -189,8 +190,8 @@ Batch PatchSampler::assemble(uint64_t index) const {
                     out[c] = float(std::min(1.0, item.truth[p * 3 + size_t(c)] / 65535.0 * channelGain[c]));
                 }
                 if (C == 1) {
-                    batch.input.at(n, 0, y, x) = 0.21f * in[0] + 0.72f * in[1] + 0.07f * in[2];
-                    batch.target.at(n, 0, y, x) = 0.21f * out[0] + 0.72f * out[1] + 0.07f * out[2];
+                    batch.input.at(n, 0, y, x) = luma(in);
+                    batch.target.at(n, 0, y, x) = luma(out);
                 } else {
                     for (int c = 0; c < 3; ++c)
                         batch.input.at(n, c, y, x) = in[c], batch.target.at(n, c, y, x) = out[c];

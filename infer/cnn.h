@@ -11,6 +11,9 @@
 // object-ID change or a depth jump. Skipped tiles are copied through bit for bit. Inside a processed
 // tile, a kernel-predicting network also passes through the flat runs of pixels (CnnOptions::passSpan).
 //
+// How the network meets the frame (colour planes or luma, padding, clamping, a grey model's change on
+// R G B) is nn/frame_network.h's, the same contract training's validation and the model card use.
+//
 // After the first frame of a size, apply() allocates nothing: plans and tile buffers are kept.
 #pragma once
 
@@ -21,6 +24,7 @@
 #include <vector>
 
 #include "infer/filter.h"
+#include "nn/frame_network.h"
 #include "nn/inference.h"
 #include "nn/model.h"
 
@@ -79,14 +83,6 @@ class CnnFilter {
     struct Impl;
     std::unique_ptr<Impl> impl_;
 };
-
-// The receptive field of a model: how many input pixels on each side of a pixel can change its output,
-// and the product of its strides. Exact for conv, transposed conv, pooling, resampling and shuffles.
-struct ReceptiveField {
-    int radius = 0;
-    int stride = 1;
-};
-ReceptiveField receptiveField(const nn::Model& model);
 
 // The method "cnn" of infer/filter.h: parameters model, gate (off | auto | a luma threshold), tile,
 // precision, pass-span; uses the depth and id buffers for gating when the frame has them.

@@ -1,5 +1,6 @@
 #include "infer/filter.h"
 
+#include <algorithm>
 #include <cerrno>
 #include <cmath>
 #include <cstdlib>
@@ -8,6 +9,7 @@
 #include <stdexcept>
 
 #include "base/error.h"
+#include "base/thread_pool.h"
 #include "base/timer.h"
 #include "infer/cnn.h"
 #include "infer/fxaa.h"
@@ -23,6 +25,10 @@ void FilterParameters::set(const std::string& name, const std::string& value, co
     if (auto it = entries_.find(name); it != entries_.end())
         throw Error(from + ": parameter '" + name + "' is already set (by " + it->second.origin + ")");
     entries_[name] = Entry{value, from};
+}
+
+FilterParameters::FilterParameters(std::initializer_list<std::pair<std::string, std::string>> settings) {
+    for (const auto& [name, value] : settings) set(name, value, name + "=" + value);
 }
 
 void FilterParameters::setAssignment(const std::string& assignment) {
@@ -163,6 +169,22 @@ class Chain final : public Filter {
     std::vector<float> scratch_;
 };
 
+class NoneFilter final : public Filter {
+  public:
+    NoneFilter() : Filter("none") {}
+    BufferSet needs() const override { return 0; }
+
+  private:
+    void process(const Frame& frame, float* out) override {
+        if (out == frame.colour) return;
+        const int64_t rowFloats = int64_t(frame.width) * frame.channels;
+        parallelFor(0, frame.height, 64, [&](int64_t first, int64_t last) {
+            std::copy(frame.colour + first * rowFloats, frame.colour + last * rowFloats,
+                      out + first * rowFloats);
+        });
+    }
+};
+
 std::string knownMethods() {
     std::string text;
     for (const MethodSpec& m : filterMethods()) text += (text.empty() ? "" : ", ") + m.name;
@@ -171,13 +193,18 @@ std::string knownMethods() {
 
 }  // namespace
 
+MethodSpec noneMethod() {
+    MethodSpec spec;
+    spec.name = "none";
+    spec.summary = "no anti-aliasing: the frame as it came (the baseline of every comparison)";
+    spec.make = [](MethodParameters&) -> std::unique_ptr<Filter> { return std::make_unique<NoneFilter>(); };
+    return spec;
+}
+
 // The table of methods: one line each.
 const std::vector<MethodSpec>& filterMethods() {
     static const std::vector<MethodSpec> table = {
-        fxaaMethod(),
-        cnnMethod(),
-        taaMethod(false),
-        taaMethod(true),
+        noneMethod(), fxaaMethod(), cnnMethod(), taaMethod(false), taaMethod(true),
     };
     return table;
 }

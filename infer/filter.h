@@ -13,6 +13,7 @@
 #pragma once
 
 #include <functional>
+#include <initializer_list>
 #include <map>
 #include <memory>
 #include <string>
@@ -28,6 +29,9 @@ namespace dejag::infer {
 // MethodParameters, which knows their declared defaults and ranges.
 class FilterParameters {
   public:
+    FilterParameters() = default;
+    // {{"preset", "12"}, {"gate", "off"}}: settings given in code (origin "NAME=VALUE").
+    FilterParameters(std::initializer_list<std::pair<std::string, std::string>> settings);
     // Throws dejag::Error if name was given twice.
     void set(const std::string& name, const std::string& value, const std::string& origin = "");
     // "NAME=VALUE" (as --set takes it).
@@ -122,6 +126,9 @@ class Filter {
   private:
     std::string name_;
 };
+
+// "none": the frame unchanged (the baseline every comparison starts from).
+MethodSpec noneMethod();
 
 // Every method, in the order --list-methods prints them.
 const std::vector<MethodSpec>& filterMethods();

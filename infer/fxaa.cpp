@@ -36,9 +36,10 @@ Fxaa::Fxaa(const FxaaOptions& options) : options_(options), steps_(presetSteps(o
 void Fxaa::apply(const float* in, float* out, int width, int height, int channels) {
     if (width < 1 || height < 1 || channels < 3) throw Error("FXAA needs an image with R, G, B channels");
     const size_t floats = size_t(width) * size_t(height) * size_t(channels);
-    parallelFor(0, int64_t(floats), 1 << 18, [&](int64_t first, int64_t last) {
-        std::memcpy(out + first, in + first, size_t(last - first) * sizeof(float));
-    });
+    if (in != out)  // the same buffer: filtered in place
+        parallelFor(0, int64_t(floats), 1 << 18, [&](int64_t first, int64_t last) {
+            std::memcpy(out + first, in + first, size_t(last - first) * sizeof(float));
+        });
     applyInPlace(out, width, height, channels);
 }
 

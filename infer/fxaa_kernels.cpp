@@ -6,7 +6,7 @@
 #include <algorithm>
 #include <cmath>
 
-#include "infer/pixel_simd.h"
+#include "base/pixel_simd.h"
 
 namespace dejag::infer::DEJAG_SIMD_NAMESPACE {
 

@@ -5,7 +5,7 @@
 #include <algorithm>
 #include <climits>
 
-#include "infer/pixel_simd.h"
+#include "base/pixel_simd.h"
 
 namespace dejag::infer::DEJAG_SIMD_NAMESPACE {
 

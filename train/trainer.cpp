@@ -14,6 +14,7 @@
 
 #include "base/error.h"
 #include "base/files.h"
+#include "base/luma.h"
 #include "base/progress.h"
 #include "base/thread_pool.h"
 #include "base/timer.h"
@@ -390,47 +391,10 @@ bool allFinite(const nn::Tensor& t) {
 
 // ---- Running a model on whole images ------------------------------------------------------------------
 
-struct ModelRunner::Impl {
-    const nn::Model* model = nullptr;
-    std::unique_ptr<nn::InferencePlan> plan;
-    nn::Tensor input;
-};
-
-ModelRunner::ModelRunner(const nn::Model& model) : impl_(std::make_unique<Impl>()) {
-    impl_->model = &model;
-}
-ModelRunner::~ModelRunner() = default;
-
-Image ModelRunner::run(const Image& rgb) {
+Image runNetwork(nn::FrameNetwork& network, const Image& rgb) {
     if (rgb.channels() != 3) throw Error("the network filter needs an RGB image, got " + rgb.describe());
-    const int C = impl_->model->inputChannels();
-    if (C != 1 && C != 3)
-        throw Error("the network takes " + std::to_string(C) + " channels; images have 1 or 3");
-    // Pad by replicating the border up to a multiple of 8 (two pools or a stride-2 stage need 4 or 2).
-    const int W = rgb.width, H = rgb.height, PW = (W + 7) / 8 * 8, PH = (H + 7) / 8 * 8;
-    const nn::Shape shape{1, C, PH, PW};
-    if (!impl_->plan || impl_->plan->inputShape() != shape) {
-        impl_->plan = std::make_unique<nn::InferencePlan>(*impl_->model, shape);
-        impl_->input = nn::Tensor(shape);
-    }
-    nn::Tensor& in = impl_->input;
-    for (int y = 0; y < PH; ++y)
-        for (int x = 0; x < PW; ++x) {
-            const float* p =
-                &rgb.pixels[(size_t(std::min(y, H - 1)) * size_t(W) + size_t(std::min(x, W - 1))) * 3];
-            if (C == 1)
-                in.at(0, 0, y, x) = 0.21f * p[0] + 0.72f * p[1] + 0.07f * p[2];
-            else
-                for (int c = 0; c < 3; ++c) in.at(0, c, y, x) = p[c];
-        }
-    const nn::Tensor& out = impl_->plan->run(in);
-    const int outC = int(out.dim(1));
-    Image result(W, H, Image::defaultChannelNames(outC), rgb.storage);
-    for (int y = 0; y < H; ++y)
-        for (int x = 0; x < W; ++x)
-            for (int c = 0; c < outC; ++c)
-                result.pixels[(size_t(y) * size_t(W) + size_t(x)) * size_t(outC) + size_t(c)] =
-                    std::clamp(out.at(0, c, y, x), 0.0f, 1.0f);
+    Image result(rgb.width, rgb.height, Image::defaultChannelNames(3), rgb.storage);
+    network.run(rgb.pixels.data(), result.pixels.data(), rgb.width, rgb.height, 3);
     return result;
 }
 
@@ -527,7 +491,7 @@ void makeAdversarial(nn::Tensor& input, nn::Tensor& target, AdversarialKind kind
     }
 }
 
-TrainResult trainModel(const TrainConfig& config, const std::vector<Baseline>& baselines) {
+TrainResult trainModel(const TrainConfig& config, const std::vector<Method>& baselines) {
     if (config.data.empty() || config.out.empty()) throw Error("--data and --out are required");
     if (config.batch < 1 || config.patch < 16 || config.patch % 8 != 0)
         throw Error("--batch must be >= 1 and --patch a multiple of 8, at least 16");
@@ -658,9 +622,7 @@ TrainResult trainModel(const TrainConfig& config, const std::vector<Baseline>& b
     // Validation: the baselines are scored once; the network at every evaluation.
     const std::vector<data::EvaluationItem> validation = data::loadEvaluationItems(
         config.data, data::Split::Validation, config.validationImages, config.families);
-    std::vector<Method> baselineMethods;
-    for (const Baseline& b : baselines) baselineMethods.push_back({b.name, b.apply});
-    const std::vector<MethodScores> baselineScores = scoreMethods(validation, baselineMethods, grey);
+    const std::vector<MethodScores> baselineScores = scoreMethods(validation, baselines, grey);
 
     {
         json run = {
@@ -706,9 +668,9 @@ TrainResult trainModel(const TrainConfig& config, const std::vector<Baseline>& b
     };
 
     auto evaluate = [&](LogRow& row) {
-        ModelRunner runner(model);
-        const std::vector<MethodScores> s =
-            scoreMethods(validation, {{"network", [&](const Image& im) { return runner.run(im); }}}, grey);
+        auto network = nn::FrameNetwork::borrowing(model);
+        const std::vector<MethodScores> s = scoreMethods(
+            validation, {{"network", [&](const Image& im) { return runNetwork(network, im); }}}, grey);
         row.evaluated = true;
         for (int k = 0; k < int(data::Region::Count); ++k)
             row.psnr[k] = s[0].summary.psnr[k], row.ssim[k] = s[0].summary.ssim[k];
@@ -949,7 +911,7 @@ json scoresToJson(const std::vector<MethodScores>& scores) {
 }  // namespace
 
 std::string exportModel(const std::string& run, const std::string& modelPath,
-                        const std::vector<Baseline>& baselines, int testImages, bool quiet) {
+                        const std::vector<Method>& baselines, int testImages, bool quiet) {
     const std::string runJsonPath = (fs::path(run) / "run.json").string();
     const std::string bestPath = (fs::path(run) / "best.safetensors").string();
     requireReadableFile(runJsonPath);
@@ -962,9 +924,9 @@ std::string exportModel(const std::string& run, const std::string& modelPath,
     const bool grey = model.inputChannels() == 1;
     const std::string dataFolder = runJson.at("config").at("data");
     std::vector<Method> methods;
-    for (const Baseline& b : baselines) methods.push_back({b.name, b.apply});
-    ModelRunner runner(model);
-    methods.push_back({"network", [&](const Image& im) { return runner.run(im); }});
+    for (const Method& b : baselines) methods.push_back(b);
+    auto network = nn::FrameNetwork::borrowing(model);
+    methods.push_back({"network", [&](const Image& im) { return runNetwork(network, im); }});
     if (!quiet)
         std::fprintf(stderr, "scoring on the validation and test splits of '%s'...\n", dataFolder.c_str());
     const std::vector<std::string> families =
@@ -995,7 +957,10 @@ std::string exportModel(const std::string& run, const std::string& modelPath,
     char line[512];
     md << "# " << name << "\n\n";
     md << "Trained by dejag (`dejag train`, then `dejag train export`). Input: "
-       << (grey ? "luma 0.21 R + 0.72 G + 0.07 B" : "RGB")
+       << (grey ? "luma " + std::to_string(kLumaRed).substr(0, 4) + " R + " +
+                      std::to_string(kLumaGreen).substr(0, 4) + " G + " +
+                      std::to_string(kLumaBlue).substr(0, 4) + " B"
+                : std::string("RGB"))
        << " of sRGB-encoded values in [0, 1]; output: the same, anti-aliased.\n\n";
     md << "## Architecture\n\n";
     std::snprintf(line, sizeof line, "`%s`: %lld parameters, %.0f multiply-adds per input pixel.\n\n",

@@ -22,6 +22,7 @@
 
 #include "data/evaluation.h"
 #include "data/patches.h"
+#include "nn/frame_network.h"
 #include "nn/model.h"
 
 namespace dejag::train {
@@ -77,9 +78,10 @@ AdversarialKind adversarialKindAt(uint64_t seed, int64_t step, double fraction);
 void makeAdversarial(nn::Tensor& input, nn::Tensor& target, AdversarialKind kind, uint64_t seed,
                      int64_t step);
 
-// A comparison method for validation (no AA and FXAA are wired in by the caller: train/ does not
-// depend on infer/). Takes and returns an sRGB RGB image.
-struct Baseline {
+// A method to score: the network under training, or a comparison method for validation and the model
+// card (no AA and FXAA: the app makes them through infer/filter.h, which train/ does not depend on).
+// Takes an sRGB RGB image; returns RGB, or luma for a grey model.
+struct Method {
     std::string name;
     std::function<Image(const Image&)> apply;
 };
@@ -98,30 +100,17 @@ struct TrainResult {
 
 // Trains, writing the run folder as it goes. Throws dejag::Error on bad configuration or data, or when
 // training diverges (after maxBadSteps bad steps in a row).
-TrainResult trainModel(const TrainConfig& config, const std::vector<Baseline>& baselines);
+TrainResult trainModel(const TrainConfig& config, const std::vector<Method>& baselines);
 
 // The architecture --arch names: seed2020, fast, fast:WIDTH[xDEPTH] (the fast family at another size),
 // or a JSON file. Throws dejag::Error naming what is wrong.
 nlohmann::json architectureFor(const std::string& arch);
 
-// Runs a model on whole sRGB RGB images (grey models see the luma and return one channel), padding each
-// side to what the network's strides need. Plans are reused while the image size stays the same.
-class ModelRunner {
-  public:
-    explicit ModelRunner(const nn::Model& model);
-    ~ModelRunner();
-    Image run(const Image& rgb);
-
-  private:
-    struct Impl;
-    std::unique_ptr<Impl> impl_;
-};
+// Runs a network on a whole sRGB RGB image through the contract every caller uses (nn/frame_network.h):
+// RGB out for RGB and grey models alike (a grey model's change of the luma on R, G and B).
+Image runNetwork(nn::FrameNetwork& network, const Image& rgb);
 
 // Scores methods on the items: returns a summary per method (same order as `methods`).
-struct Method {
-    std::string name;
-    std::function<Image(const Image&)> apply;  // sRGB RGB in; RGB or luma out
-};
 struct MethodScores {
     std::string name;
     data::ScoreSummary summary;
@@ -134,6 +123,6 @@ std::vector<MethodScores> scoreMethods(const std::vector<data::EvaluationItem>& 
 // card next to it (NAME.md): architecture, parameters, MACs per pixel, data recipe, training command,
 // wall time, and validation and test metrics against the baselines. Returns the card's text.
 std::string exportModel(const std::string& run, const std::string& modelPath,
-                        const std::vector<Baseline>& baselines, int testImages, bool quiet);
+                        const std::vector<Method>& baselines, int testImages, bool quiet);
 
 }  // namespace dejag::train

@@ -14,6 +14,7 @@
 #include "infer/cnn_kernels.h"
 #include "tests/alloc_counter.h"
 #include "tests/test_util.h"
+#include "train/trainer.h"
 
 namespace dejag::infer {
 namespace {
@@ -50,50 +51,7 @@ float maxDifference(const std::vector<float>& a, const std::vector<float>& b) {
     return worst;
 }
 
-// The frame rows into planes and back on every SIMD level: RGB frames by vectors (and a tail), RGBA
-// pixel by pixel; out-of-range values clamped, NaN kept, the other channels untouched.
 class CnnRows : public testing::SimdLevelTest {};
-
-TEST_P(CnnRows, SplitAndJoinMatchThePixelLoops) {
-    for (int channels : {3, 4})
-        for (int64_t count : {0, 1, 15, 16, 17, 40, 77}) {
-            std::vector<float> frame(size_t(count * channels));
-            for (size_t i = 0; i < frame.size(); ++i) frame[i] = float(i % 29) / 13.0f - 0.5f;
-            if (count > 5) frame[size_t(5 * channels + 1)] = NAN;
-            std::vector<float> r(size_t(count) + 1, -7.0f), g = r, b = r;
-            DEJAG_SIMD_CALL(splitRgbRow, frame.data(), channels, count, r.data(), g.data(), b.data());
-            for (int64_t x = 0; x < count; ++x) {
-                const float* p = &frame[size_t(x * channels)];
-                ASSERT_EQ(std::bit_cast<uint32_t>(r[size_t(x)]), std::bit_cast<uint32_t>(p[0])) << x;
-                ASSERT_EQ(std::bit_cast<uint32_t>(g[size_t(x)]), std::bit_cast<uint32_t>(p[1])) << x;
-                ASSERT_EQ(std::bit_cast<uint32_t>(b[size_t(x)]), std::bit_cast<uint32_t>(p[2])) << x;
-            }
-            EXPECT_EQ(r[size_t(count)], -7.0f) << "written past the row";
-            std::vector<float> joined(frame.size() + size_t(channels), 9.0f);
-            DEJAG_SIMD_CALL(joinRgbRowClamped, r.data(), g.data(), b.data(), count, channels, joined.data());
-            for (int64_t x = 0; x < count; ++x)
-                for (int c = 0; c < channels; ++c) {
-                    const float v = frame[size_t(x * channels + c)], got = joined[size_t(x * channels + c)];
-                    if (c >= 3)
-                        EXPECT_EQ(got, 9.0f) << "channel " << c << " of pixel " << x << " written";
-                    else if (std::isnan(v))
-                        EXPECT_TRUE(std::isnan(got)) << x;
-                    else
-                        EXPECT_EQ(got, std::clamp(v, 0.0f, 1.0f)) << "channel " << c << " of pixel " << x;
-                }
-            EXPECT_EQ(joined[frame.size()], 9.0f) << "written past the row";
-            // A passed row clamped straight from the frame: what the join of its split gives.
-            std::vector<float> clamped(frame.size() + size_t(channels), 9.0f);
-            DEJAG_SIMD_CALL(clampRgbRow, frame.data(), channels, count, clamped.data());
-            for (size_t i = 0; i < frame.size(); ++i) {
-                if (std::isnan(joined[i]))
-                    EXPECT_TRUE(std::isnan(clamped[i])) << "element " << i;
-                else
-                    EXPECT_EQ(clamped[i], joined[i]) << "element " << i;
-            }
-            EXPECT_EQ(clamped[frame.size()], 9.0f) << "written past the row";
-        }
-}
 
 // The gate's row test on every level equals the pixel loop it replaced: a step to the right or below at
 // each position of rows of several widths, inside [first, last] or just outside it, at the row's end
@@ -136,18 +94,6 @@ TEST_P(CnnRows, LumaStepTestMatchesThePixelLoop) {
 
 INSTANTIATE_TEST_SUITE_P(SimdLevels, CnnRows, ::testing::ValuesIn(testing::availableSimdLevels()),
                          testing::simdTestName);
-
-TEST(Cnn, ReceptiveFieldOfTheShippedArchitectures) {
-    const ReceptiveField seed = receptiveField(nn::Model::builtin("seed2020"));
-    EXPECT_EQ(seed.stride, 4);
-    EXPECT_GE(seed.radius, 2 + 1 + 1 + 2 + 4 + 4);  // 5x5, 3x3, pools, 3x3 at 1/4, transposed convs
-    const ReceptiveField fast = receptiveField(nn::Model::builtin("fast"));
-    EXPECT_EQ(fast.stride, 8);
-    EXPECT_GE(fast.radius, 2 + 4 + 4 + 8 + 8);  // the encoder alone
-    const ReceptiveField kpn = receptiveField(nn::Model::builtin("kpn"));
-    EXPECT_EQ(kpn.stride, 8);
-    EXPECT_GE(kpn.radius, fast.radius - 2 + 1);  // a 1x1 head instead of a 3x3, then the 3x3 kernel filter
-}
 
 class CnnTiles : public ::testing::TestWithParam<const char*> {};
 
@@ -307,6 +253,29 @@ TEST(Cnn, NoAllocationPerFrameAfterWarmUp) {
     const int64_t before = testing::allocationCount();
     for (int i = 0; i < 3; ++i) filter.apply(frame.data(), out.data(), W, H, C);
     EXPECT_EQ(testing::allocationCount() - before, 0);
+}
+
+// One contract for a model on a frame: what training's validation and the model card score
+// (train::runNetwork) is what `dejag filter --method cnn --set gate=off` writes, bit for bit.
+TEST(Cnn, TheCardScoresWhatTheFilterWrites) {
+    const int W = 203, H = 141;
+    for (const char* arch : {"fast", "seed2020"}) {
+        const std::vector<float> frame = testFrame(W, H, 3);
+        Image image(W, H, {"R", "G", "B"}, PixelType::Float);
+        image.pixels = frame;
+        const nn::Model model = seeded(arch, 7);
+        auto network = nn::FrameNetwork::borrowing(model);
+        const Image card = train::runNetwork(network, image);
+        CnnOptions options;
+        options.gate = false;
+        CnnFilter filter(seeded(arch, 7), options);
+        std::vector<float> filtered(frame.size());
+        filter.apply(frame.data(), filtered.data(), W, H, 3);
+        ASSERT_EQ(card.pixels.size(), filtered.size());
+        for (size_t i = 0; i < filtered.size(); ++i)
+            ASSERT_EQ(std::bit_cast<uint32_t>(card.pixels[i]), std::bit_cast<uint32_t>(filtered[i]))
+                << arch << ", element " << i;
+    }
 }
 
 TEST(Cnn, RefusesModelsItCannotRun) {

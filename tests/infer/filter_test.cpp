@@ -78,7 +78,7 @@ TEST(Filter, EveryMethodOfTheTableIsMadeFromItsDefaults) {
 }
 
 TEST(Filter, TheFactoryRefusesWhatNoMethodReads) {
-    EXPECT_NE(errorOf([] { makeFilter("blur", {}); }).find("the methods are fxaa, cnn, taa, taa-sobel"),
+    EXPECT_NE(errorOf([] { makeFilter("blur", {}); }).find("the methods are none, fxaa, cnn, taa, taa-sobel"),
               std::string::npos);
     EXPECT_NE(errorOf([] { makeFilter("fxaa,", {}); }).find("empty method"), std::string::npos);
     FilterParameters tile;
@@ -124,6 +124,16 @@ TEST(Filter, AMethodThroughTheFaceComputesWhatItsClassDoes) {
         fxaa.apply(colour.data(), direct.data(), W, H, channels);
         EXPECT_EQ(viaFace, direct);
         EXPECT_EQ(face->figures().processedFraction, fxaa.processedFraction());
+        // In place (out is the frame's colour), as bench filter runs it: the same result.
+        std::vector<float> inPlace = colour;
+        Frame same = frame;
+        same.colour = inPlace.data();
+        face->apply(same, inPlace.data());
+        EXPECT_EQ(inPlace, direct);
+        // "none" is the frame as it came, alpha included.
+        std::vector<float> unchanged(colour.size());
+        makeFilter("none", {})->apply(frame, unchanged.data());
+        EXPECT_EQ(unchanged, colour);
         EXPECT_GE(face->figures().ms, 0.0);
         // A chain is its stages in turn (two and three stages: the ping-pong ends in out either way).
         for (int n : {2, 3}) {

@@ -57,7 +57,7 @@ class Training : public ::testing::Test {
         c.evalEvery = 20, c.checkpointEvery = 10, c.validationImages = 4, c.quiet = true;
         return c;
     }
-    static std::vector<Baseline> baselines() {
+    static std::vector<Method> baselines() {
         return {{"no AA", [](const Image& im) { return im; }}};
     }
     static std::vector<float> weightsOf(const std::string& modelFile) {
@@ -320,8 +320,8 @@ TEST_F(Training, ExportThenLoadGivesIdenticalOutputsAndACard) {
     const nn::Model shipped = nn::loadModel(modelPath, &metadata);
     EXPECT_TRUE(metadata.count("dejag.card"));
     const auto items = data::loadEvaluationItems(data_, data::Split::Test, 1);
-    ModelRunner a(best), b(shipped);
-    const Image x = a.run(items[0].input), y = b.run(items[0].input);
+    auto a = nn::FrameNetwork::borrowing(best), b = nn::FrameNetwork::borrowing(shipped);
+    const Image x = runNetwork(a, items[0].input), y = runNetwork(b, items[0].input);
     EXPECT_EQ(x.pixels, y.pixels);
     // Not a finished run: refused.
     TrainConfig unfinished = tinyConfig("unfinished");
@@ -348,8 +348,8 @@ TEST_F(Training, AKernelPredictingNetworkLearnsExportsAndLoads) {
     EXPECT_NE(card.find("| filter | kernel_filter | input, shuffle |"), std::string::npos) << card;
     const auto items = data::loadEvaluationItems(data_, data::Split::Test, 1);
     const nn::Model best = nn::loadModel(c.out + "/best.safetensors"), shipped = nn::loadModel(modelPath);
-    ModelRunner a(best), b(shipped);  // they keep a reference to their model
-    EXPECT_EQ(a.run(items[0].input).pixels, b.run(items[0].input).pixels);
+    auto a = nn::FrameNetwork::borrowing(best), b = nn::FrameNetwork::borrowing(shipped);
+    EXPECT_EQ(runNetwork(a, items[0].input).pixels, runNetwork(b, items[0].input).pixels);
 }
 
 // A grey network (the seed2020 replica's kind) is also judged on the thesis' own protocol: the validation
@@ -372,7 +372,7 @@ TEST_F(Training, AGreyNetworksCardJudgesThePublishedOrderingOnTheValidationSplit
         std::fill(out.pixels.begin(), out.pixels.end(), 0.0f);
         return out;
     };
-    const std::vector<Baseline> methods = {{"no AA", black}, {"FXAA", black}};
+    const std::vector<Method> methods = {{"no AA", black}, {"FXAA", black}};
     trainModel(c, methods);
     fs::create_directories(root_ + "/models");
     const std::string card = exportModel(c.out, root_ + "/models/tiny-grey.safetensors", methods, 2, true);

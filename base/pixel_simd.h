@@ -1,6 +1,6 @@
-// dejag/infer: per-pixel SIMD helpers for the post-process kernels (FXAA, TAA). Include only from kernel
-// sources built with dejag_add_simd_kernels(): one body, written with VFloat/VInt and the helpers below,
-// runs kFloatLanes pixels at a time on every level (one pixel on the scalar path).
+// dejag/base: per-pixel SIMD helpers for the pixel kernels (FXAA, TAA, the network's frame rows). Include
+// only from kernel sources built with dejag_add_simd_kernels(): one body, written with VFloat/VInt and the
+// helpers below, runs kFloatLanes pixels at a time on every level (one pixel on the scalar path).
 //
 // Masks are what a comparison returns: a vector of 0 / -1 ints, or a bool on the scalar path; select(),
 // any() and all() take either.
