@@ -155,10 +155,11 @@ void registerTrainCommand(CLI::App& app) {
     trainCommand->callback([=] {
         if (exportCommand->parsed()) return;
         applyRuntimeOptions(*runtime);
-        config->poisonSteps = parseSteps(*poison);
+        train::TrainFaults faults;
+        faults.poisonSteps = parseSteps(*poison);
         config->families = splitList(*families);
         config->commandLine = invocation();
-        const train::TrainResult r = train::trainModel(*config, standardBaselines());
+        const train::TrainResult r = train::trainModel(*config, standardBaselines(), faults);
         if (config->json)
             std::printf("%s\n", nlohmann::json{{"event", "finished"},
                                                {"steps", r.steps},

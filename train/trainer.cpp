@@ -491,7 +491,17 @@ void makeAdversarial(nn::Tensor& input, nn::Tensor& target, AdversarialKind kind
     }
 }
 
-TrainResult trainModel(const TrainConfig& config, const std::vector<Method>& baselines) {
+// ---- The training loop, in its units ------------------------------------------------------------------
+//
+// trainModel() reads as the steps of training: next batch, guard, forward, loss, backward, update,
+// evaluate, checkpoint. Each of these is a unit below: the configuration's checks, the run folder and its
+// checkpoints (RunFolder), the batches with their adversarial and injected faults (Batches), the step
+// guard (StepGuard), validation and the log (Validation). A new training mode replaces the forward and
+// loss of a step and keeps the guard, the folder and the checkpoints as they are.
+
+namespace {
+
+void checkConfig(const TrainConfig& config) {
     if (config.data.empty() || config.out.empty()) throw Error("--data and --out are required");
     if (config.batch < 1 || config.patch < 16 || config.patch % 8 != 0)
         throw Error("--batch must be >= 1 and --patch a multiple of 8, at least 16");
@@ -516,9 +526,11 @@ TrainResult trainModel(const TrainConfig& config, const std::vector<Method>& bas
     if (!(config.clipNorm >= 0)) throw Error("--clip must be >= 0 (0: off)");
     if (config.validationImages < 0) throw Error("--val-images must be >= 0 (0: all)");
     if (config.patience < 0) throw Error("--patience must be >= 0 (0: never stop early)");
-    const nn::CompositeLoss loss = nn::CompositeLoss::parse(config.loss);
+}
+
+// The network --arch names, checked for what training does with it.
+nn::Model buildModel(const TrainConfig& config) {
     nn::Model model = nn::Model::fromArchitecture(architectureFor(config.arch));
-    const bool grey = model.inputChannels() == 1;
     if (model.inputChannels() != 1 && model.inputChannels() != 3)
         throw Error("the architecture takes " + std::to_string(model.inputChannels()) +
                     " channels; dejag trains on RGB (3) or luma (1)");
@@ -535,124 +547,236 @@ TrainResult trainModel(const TrainConfig& config, const std::vector<Method>& bas
                         " pixels for a " + std::to_string(side) + "x" + std::to_string(side) +
                         " input; an anti-aliasing network returns the size it is given");
     }
+    return model;
+}
 
-    // One process per run folder; a folder this call made is removed again if the run fails before
-    // writing anything into it (a typo in --data leaves no empty run behind).
-    const bool madeFolder = !fs::exists(config.out);
-    std::error_code madeError;
-    fs::create_directories(config.out, madeError);
-    if (madeError || !fs::is_directory(config.out))
-        throw Error("cannot make the run folder '" + config.out +
-                    "': " + (madeError ? madeError.message() : std::string("a file of that name exists")));
-    struct RemoveIfUnused {
-        std::string folder;
-        bool active;
-        ~RemoveIfUnused() {
-            if (!active || std::uncaught_exceptions() == 0) return;
-            std::error_code ec;
-            for (const auto& entry : fs::directory_iterator(folder, ec))
-                if (entry.path().filename() != FolderLock::kFileName) return;
-            fs::remove_all(folder, ec);
-        }
-    } removeIfUnused{config.out, madeFolder};
-    const FolderLock lock(config.out, "a training run");
-    const std::string checkpointPath = (fs::path(config.out) / "checkpoint.safetensors").string();
-    json runConfig = configToJson(config);
-    nn::OptimizerConfig adam;
-    adam.learningRate = config.learningRate;
-    nn::Optimizer optimizer(adam, model.parameterCount());
-    TrainState state;
-    if (fs::exists(checkpointPath)) {
-        if (!config.resume)
-            throw Error(
-                "'" + config.out +
-                "' already holds a training run; add --resume to continue it or choose another --out");
-        json saved;
-        state = loadCheckpoint(checkpointPath, model, optimizer, &saved);
-        requireSameRun(saved, runConfig);
-        if (saved.at("threads") != runConfig.at("threads"))
-            std::fprintf(
-                stderr,
-                "dejag train: resuming with %d threads (the run used %s): results will differ in rounding\n",
-                threadCount(), saved.at("threads").dump().c_str());
-    } else {
-        model.initialize(config.seed);
+// The run folder: made (and removed again if the run fails before writing anything into it, so a typo in
+// --data leaves no empty run behind), locked for one process, and the files written into it.
+class RunFolder {
+  public:
+    explicit RunFolder(const std::string& folder) : folder_(folder), made_(!fs::exists(folder)) {
+        std::error_code madeError;
+        fs::create_directories(folder, madeError);
+        if (madeError || !fs::is_directory(folder))
+            throw Error("cannot make the run folder '" + folder + "': " +
+                        (madeError ? madeError.message() : std::string("a file of that name exists")));
+        lock_.emplace(folder, "a training run");
     }
+    RunFolder(const RunFolder&) = delete;
+    RunFolder& operator=(const RunFolder&) = delete;
+    ~RunFolder() {
+        lock_.reset();
+        if (!made_ || std::uncaught_exceptions() == 0) return;
+        std::error_code ec;
+        for (const auto& entry : fs::directory_iterator(folder_, ec))
+            if (entry.path().filename() != FolderLock::kFileName) return;
+        fs::remove_all(folder_, ec);
+    }
+    std::string path(const std::string& name) const { return (fs::path(folder_) / name).string(); }
+    bool hasCheckpoint() const { return fs::exists(path("checkpoint.safetensors")); }
+    TrainState loadCheckpoint(nn::Model& model, nn::Optimizer& optimizer, json* config) const {
+        return train::loadCheckpoint(path("checkpoint.safetensors"), model, optimizer, config);
+    }
+    void saveCheckpoint(const nn::Model& model, const nn::Optimizer& optimizer, const TrainState& state,
+                        const json& config) const {
+        train::saveCheckpoint(path("checkpoint.safetensors"), model, optimizer, state, config);
+    }
+    void saveModel(const std::string& name, const nn::Model& model, const std::string& provenance,
+                   int64_t step) const {
+        nn::saveModel(path(name), model,
+                      {{"dejag.provenance", provenance}, {"dejag.step", std::to_string(step)}});
+    }
+    void writeRunJson(const json& run) const {
+        writeTextFileAtomically(path("run.json"), run.dump(2) + "\n");
+    }
+    json readRunJson() const { return readJsonFile(path("run.json")); }
 
-    data::PatchOptions patches;
-    patches.patchSize = config.patch, patches.batchSize = config.batch, patches.seed = config.seed;
-    patches.uniformFraction = config.uniformPatches;
-    // Adversarial steps are inserted between the clean ones: the clean batches are the same, in the same
-    // order, as in a run without them.
-    int64_t cleanBatches = 0;  // clean batches taken before step state.step
-    for (int64_t s = 0; s < state.step; ++s)
-        cleanBatches +=
-            adversarialKindAt(config.seed, s, config.adversarialFraction) == AdversarialKind::None;
-    patches.grayscale = grey, patches.firstBatch = uint64_t(cleanBatches);
-    patches.families = config.families;
-    data::PatchSampler sampler(config.data, patches);
-    int64_t totalSteps = config.steps;
-    if (totalSteps == 0) {
-        const auto items = data::readManifest(config.data);
-        double pixels = 0;
-        for (const json& r : items)
-            if (r.value("split", "") == "train")
-                pixels += double(r["size"][0].get<int>()) * r["size"][1].get<int>();
-        totalSteps =
-            std::max<int64_t>(1, int64_t(std::ceil(config.epochs * pixels /
-                                                   (double(config.batch) * config.patch * config.patch))));
+  private:
+    std::string folder_;
+    bool made_;
+    std::optional<FolderLock> lock_;
+};
+
+// The batches of the steps: clean batches in the seed's order, with adversarial steps inserted between
+// them (each starts from a copy of the next clean batch, which it leaves to the next clean step) and the
+// test faults injected on their steps. The learning rate follows the clean batches.
+class Batches {
+  public:
+    Batches(const TrainConfig& config, const TrainFaults& faults, bool grey, int64_t stepsDone)
+        : config_(config), faults_(faults) {
+        for (int64_t s = 0; s < stepsDone; ++s) cleanBatches_ += kindAt(s) == AdversarialKind::None;
+        data::PatchOptions patches;
+        patches.patchSize = config.patch, patches.batchSize = config.batch, patches.seed = config.seed;
+        patches.uniformFraction = config.uniformPatches;
+        patches.grayscale = grey, patches.firstBatch = uint64_t(cleanBatches_);
+        patches.families = config.families;
+        sampler_.emplace(config.data, patches);
+    }
+    AdversarialKind kindAt(int64_t step) const {
+        return adversarialKindAt(config_.seed, step, config_.adversarialFraction);
     }
     // --steps (or --epochs) counts clean batches; adversarial steps come on top of them, so a stress run
     // and a clean run of the same length train on the same batches at the same learning rates.
-    const int64_t cleanSteps = totalSteps;
-    if (config.adversarialFraction > 0)
+    int64_t stepsFor(int64_t cleanSteps) const {
+        if (config_.adversarialFraction <= 0) return cleanSteps;
         for (int64_t clean = 0, s = 0;; ++s) {
-            if (clean == cleanSteps) {
-                totalSteps = s;
-                break;
-            }
-            clean += adversarialKindAt(config.seed, s, config.adversarialFraction) == AdversarialKind::None;
+            if (clean == cleanSteps) return s;
+            clean += kindAt(s) == AdversarialKind::None;
         }
-    runConfig["total_steps"] = totalSteps;
-    nn::LrSchedule schedule;
-    schedule.kind = nn::LrSchedule::Kind::Cosine;
-    schedule.baseRate = config.learningRate, schedule.minRate = 0.05 * config.learningRate;
-    schedule.warmupSteps = config.warmupSteps, schedule.totalSteps = cleanSteps;
-
-    // Validation: the baselines are scored once; the network at every evaluation.
-    const std::vector<data::EvaluationItem> validation = data::loadEvaluationItems(
-        config.data, data::Split::Validation, config.validationImages, config.families);
-    const std::vector<MethodScores> baselineScores = scoreMethods(validation, baselines, grey);
-
-    {
-        json run = {
-            {"format", "dejag-run-1"},
-            {"config", runConfig},
-            {"command", config.commandLine},
-            {"architecture", model.architecture()},
-            {"parameters", model.parameterCount()},
-            {"macs_per_pixel", double(model.macs({1, model.inputChannels(), 256, 256})) / (256.0 * 256.0)},
-            {"validation_items", validation.size()}};
-        const std::string datasetJson = (fs::path(config.data) / "dataset.json").string();
-        if (fs::exists(datasetJson)) run["dataset"] = readJsonFile(datasetJson);
-        json baselineJson = json::object();
-        for (const MethodScores& b : baselineScores)
-            for (int k = 0; k < int(data::Region::Count); ++k)
-                baselineJson[b.name][data::regionName(data::Region(k))] = {{"psnr", b.summary.psnr[k]},
-                                                                           {"ssim", b.summary.ssim[k]}};
-        run["validation_baselines"] = baselineJson;
-        writeTextFileAtomically((fs::path(config.out) / "run.json").string(), run.dump(2) + "\n");
+    }
+    struct Step {
+        data::Batch batch;
+        AdversarialKind adversarial = AdversarialKind::None;
+        int64_t schedulePosition = 0;
+    };
+    Step next(int64_t step) {
+        Step s;
+        s.adversarial = kindAt(step);
+        s.schedulePosition = cleanBatches_;
+        s.batch = s.adversarial == AdversarialKind::None ? sampler_->next()
+                                                         : sampler_->assemble(uint64_t(cleanBatches_));
+        if (s.adversarial == AdversarialKind::None) ++cleanBatches_;
+        faults_.inject(step, s.batch.input, s.batch.target);
+        if (s.adversarial != AdversarialKind::None)
+            makeAdversarial(s.batch.input, s.batch.target, s.adversarial, config_.seed, step);
+        return s;
     }
 
-    auto printEvaluation = [&](const LogRow& r) {
-        if (config.json) {
+  private:
+    const TrainConfig& config_;
+    const TrainFaults& faults_;
+    std::optional<data::PatchSampler> sampler_;
+    int64_t cleanBatches_ = 0;  // clean batches taken before the next step
+};
+
+int64_t cleanStepsOf(const TrainConfig& config) {
+    if (config.steps > 0) return config.steps;
+    const auto items = data::readManifest(config.data);
+    double pixels = 0;
+    for (const json& r : items)
+        if (r.value("split", "") == "train")
+            pixels += double(r["size"][0].get<int>()) * r["size"][1].get<int>();
+    return std::max<int64_t>(
+        1, int64_t(std::ceil(config.epochs * pixels / (double(config.batch) * config.patch * config.patch))));
+}
+
+// The step guard: judges a step at each of its stages and keeps the books of the skipped ones. A step
+// whose batch, loss or gradient is not finite is skipped (weights and optimizer untouched) and the
+// learning rate halved unless the batch was at fault; with the outlier guard on, a batch unlike the data
+// set's (its input's detail) or a loss far above the running average is skipped too, without counting
+// towards giving up. maxBadSteps bad steps in a row end the run with an error.
+class StepGuard {
+  public:
+    struct Skip {
+        std::string reason;
+        bool badData = false;  // the batch was at fault, not the learning rate
+        bool outlier = false;  // skipped by the outlier guard: not counted towards giving up
+    };
+    StepGuard(const TrainConfig& config, TrainState& state) : config_(config), state_(state) {}
+
+    // Before the forward pass: the batch is finite, and its input's detail is no outlier.
+    std::optional<Skip> batch(const data::Batch& b) {
+        const bool finite = allFinite(b.input) && allFinite(b.target);
+        const double detail = finite && config_.outlierFactor > 0 ? inputDetail(b.input) : NAN;
+        const std::optional<double> ratio = state_.detail.outlierRatio(detail, config_.outlierFactor, true);
+        state_.detail.add(detail, config_.outlierFactor);
+        if (!finite) return Skip{"the batch holds NaN or Inf", true, false};
+        if (ratio) return Skip{outlierReason("the input's detail", detail, *ratio), true, true};
+        return std::nullopt;
+    }
+    // After the loss: it and its gradient are finite, and the loss is no outlier.
+    std::optional<Skip> loss(double value, const nn::Tensor& gradient) {
+        const std::optional<double> ratio = state_.loss.outlierRatio(value, config_.outlierFactor, false);
+        state_.loss.add(value, config_.outlierFactor);
+        if (!std::isfinite(value) || !allFinite(gradient))
+            return Skip{"the loss or its gradient is not finite"};
+        if (ratio) return Skip{outlierReason("the loss", value, *ratio), true, true};
+        return std::nullopt;
+    }
+    // After the backward pass and the clip: the gradient norm is finite.
+    std::optional<Skip> gradient(double norm) {
+        if (!std::isfinite(norm)) return Skip{"the gradient is not finite"};
+        return std::nullopt;
+    }
+    // A skipped step: counted, logged, the learning rate halved if the step diverged; throws once
+    // maxBadSteps steps in a row were bad.
+    void skipped(const Skip& s) {
+        ++state_.skipped;
+        if (s.outlier)
+            ++state_.outliers;
+        else
+            ++state_.badInRow;
+        if (!s.badData) state_.learningRateScale *= 0.5;
+        if (config_.json)
+            std::printf("%s\n", json{{"event", "skipped"},
+                                     {"step", state_.step},
+                                     {"reason", s.reason},
+                                     {"lr_scale", state_.learningRateScale}}
+                                    .dump()
+                                    .c_str());
+        else
+            std::printf("step %6lld  skipped: %s; learning rate scale %s %.3g\n", (long long)state_.step,
+                        s.reason.c_str(), s.badData ? "stays" : "now", state_.learningRateScale);
+        std::fflush(stdout);
+        if (state_.badInRow >= config_.maxBadSteps)
+            throw Error("training diverged: " + std::to_string(state_.badInRow) +
+                        " bad steps in a row (last: " + s.reason + "); the last checkpoint in '" +
+                        config_.out + "' is intact");
+    }
+    void taken(double loss) {
+        state_.badInRow = 0;
+        state_.largestLoss = std::max(state_.largestLoss, loss);
+    }
+
+  private:
+    static std::string outlierReason(const char* what, double measured, double ratio) {
+        char reason[128];
+        std::snprintf(reason, sizeof reason, "%s %.4g is an outlier (%.2f times its running average)", what,
+                      measured, ratio);
+        return reason;
+    }
+    const TrainConfig& config_;
+    TrainState& state_;
+};
+
+// Validation: the baselines scored once, the network at every evaluation; the evaluation lines.
+class Validation {
+  public:
+    Validation(const TrainConfig& config, const std::vector<Method>& baselines, bool grey)
+        : config_(config), grey_(grey) {
+        items_ = data::loadEvaluationItems(config.data, data::Split::Validation, config.validationImages,
+                                           config.families);
+        baselineScores_ = scoreMethods(items_, baselines, grey);
+    }
+    const std::vector<data::EvaluationItem>& items() const { return items_; }
+    const std::vector<MethodScores>& baselineScores() const { return baselineScores_; }
+    json baselinesJson() const {
+        json j = json::object();
+        for (const MethodScores& b : baselineScores_)
+            for (int k = 0; k < int(data::Region::Count); ++k)
+                j[b.name][data::regionName(data::Region(k))] = {{"psnr", b.summary.psnr[k]},
+                                                                {"ssim", b.summary.ssim[k]}};
+        return j;
+    }
+    // Scores the model into the row; returns how many images its output was not finite on.
+    int evaluate(const nn::Model& model, LogRow& row) const {
+        auto network = nn::FrameNetwork::borrowing(model);
+        const std::vector<MethodScores> s = scoreMethods(
+            items_, {{"network", [&](const Image& im) { return runNetwork(network, im); }}}, grey_);
+        row.evaluated = true;
+        for (int k = 0; k < int(data::Region::Count); ++k)
+            row.psnr[k] = s[0].summary.psnr[k], row.ssim[k] = s[0].summary.ssim[k];
+        return s[0].summary.nonFiniteImages;
+    }
+    void print(const LogRow& r) const {
+        if (config_.json) {
             json j = rowToJson(r);
             j["event"] = "evaluation";
-            for (const MethodScores& b : baselineScores) j["baseline_psnr_" + b.name] = b.summary.psnr[0];
+            for (const MethodScores& b : baselineScores_) j["baseline_psnr_" + b.name] = b.summary.psnr[0];
             std::printf("%s\n", j.dump().c_str());
         } else {
             std::string base;
-            for (const MethodScores& b : baselineScores) {
+            for (const MethodScores& b : baselineScores_) {
                 char t[64];
                 std::snprintf(t, sizeof t, "%s%s %.2f", base.empty() ? "" : ", ", b.name.c_str(),
                               b.summary.psnr[0]);
@@ -665,24 +789,84 @@ TrainResult trainModel(const TrainConfig& config, const std::vector<Method>& bas
                 r.learningRate, formatDuration(r.seconds).c_str());
         }
         std::fflush(stdout);
-    };
+    }
 
-    auto evaluate = [&](LogRow& row) {
-        auto network = nn::FrameNetwork::borrowing(model);
-        const std::vector<MethodScores> s = scoreMethods(
-            validation, {{"network", [&](const Image& im) { return runNetwork(network, im); }}}, grey);
-        row.evaluated = true;
-        for (int k = 0; k < int(data::Region::Count); ++k)
-            row.psnr[k] = s[0].summary.psnr[k], row.ssim[k] = s[0].summary.ssim[k];
-        return s[0].summary.nonFiniteImages;
-    };
+  private:
+    const TrainConfig& config_;
+    bool grey_;
+    std::vector<data::EvaluationItem> items_;
+    std::vector<MethodScores> baselineScores_;
+};
 
-    auto saveModelFile = [&](const std::string& name, int64_t step) {
-        nn::saveModel((fs::path(config.out) / name).string(), model,
-                      {{"dejag.provenance", config.commandLine}, {"dejag.step", std::to_string(step)}});
-    };
+}  // namespace
+
+bool TrainFaults::stopsAfter(int64_t sessionSteps) const {
+    return stopAfterSteps > 0 && sessionSteps >= stopAfterSteps;
+}
+
+void TrainFaults::inject(int64_t step, nn::Tensor& input, nn::Tensor& target) const {
+    if (std::find(poisonSteps.begin(), poisonSteps.end(), step) != poisonSteps.end())
+        input.data()[input.numel() / 2] = NAN;
+    if (std::find(spikeSteps.begin(), spikeSteps.end(), step) != spikeSteps.end())
+        for (int64_t i = 0; i < target.numel(); ++i) target.data()[i] *= 1000.0f;
+}
+
+TrainResult trainModel(const TrainConfig& config, const std::vector<Method>& baselines,
+                       const TrainFaults& faults) {
+    checkConfig(config);
+    const nn::CompositeLoss loss = nn::CompositeLoss::parse(config.loss);
+    nn::Model model = buildModel(config);
+    const bool grey = model.inputChannels() == 1;
+
+    const RunFolder folder(config.out);
+    json runConfig = configToJson(config);
+    nn::OptimizerConfig adam;
+    adam.learningRate = config.learningRate;
+    nn::Optimizer optimizer(adam, model.parameterCount());
+    TrainState state;
+    if (folder.hasCheckpoint()) {
+        if (!config.resume)
+            throw Error(
+                "'" + config.out +
+                "' already holds a training run; add --resume to continue it or choose another --out");
+        json saved;
+        state = folder.loadCheckpoint(model, optimizer, &saved);
+        requireSameRun(saved, runConfig);
+        if (saved.at("threads") != runConfig.at("threads"))
+            std::fprintf(
+                stderr,
+                "dejag train: resuming with %d threads (the run used %s): results will differ in rounding\n",
+                threadCount(), saved.at("threads").dump().c_str());
+    } else {
+        model.initialize(config.seed);
+    }
+
+    Batches batches(config, faults, grey, state.step);
+    const int64_t cleanSteps = cleanStepsOf(config), totalSteps = batches.stepsFor(cleanSteps);
+    runConfig["total_steps"] = totalSteps;
+    nn::LrSchedule schedule;
+    schedule.kind = nn::LrSchedule::Kind::Cosine;
+    schedule.baseRate = config.learningRate, schedule.minRate = 0.05 * config.learningRate;
+    schedule.warmupSteps = config.warmupSteps, schedule.totalSteps = cleanSteps;
+
+    const Validation validation(config, baselines, grey);
+    {
+        json run = {
+            {"format", "dejag-run-1"},
+            {"config", runConfig},
+            {"command", config.commandLine},
+            {"architecture", model.architecture()},
+            {"parameters", model.parameterCount()},
+            {"macs_per_pixel", double(model.macs({1, model.inputChannels(), 256, 256})) / (256.0 * 256.0)},
+            {"validation_items", validation.items().size()}};
+        const std::string datasetJson = (fs::path(config.data) / "dataset.json").string();
+        if (fs::exists(datasetJson)) run["dataset"] = readJsonFile(datasetJson);
+        run["validation_baselines"] = validation.baselinesJson();
+        folder.writeRunJson(run);
+    }
 
     TrainResult result;
+    StepGuard guard(config, state);
     // Log rows fall on checkpoint steps too, so a resumed run logs the same rows.
     const int64_t logEvery =
         std::gcd(std::max<int64_t>(1, std::min<int64_t>(50, totalSteps / 200)), config.checkpointEvery);
@@ -702,113 +886,50 @@ TrainResult trainModel(const TrainConfig& config, const std::vector<Method>& bas
     bool stop = config.patience > 0 && state.evaluationsSinceBest >= config.patience;  // finished early
     result.stoppedEarly = stop;
     while (state.step < totalSteps && !stop) {
-        const AdversarialKind adversarial =
-            adversarialKindAt(config.seed, state.step, config.adversarialFraction);
-        // An adversarial step starts from a copy of the next clean batch (HDR spikes and poison are
-        // added to it) and leaves that batch to the next clean step.
-        // The learning rate follows the clean batches (an adversarial step takes the next clean one's).
-        const int64_t schedulePosition = cleanBatches;
-        data::Batch batch =
-            adversarial == AdversarialKind::None ? sampler.next() : sampler.assemble(uint64_t(cleanBatches));
-        if (adversarial == AdversarialKind::None) ++cleanBatches;
-        if (std::find(config.poisonSteps.begin(), config.poisonSteps.end(), state.step) !=
-            config.poisonSteps.end())
-            batch.input.data()[batch.input.numel() / 2] = NAN;
-        if (std::find(config.spikeSteps.begin(), config.spikeSteps.end(), state.step) !=
-            config.spikeSteps.end())
-            for (int64_t i = 0; i < batch.target.numel(); ++i) batch.target.data()[i] *= 1000.0f;
-        if (adversarial != AdversarialKind::None) {
-            makeAdversarial(batch.input, batch.target, adversarial, config.seed, state.step);
-            ++state.adversarial[int(adversarial)];
-        }
-        const double rate = schedule.rateAt(schedulePosition) * state.learningRateScale;
-        std::string bad;
-        bool badData = false, outlierStep = false;
+        // 1. The next batch.
+        Batches::Step step = batches.next(state.step);
+        if (step.adversarial != AdversarialKind::None) ++state.adversarial[int(step.adversarial)];
+        const double rate = schedule.rateAt(step.schedulePosition) * state.learningRateScale;
+        // 2. Guard, forward and loss, backward, guard again.
         double value = NAN;
-        const auto outlierReason = [](const char* what, double measured, double ratio) {
-            char reason[128];
-            std::snprintf(reason, sizeof reason, "%s %.4g is an outlier (%.2f times its running average)",
-                          what, measured, ratio);
-            return std::string(reason);
-        };
-        // The input's detail is judged before the forward pass (measured only with the guard on): a batch
-        // unlike the data set's (no detail at all, or noise) teaches the network what no frame asks for.
-        const bool finite = allFinite(batch.input) && allFinite(batch.target);
-        const double inputDetailValue = finite && config.outlierFactor > 0 ? inputDetail(batch.input) : NAN;
-        const std::optional<double> detailRatio =
-            state.detail.outlierRatio(inputDetailValue, config.outlierFactor, true);
-        state.detail.add(inputDetailValue, config.outlierFactor);
-        if (!finite) {
-            bad = "the batch holds NaN or Inf";
-            badData = true;
-        } else if (detailRatio) {
-            bad = outlierReason("the input's detail", inputDetailValue, *detailRatio);
-            badData = outlierStep = true;
-        } else {
-            const nn::Tensor& out = model.forward(batch.input);
+        std::optional<StepGuard::Skip> skip = guard.batch(step.batch);
+        if (!skip) {
+            const nn::Tensor& out = model.forward(step.batch.input);
             if (dout.shape() != out.shape()) dout = nn::Tensor(out.shape());
             dout.zero();
             const nn::SsimLossDesc desc{out.dim(0), out.dim(1), out.dim(2), out.dim(3), 1.0};
-            value = loss.evaluate(dout.data(), out.data(), batch.target.data(), desc);
-            const std::optional<double> ratio = state.loss.outlierRatio(value, config.outlierFactor, false);
-            state.loss.add(value, config.outlierFactor);
-            if (!std::isfinite(value) || !allFinite(dout)) {
-                bad = "the loss or its gradient is not finite";
-            } else if (ratio) {
-                bad = outlierReason("the loss", value, *ratio);
-                badData = outlierStep = true;
-            } else {
-                model.backward(dout);
-                const double norm =
-                    config.clipNorm > 0
-                        ? nn::clipGradientNorm(model.gradientData(), model.parameterCount(), config.clipNorm)
-                        : nn::gradientNorm(model.gradientData(), model.parameterCount());
-                if (!std::isfinite(norm)) bad = "the gradient is not finite";
-            }
+            value = loss.evaluate(dout.data(), out.data(), step.batch.target.data(), desc);
+            skip = guard.loss(value, dout);
         }
-        if (!bad.empty()) {
-            // A diverging step lowers the learning rate; a broken batch says nothing about it (but
-            // counts towards giving up, so a broken data set stops the run).
-            // An outlier is neither: skipped, and not counted towards giving up.
-            ++state.skipped;
-            if (outlierStep)
-                ++state.outliers;
-            else
-                ++state.badInRow;
-            if (!badData) state.learningRateScale *= 0.5;
-            if (config.json)
-                std::printf("%s\n", json{{"event", "skipped"},
-                                         {"step", state.step},
-                                         {"reason", bad},
-                                         {"lr_scale", state.learningRateScale}}
-                                        .dump()
-                                        .c_str());
-            else
-                std::printf("step %6lld  skipped: %s; learning rate scale %s %.3g\n", (long long)state.step,
-                            bad.c_str(), badData ? "stays" : "now", state.learningRateScale);
-            std::fflush(stdout);
-            if (state.badInRow >= config.maxBadSteps)
-                throw Error("training diverged: " + std::to_string(state.badInRow) +
-                            " bad steps in a row (last: " + bad + "); the last checkpoint in '" + config.out +
-                            "' is intact");
+        if (!skip) {
+            model.backward(dout);
+            const double norm =
+                config.clipNorm > 0
+                    ? nn::clipGradientNorm(model.gradientData(), model.parameterCount(), config.clipNorm)
+                    : nn::gradientNorm(model.gradientData(), model.parameterCount());
+            skip = guard.gradient(norm);
+        }
+        // 3. Update, or skip the step.
+        if (skip) {
+            guard.skipped(*skip);
         } else {
             optimizer.step(model.parameterData(), model.gradientData(), rate);
-            state.badInRow = 0;
-            state.largestLoss = std::max(state.largestLoss, value);
+            guard.taken(value);
             lossSum += value, ++lossCount, lastLoss = value;
         }
-        if (adversarial != AdversarialKind::None && config.json) {
+        if (step.adversarial != AdversarialKind::None && config.json) {
             std::printf("%s\n", json{{"event", "adversarial"},
                                      {"step", state.step},
-                                     {"kind", adversarialKindName(adversarial)},
+                                     {"kind", adversarialKindName(step.adversarial)},
                                      {"loss", std::isfinite(value) ? json(value) : json(nullptr)},
                                      {"loss_average", state.loss.average},
-                                     {"taken", bad.empty()}}
+                                     {"taken", !skip}}
                                     .dump()
                                     .c_str());
             std::fflush(stdout);
         }
         ++state.step;
+        // 4. Log and evaluate.
         const bool evaluationStep = state.step % config.evalEvery == 0 || state.step == totalSteps;
         if (state.step % logEvery == 0 || evaluationStep) {
             LogRow row;
@@ -817,7 +938,7 @@ TrainResult trainModel(const TrainConfig& config, const std::vector<Method>& bas
             row.loss = lossCount ? lossSum / double(lossCount) : NAN;
             lossSum = 0, lossCount = 0;
             if (evaluationStep) {
-                const int nonFinite = evaluate(row);
+                const int nonFinite = validation.evaluate(model, row);
                 if (nonFinite > 0)
                     std::fprintf(
                         stderr,
@@ -826,22 +947,23 @@ TrainResult trainModel(const TrainConfig& config, const std::vector<Method>& bas
                         (long long)state.step, nonFinite);
                 if (nonFinite == 0 && row.psnr[0] > state.bestPsnr + kMinimumImprovementDb) {
                     state.bestPsnr = row.psnr[0], state.bestStep = state.step, state.evaluationsSinceBest = 0;
-                    saveModelFile("best.safetensors", state.step);
+                    folder.saveModel("best.safetensors", model, config.commandLine, state.step);
                 } else if (config.patience > 0 && ++state.evaluationsSinceBest >= config.patience) {
                     stop = true;
                     result.stoppedEarly = true;
                 }
                 state.log.push_back(row);
-                printEvaluation(row);
-                writeLogCsv((fs::path(config.out) / "log.csv").string(), state.log);
-                writePlots(config.out, state.log, baselineScores, model.name());
+                validation.print(row);
+                writeLogCsv(folder.path("log.csv"), state.log);
+                writePlots(config.out, state.log, validation.baselineScores(), model.name());
             } else {
                 state.log.push_back(row);
             }
         }
+        // 5. Checkpoint.
         if (state.step % config.checkpointEvery == 0 || state.step == totalSteps || stop) {
             state.seconds = elapsed();
-            saveCheckpoint(checkpointPath, model, optimizer, state, runConfig);
+            folder.saveCheckpoint(model, optimizer, state, runConfig);
         }
         char detail[96];
         if (state.bestStep >= 0)
@@ -849,25 +971,24 @@ TrainResult trainModel(const TrainConfig& config, const std::vector<Method>& bas
         else
             std::snprintf(detail, sizeof detail, "loss %.5f", lastLoss);
         progress.advance(1, detail);
-        if (config.stopAfterSteps > 0 && ++sessionSteps >= config.stopAfterSteps && state.step < totalSteps &&
-            !stop) {
+        if (faults.stopsAfter(++sessionSteps) && state.step < totalSteps && !stop) {
             state.seconds = elapsed();
-            saveCheckpoint(checkpointPath, model, optimizer, state, runConfig);
+            folder.saveCheckpoint(model, optimizer, state, runConfig);
             result.interrupted = true;
             result.steps = state.step;
             return result;
         }
     }
     progress.finish();
-    saveModelFile("final.safetensors", state.step);
+    folder.saveModel("final.safetensors", model, config.commandLine, state.step);
     state.seconds = elapsed();
-    saveCheckpoint(checkpointPath, model, optimizer, state, runConfig);
+    folder.saveCheckpoint(model, optimizer, state, runConfig);
     {
-        json run = readJsonFile((fs::path(config.out) / "run.json").string());
+        json run = folder.readRunJson();
         run["finished"] = {{"steps", state.step},         {"seconds", state.seconds},
                            {"skipped", state.skipped},    {"best_step", state.bestStep},
                            {"best_psnr", state.bestPsnr}, {"stopped_early", result.stoppedEarly}};
-        writeTextFileAtomically((fs::path(config.out) / "run.json").string(), run.dump(2) + "\n");
+        folder.writeRunJson(run);
     }
     result.steps = state.step, result.skippedSteps = state.skipped, result.seconds = state.seconds;
     result.bestPsnr = state.bestPsnr, result.bestStep = state.bestStep;

@@ -45,10 +45,8 @@ struct TrainConfig {
     int patience = 0;           // evaluations without a better validation PSNR before stopping (0: off)
     int maxBadSteps = 8;        // non-finite steps in a row before giving up
     bool resume = false;
-    bool quiet = false;                // no progress bar
-    bool json = false;                 // log lines as JSON objects on stdout
-    std::vector<int64_t> poisonSteps;  // tests: steps whose batch gets a NaN (exercises the guard)
-    std::vector<int64_t> spikeSteps;   // tests: steps whose target is multiplied by 1000 (a loss spike)
+    bool quiet = false;  // no progress bar
+    bool json = false;   // log lines as JSON objects on stdout
     // Stress testing: this fraction of the steps, chosen by the seed and the step, trains on an
     // adversarial batch (see AdversarialKind): constant patches, pure noise, HDR spikes up to 1e4, or
     // NaN/Inf-poisoned input that the guard must reject. They are inserted between the clean batches,
@@ -60,8 +58,6 @@ struct TrainConfig {
     // The share of each batch's patches placed uniformly over the frames; the others are centred near an
     // aliasing pixel (data::PatchOptions::uniformFraction).
     double uniformPatches = data::PatchOptions().uniformFraction;
-    int64_t stopAfterSteps = 0;         // tests: end the session after this many steps, checkpointed,
-                                        // as if killed then (0: run to the end)
     std::string commandLine;            // recorded in run.json and the model card
     std::vector<std::string> families;  // train and validate on these families only (empty: all but test)
 };
@@ -92,15 +88,26 @@ struct TrainResult {
     double bestPsnr = 0;  // validation PSNR (whole images) of best.safetensors
     int64_t bestStep = 0;
     bool stoppedEarly = false;
-    bool interrupted = false;          // stopAfterSteps ended the session: resume to finish
+    bool interrupted = false;          // TrainFaults::stopAfterSteps ended the session: resume
     double largestLoss = 0;            // of the steps taken (not skipped), over the whole run
     int64_t outlierSteps = 0;          // skipped by the outlier guard, over the whole run
     int64_t adversarialSteps[5] = {};  // steps of each AdversarialKind, over the whole run
 };
 
+// Faults injected for tests, kept out of the configuration (a run never records them): steps whose batch
+// gets a NaN (the guard must skip it), steps whose target is multiplied by 1000 (a loss spike), and a
+// session that ends after this many steps, checkpointed, as if killed then (0: run to the end).
+struct TrainFaults {
+    std::vector<int64_t> poisonSteps, spikeSteps;
+    int64_t stopAfterSteps = 0;
+    bool stopsAfter(int64_t sessionSteps) const;
+    void inject(int64_t step, nn::Tensor& input, nn::Tensor& target) const;
+};
+
 // Trains, writing the run folder as it goes. Throws dejag::Error on bad configuration or data, or when
 // training diverges (after maxBadSteps bad steps in a row).
-TrainResult trainModel(const TrainConfig& config, const std::vector<Method>& baselines);
+TrainResult trainModel(const TrainConfig& config, const std::vector<Method>& baselines,
+                       const TrainFaults& faults = {});
 
 // The architecture --arch names: seed2020, fast, fast:WIDTH[xDEPTH] (the fast family at another size),
 // or a JSON file. Throws dejag::Error naming what is wrong.

@@ -104,20 +104,21 @@ TEST_F(Training, ResumedRunEqualsTheUninterruptedOneBitForBit) {
     const TrainConfig straight = tinyConfig("straight");
     trainModel(straight, baselines());
     TrainConfig broken = tinyConfig("broken");
-    broken.stopAfterSteps = 10;
-    EXPECT_TRUE(trainModel(broken, baselines()).interrupted);
+    TrainFaults brokenFaults;
+    brokenFaults.stopAfterSteps = 10;
+    EXPECT_TRUE(trainModel(broken, baselines(), brokenFaults).interrupted);
     broken.resume = true;
-    broken.stopAfterSteps = 20;  // a second interruption, past an evaluation
-    EXPECT_TRUE(trainModel(broken, baselines()).interrupted);
-    broken.stopAfterSteps = 0;
-    const TrainResult r = trainModel(broken, baselines());
+    brokenFaults.stopAfterSteps = 20;  // a second interruption, past an evaluation
+    EXPECT_TRUE(trainModel(broken, baselines(), brokenFaults).interrupted);
+    brokenFaults.stopAfterSteps = 0;
+    const TrainResult r = trainModel(broken, baselines(), brokenFaults);
     EXPECT_FALSE(r.interrupted);
     EXPECT_EQ(r.steps, 40);
     EXPECT_EQ(weightsOf(straight.out + "/final.safetensors"), weightsOf(broken.out + "/final.safetensors"));
     EXPECT_EQ(lossesOf(straight.out), lossesOf(broken.out));
     // Resuming with another learning rate would not continue the same run: refused.
     broken.learningRate = 1e-2;
-    EXPECT_THROW(trainModel(broken, baselines()), Error);
+    EXPECT_THROW(trainModel(broken, baselines(), brokenFaults), Error);
 }
 
 // --uniform-patches changes which patches a batch holds, so it is part of the run: recorded, and a resume
@@ -140,17 +141,19 @@ TEST_F(Training, TheShareOfUniformPatchesChangesTheBatchesAndMustMatchOnResume) 
 
 TEST_F(Training, ANanBatchIsSkippedAndTheWeightsStayClean) {
     TrainConfig clean = tinyConfig("clean");
+    TrainFaults cleanFaults;
     clean.steps = 10, clean.checkpointEvery = 5;
-    clean.stopAfterSteps = 5;
-    trainModel(clean, baselines());
+    cleanFaults.stopAfterSteps = 5;
+    trainModel(clean, baselines(), cleanFaults);
     const std::vector<float> before =
         nn::readSafetensors(clean.out + "/checkpoint.safetensors").tensors.at("parameters").f32;
 
     TrainConfig poisoned = tinyConfig("poisoned");
+    TrainFaults poisonedFaults;
     poisoned.steps = 10, poisoned.checkpointEvery = 5;
-    poisoned.poisonSteps = {5};
-    poisoned.stopAfterSteps = 6;  // step 5 (the sixth) is the poisoned one
-    trainModel(poisoned, baselines());
+    poisonedFaults.poisonSteps = {5};
+    poisonedFaults.stopAfterSteps = 6;  // step 5 (the sixth) is the poisoned one
+    trainModel(poisoned, baselines(), poisonedFaults);
     const nn::SafetensorsFile file = nn::readSafetensors(poisoned.out + "/checkpoint.safetensors");
     const std::vector<float> after = file.tensors.at("parameters").f32;
     EXPECT_EQ(before, after) << "a skipped step must leave the weights as they were";
@@ -158,8 +161,8 @@ TEST_F(Training, ANanBatchIsSkippedAndTheWeightsStayClean) {
     EXPECT_EQ(state["skipped"], 1);
     // A broken batch says nothing about the learning rate (only a diverging step lowers it).
     EXPECT_DOUBLE_EQ(state["lr_scale"].get<double>(), 1.0);
-    poisoned.resume = true, poisoned.stopAfterSteps = 0;
-    const TrainResult r = trainModel(poisoned, baselines());
+    poisoned.resume = true, poisonedFaults.stopAfterSteps = 0;
+    const TrainResult r = trainModel(poisoned, baselines(), poisonedFaults);
     EXPECT_EQ(r.skippedSteps, 1);
     for (float w : weightsOf(poisoned.out + "/final.safetensors")) ASSERT_TRUE(std::isfinite(w));
 }
@@ -224,10 +227,11 @@ TEST_F(Training, AdversarialBatchesLeaveTheWeightsFinite) {
 
     // Interrupted and resumed, the inserted batches and the clean ones between them are the same.
     TrainConfig broken = tinyConfig("adversarial-resumed");
-    broken.steps = 40, broken.adversarialFraction = 0.5, broken.stopAfterSteps = 15;
-    EXPECT_TRUE(trainModel(broken, baselines()).interrupted);
-    broken.resume = true, broken.stopAfterSteps = 0;
-    trainModel(broken, baselines());
+    TrainFaults brokenFaults;
+    broken.steps = 40, broken.adversarialFraction = 0.5, brokenFaults.stopAfterSteps = 15;
+    EXPECT_TRUE(trainModel(broken, baselines(), brokenFaults).interrupted);
+    broken.resume = true, brokenFaults.stopAfterSteps = 0;
+    trainModel(broken, baselines(), brokenFaults);
     EXPECT_EQ(weightsOf(c.out + "/final.safetensors"), weightsOf(broken.out + "/final.safetensors"));
 }
 
@@ -235,12 +239,15 @@ TEST_F(Training, AdversarialBatchesLeaveTheWeightsFinite) {
 // step 120 ends with the same weights as one with a NaN there, and neither lowers the learning rate.
 TEST_F(Training, TheOutlierGuardSkipsALossSpike) {
     TrainConfig nan = tinyConfig("outlier-nan");
+    TrainFaults nanFaults;
     nan.steps = 130, nan.evalEvery = 130, nan.checkpointEvery = 130, nan.outlierFactor = 3;
-    nan.poisonSteps = {120};
+    nanFaults.poisonSteps = {120};
     TrainConfig spike = tinyConfig("outlier-spike");
+    TrainFaults spikeFaults;
     spike.steps = 130, spike.evalEvery = 130, spike.checkpointEvery = 130, spike.outlierFactor = 3;
-    spike.spikeSteps = {120};
-    const TrainResult a = trainModel(nan, baselines()), b = trainModel(spike, baselines());
+    spikeFaults.spikeSteps = {120};
+    const TrainResult a = trainModel(nan, baselines(), nanFaults),
+                      b = trainModel(spike, baselines(), spikeFaults);
     EXPECT_EQ(a.outlierSteps, 0);
     EXPECT_EQ(b.outlierSteps, 1);
     EXPECT_EQ(a.skippedSteps, 1);
@@ -248,9 +255,10 @@ TEST_F(Training, TheOutlierGuardSkipsALossSpike) {
     EXPECT_EQ(weightsOf(nan.out + "/final.safetensors"), weightsOf(spike.out + "/final.safetensors"));
     // Without the guard the spike is trained on.
     TrainConfig unguarded = tinyConfig("outlier-unguarded");
+    TrainFaults unguardedFaults;
     unguarded.steps = 130, unguarded.evalEvery = 130, unguarded.checkpointEvery = 130;
-    unguarded.spikeSteps = {120};
-    EXPECT_EQ(trainModel(unguarded, baselines()).skippedSteps, 0);
+    unguardedFaults.spikeSteps = {120};
+    EXPECT_EQ(trainModel(unguarded, baselines(), unguardedFaults).skippedSteps, 0);
 }
 
 // The other half of the outlier guard judges the input before the forward pass: constant batches (no
@@ -290,10 +298,11 @@ TEST_F(Training, TheOutlierGuardSkipsBatchesUnlikeTheDataSet) {
 
 TEST_F(Training, RepeatedBadStepsStopWithTheLastCheckpointIntact) {
     TrainConfig c = tinyConfig("diverges");
+    TrainFaults cFaults;
     c.maxBadSteps = 3;
-    c.poisonSteps = {12, 13, 14};
+    cFaults.poisonSteps = {12, 13, 14};
     try {
-        trainModel(c, baselines());
+        trainModel(c, baselines(), cFaults);
         FAIL() << "expected an error";
     } catch (const Error& e) {
         EXPECT_NE(std::string(e.what()).find("3 bad steps in a row"), std::string::npos) << e.what();
@@ -325,8 +334,9 @@ TEST_F(Training, ExportThenLoadGivesIdenticalOutputsAndACard) {
     EXPECT_EQ(x.pixels, y.pixels);
     // Not a finished run: refused.
     TrainConfig unfinished = tinyConfig("unfinished");
-    unfinished.stopAfterSteps = 10;
-    trainModel(unfinished, baselines());
+    TrainFaults unfinishedFaults;
+    unfinishedFaults.stopAfterSteps = 10;
+    trainModel(unfinished, baselines(), unfinishedFaults);
     EXPECT_THROW(exportModel(unfinished.out, root_ + "/models/x.safetensors", baselines(), 1, true), Error);
 }
 
