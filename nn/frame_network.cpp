@@ -9,11 +9,13 @@
 #include "base/simd.h"
 #include "base/thread_pool.h"
 #include "nn/frame_network_kernels.h"
+#include "nn/ops.h"
 
 namespace dejag::nn {
 
 ReceptiveField receptiveField(const Model& model) {
-    // Per node: the spacing of its pixels in input pixels (scale) and how far its pixels see (radius).
+    // Per node: the spacing of its pixels in input pixels (scale) and how far its pixels see (radius), as
+    // each op's entry in the registry (nn/ops.h) moves them.
     const std::vector<GraphNode> graph = model.graph();
     std::vector<double> scale(graph.size(), 1.0), radius(graph.size(), 0.0);
     double maxScale = 1.0;
@@ -27,31 +29,7 @@ ReceptiveField receptiveField(const Model& model) {
             if (k == 0) s = inScale;
             r = std::max(r, inRadius);
         }
-        switch (n.op) {
-            case GraphOp::Conv2d:
-                r += ((n.kernel - 1) * n.dilation / 2.0 + (n.stride - 1) + (n.samePadding ? 0 : n.padding)) *
-                     s;
-                s *= n.stride;
-                break;
-            case GraphOp::ConvTranspose2d:
-                r += ((n.kernel - 1) / 2.0 + 1) * s;
-                s /= n.stride;
-                break;
-            case GraphOp::MaxPool2d:
-                r += (n.kernel - 1) * s;
-                s *= n.stride;
-                break;
-            case GraphOp::Upsample:
-            case GraphOp::PixelShuffle:
-                r += s;
-                s /= n.factor;
-                break;
-            case GraphOp::KernelFilter:
-                r += (n.kernel / 2) * s;
-                break;
-            default:
-                break;
-        }
+        if (const OpDef& def = opDef(n.op); def.receptiveField) def.receptiveField(n, s, r);
         scale[i] = s, radius[i] = r;
         maxScale = std::max(maxScale, s);
     }

@@ -8,16 +8,11 @@
 #include "base/error.h"
 #include "nn/fast_conv.h"
 #include "nn/init.h"
+#include "nn/ops.h"
 #include "nn/safetensors.h"
 
 namespace dejag::nn {
 namespace {
-
-// Bounds on an architecture, far above any image filter (dejag-fast: 64 channels, 3x3 kernels): a typo
-// or a hostile file is one error line instead of an allocation of terabytes.
-constexpr int kMaxChannels = 4096;
-constexpr int kMaxKernel = 31;
-constexpr int64_t kMaxParameters = int64_t(1) << 27;  // 512 MB of float weights
 
 using Op = GraphOp;
 
@@ -37,9 +32,9 @@ void ensureBlocked(Tensor& t, const BlockedShape& shape) {
 }
 
 Op parseOp(const std::string& name, const std::string& node) {
-    for (int i = 0; i < int(Op::Count); ++i)
-        if (name == graphOpName(Op(i))) return Op(i);
-    throw Error("node '" + node + "': unknown op '" + name + "'");
+    const Op op = opNamed(name);
+    if (op == Op::Count) throw Error("node '" + node + "': unknown op '" + name + "'");
+    return op;
 }
 
 void ensureShape(Tensor& t, const Shape& shape) {
@@ -63,62 +58,14 @@ struct Model::Impl {
 
     // Output shape of node i given its input shapes (validating them).
     Shape nodeOutputShape(const Node& n, const std::vector<Shape>& ins) const {
-        const Shape& in = ins[0];
         auto fail = [&](const std::string& what) { return Error("node '" + n.name + "': " + what); };
         try {
-            switch (n.op) {
-                case Op::Conv2d: {
-                    const Conv2dDesc d = n.convDesc(in);
-                    d.validate();
-                    return {in[0], n.outChannels, d.outHeight(), d.outWidth()};
-                }
-                case Op::ConvTranspose2d: {
-                    const ConvTranspose2dDesc d = n.convTransposeDesc(in);
-                    d.validate();
-                    return {in[0], n.outChannels, d.outHeight(), d.outWidth()};
-                }
-                case Op::MaxPool2d: {
-                    const MaxPool2dDesc d = n.poolDesc(in);
-                    d.validate();
-                    return {in[0], in[1], d.outHeight(), d.outWidth()};
-                }
-                case Op::Activation:
-                    return in;
-                case Op::Add:
-                    if (ins[1] != in)
-                        throw fail("adds " + shapeToString(in) + " and " + shapeToString(ins[1]) +
-                                   " (shapes differ)");
-                    return in;
-                case Op::Concat: {
-                    Shape out = in;
-                    out[1] = 0;
-                    for (const Shape& s : ins) {
-                        if (s[0] != in[0] || s[2] != in[2] || s[3] != in[3])
-                            throw fail("concatenates " + shapeToString(in) + " and " + shapeToString(s));
-                        out[1] += s[1];
-                    }
-                    return out;
-                }
-                case Op::Upsample:
-                    return {in[0], in[1], in[2] * n.factor, in[3] * n.factor};
-                case Op::PixelShuffle:
-                    return {in[0], in[1] / (n.factor * n.factor), in[2] * n.factor, in[3] * n.factor};
-                case Op::KernelFilter: {
-                    const Shape want{in[0], int64_t(n.kernel) * n.kernel, in[2], in[3]};
-                    if (ins[1] != want)
-                        throw fail("filters " + shapeToString(in) + " with logits " + shapeToString(ins[1]) +
-                                   " (wanted " + shapeToString(want) + ")");
-                    return in;
-                }
-                case Op::Count:
-                    break;
-            }
+            return opDef(n.op).outputShape(n, ins);
         } catch (const Error& e) {
             const std::string message = e.what();
             if (message.rfind("node '", 0) == 0) throw;
             throw fail(message);
         }
-        throw fail("bad op");
     }
 
     std::vector<Shape> inputShapes(const Node& n, const std::vector<Shape>& shapes,
@@ -134,11 +81,7 @@ struct Model::Impl {
 };
 
 const char* graphOpName(GraphOp op) {
-    static constexpr const char* kNames[] = {"conv2d",       "conv_transpose2d", "maxpool2d", "activation",
-                                             "add",          "concat",           "upsample",  "pixel_shuffle",
-                                             "kernel_filter"};
-    static_assert(sizeof(kNames) / sizeof(kNames[0]) == size_t(GraphOp::Count), "every op needs a name");
-    return op < GraphOp::Count ? kNames[int(op)] : "unknown";
+    return op < GraphOp::Count ? opDef(op).name : "unknown";
 }
 
 Conv2dDesc GraphNode::convDesc(const Shape& in) const {
@@ -220,134 +163,22 @@ Model Model::fromArchitecture(const nlohmann::json& a) {
                     throw Error("node '" + n.name + "': input '" + source +
                                 "' is not 'input' or an earlier node");
             }
-            const size_t wantInputs =
-                (n.op == Op::Add || n.op == Op::KernelFilter) ? 2 : (n.op == Op::Concat ? 0 : 1);
-            if ((wantInputs && n.inputs.size() != wantInputs) || (n.op == Op::Concat && n.inputs.size() < 2))
-                throw Error("node '" + n.name + "': " + graphOpName(n.op) + " takes " +
-                            (n.op == Op::Concat ? std::string("two or more inputs")
-                                                : std::to_string(wantInputs) + " input(s)"));
+            const OpDef& def = opDef(n.op);
+            if (int(n.inputs.size()) < def.minInputs ||
+                (def.maxInputs && int(n.inputs.size()) > def.maxInputs))
+                throw Error("node '" + n.name + "': " + def.name + " takes " +
+                            (def.maxInputs == 0   ? std::to_string(def.minInputs) + " or more inputs"
+                             : def.minInputs == 1 ? std::string("1 input")
+                                                  : std::to_string(def.minInputs) + " inputs"));
             auto channelsOf = [&](int i) { return i < 0 ? impl->inputChannels : channels[size_t(i)]; };
             n.inChannels = channelsOf(n.inputs[0]);
-            auto readActivation = [&](const nlohmann::json& src) {
-                n.activation.kind = parseActivation(src.value("activation", "none"));
-                n.activation.slope = src.value("slope", 0.01f);
-                n.activation.low = src.value("low", 0.0f);
-                n.activation.high = src.value("high", 1.0f);
-            };
-            switch (n.op) {
-                case Op::Conv2d:
-                case Op::ConvTranspose2d: {
-                    n.outChannels = j.at("out_channels").get<int>();
-                    n.kernel = j.at("kernel").get<int>();
-                    n.stride = j.value("stride", n.op == Op::Conv2d ? 1 : 2);
-                    n.dilation = j.value("dilation", 1);
-                    n.bias = j.value("bias", true);
-                    if (j.contains("padding") && j["padding"].is_string()) {
-                        const std::string mode = j["padding"];
-                        if (mode == "same" && n.op == Op::Conv2d)
-                            n.samePadding = true;
-                        else if (mode != "valid")
-                            throw Error("node '" + n.name + "': padding '" + mode + "'");
-                    } else {
-                        n.padding = j.value("padding", 0);
-                    }
-                    n.outputPadding = j.value("output_padding", 0);
-                    readActivation(j);
-                    if (n.outChannels < 1 || n.kernel < 1 || n.stride < 1 || n.dilation < 1 || n.padding < 0)
-                        throw Error("node '" + n.name +
-                                    "': out_channels, kernel, stride and dilation must be >= 1");
-                    // Bounds far above any image filter, so a typo is one line rather than an allocation
-                    // of terabytes: channels, kernel, stride, dilation and padding.
-                    const auto atMost = [&](const char* field, int value, int limit) {
-                        if (value > limit)
-                            throw Error("node '" + n.name + "': " + field + " " + std::to_string(value) +
-                                        " is above " + std::to_string(limit));
-                    };
-                    atMost("out_channels", n.outChannels, kMaxChannels);
-                    atMost("kernel", n.kernel, kMaxKernel);
-                    atMost("stride", n.stride, kMaxKernel);
-                    atMost("dilation", n.dilation, kMaxKernel);
-                    atMost("padding", n.padding, kMaxKernel * kMaxKernel);
-                    if (n.outputPadding < 0 || (n.outputPadding > 0 && n.outputPadding >= n.stride))
-                        throw Error("node '" + n.name +
-                                    "': output_padding must be >= 0 and below the stride");
-                    const int64_t weights = int64_t(n.inChannels) * n.outChannels * n.kernel * n.kernel;
-                    ParameterInfo w;
-                    w.name = n.name + ".weight";
-                    w.shape = n.op == Op::Conv2d ? Shape{n.outChannels, n.inChannels, n.kernel, n.kernel}
-                                                 : Shape{n.inChannels, n.outChannels, n.kernel, n.kernel};
-                    w.offset = n.weightOffset = offset;
-                    w.fanIn = int64_t(n.inChannels) * n.kernel * n.kernel;
-                    w.fanOut = int64_t(n.outChannels) * n.kernel * n.kernel;
-                    w.initScale = j.value("init_scale", 1.0);
-                    if (!(w.initScale >= 0) || !std::isfinite(w.initScale))
-                        throw Error("node '" + n.name + "': init_scale must be finite and >= 0");
-                    impl->parameters.push_back(w);
-                    offset += weights;
-                    if (n.bias) {
-                        ParameterInfo b;
-                        b.name = n.name + ".bias";
-                        b.shape = {n.outChannels};
-                        b.offset = n.biasOffset = offset;
-                        b.isBias = true;
-                        impl->parameters.push_back(b);
-                        offset += n.outChannels;
-                    }
-                    break;
-                }
-                case Op::MaxPool2d:
-                    n.kernel = j.value("kernel", 2);
-                    n.stride = j.value("stride", n.kernel);
-                    n.outChannels = n.inChannels;
-                    break;
-                case Op::Activation:
-                    readActivation(j);
-                    n.outChannels = n.inChannels;
-                    break;
-                case Op::Add:
-                    if (channelsOf(n.inputs[1]) != n.inChannels)
-                        throw Error("node '" + n.name + "': adds " + std::to_string(n.inChannels) + " and " +
-                                    std::to_string(channelsOf(n.inputs[1])) + " channels");
-                    n.outChannels = n.inChannels;
-                    break;
-                case Op::Concat:
-                    n.outChannels = 0;
-                    for (int i : n.inputs) n.outChannels += channelsOf(i);
-                    break;
-                case Op::Upsample: {
-                    const std::string mode = j.value("mode", "nearest");
-                    if (mode != "nearest" && mode != "bilinear")
-                        throw Error("node '" + n.name + "': upsample mode '" + mode + "'");
-                    n.bilinear = mode == "bilinear";
-                    n.factor = j.value("factor", 2);
-                    n.outChannels = n.inChannels;
-                    break;
-                }
-                case Op::PixelShuffle:
-                    n.factor = j.value("factor", 2);
-                    if (n.factor < 1 || n.inChannels % (n.factor * n.factor))
-                        throw Error("node '" + n.name + "': " + std::to_string(n.inChannels) +
-                                    " channels are not a multiple of factor^2");
-                    n.outChannels = n.inChannels / (n.factor * n.factor);
-                    break;
-                case Op::KernelFilter:
-                    n.kernel = j.value("kernel", 3);
-                    n.centreBias = j.value("centre_bias", 0.0f);
-                    if (n.kernel < 1 || n.kernel > 7 || n.kernel % 2 == 0)
-                        throw Error("node '" + n.name + "': kernel must be odd and 1..7");
-                    if (!std::isfinite(n.centreBias))
-                        throw Error("node '" + n.name + "': centre_bias must be finite");
-                    if (channelsOf(n.inputs[1]) != n.kernel * n.kernel)
-                        throw Error("node '" + n.name + "': the logits have " +
-                                    std::to_string(channelsOf(n.inputs[1])) +
-                                    " channels, not kernel^2 = " + std::to_string(n.kernel * n.kernel));
-                    n.outChannels = n.inChannels;
-                    break;
-                case Op::Count:
-                    break;
+            std::vector<int> inputChannels;
+            for (int i : n.inputs) inputChannels.push_back(channelsOf(i));
+            try {
+                def.parse(n, OpParse{j, inputChannels, impl->parameters, offset});
+            } catch (const Error& e) {
+                throw Error("node '" + n.name + "': " + e.what());
             }
-            if ((n.op == Op::Upsample || n.op == Op::PixelShuffle) && (n.factor < 1 || n.factor > 16))
-                throw Error("node '" + n.name + "': factor must be 1..16");
             if (n.outChannels > kMaxChannels)
                 throw Error("node '" + n.name + "' has " + std::to_string(n.outChannels) +
                             " channels, above " + std::to_string(kMaxChannels));
@@ -572,9 +403,7 @@ int64_t Model::macs(const Shape& input) const {
     int64_t total = 0;
     for (const Node& n : impl_->nodes) {
         const std::vector<Shape> ins = impl_->inputShapes(n, shapes, input);
-        if (n.op == Op::Conv2d) total += n.convDesc(ins[0]).macs();
-        if (n.op == Op::ConvTranspose2d) total += n.convTransposeDesc(ins[0]).macs();
-        if (n.op == Op::KernelFilter) total += shapeNumel(ins[0]) * n.kernel * n.kernel;
+        if (const OpDef& def = opDef(n.op); def.macs) total += def.macs(n, ins);
         shapes.push_back(impl_->nodeOutputShape(n, ins));
     }
     return total;
@@ -599,77 +428,39 @@ const Tensor& Model::forward(const Tensor& input) {
         const float* x = m.inputTensor(n.inputs[0]).data();
         const float* weight = n.weightOffset >= 0 ? m.params.data() + n.weightOffset : nullptr;
         const float* bias = n.biasOffset >= 0 ? m.params.data() + n.biasOffset : nullptr;
-        const bool fused =
-            (n.op == Op::Conv2d || n.op == Op::ConvTranspose2d) && n.activation.kind != Activation::None;
+        const OpDef& def = opDef(n.op);
+        const bool fused = def.fusesActivation && n.activation.kind != Activation::None;
         float* target = n.output.data();
         if (fused) {
             ensureShape(n.preActivation, out);
             target = n.preActivation.data();
         }
-        switch (n.op) {
-            case Op::Conv2d:
-            case Op::ConvTranspose2d:
-                if (m.fastKernels) {
-                    n.fastConv.reset();  // weights change between steps: pack again
-                    // A few input channels (the RGB or grey image): planar, a 16th of the traffic.
-                    const int inputBlock = n.inChannels <= 4 ? 1 : 0;
-                    if (n.op == Op::Conv2d)
-                        n.fastConv.emplace(n.convDesc(ins[0]), weight, bias, ActivationDesc{Activation::None},
-                                           inputBlock);
-                    else
-                        n.fastConv.emplace(n.convTransposeDesc(ins[0]), weight, bias,
-                                           ActivationDesc{Activation::None}, inputBlock);
-                    const BlockedShape inShape = n.fastConv->inputShape(n.fastConv->requiredInputBorder());
-                    const BlockedShape outShape = n.fastConv->outputShape(0);
-                    if (n.blockedInput.numel() != inShape.floatCount() ||
-                        n.blockedInputShape.border != inShape.border ||
-                        n.blockedInputShape.block != inShape.block)
-                        n.blockedInput = allocateBlocked(inShape);  // zero border and unused channels
-                    n.blockedInputShape = inShape;
-                    ensureBlocked(n.blockedOutput, outShape);
-                    toBlocked(n.blockedInput.data(), x, inShape);
-                    n.fastConv->forward(n.blockedOutput.data(), outShape, n.blockedInput.data(), inShape);
-                    fromBlocked(target, n.blockedOutput.data(), outShape);
-                } else if (n.op == Op::Conv2d) {
-                    conv2dForward(target, x, weight, bias, n.convDesc(ins[0]));
-                } else {
-                    convTranspose2dForward(target, x, weight, bias, n.convTransposeDesc(ins[0]));
-                }
-                break;
-            case Op::MaxPool2d:
-                n.argmax.resize(size_t(shapeNumel(out)));
-                maxPool2dForward(target, n.argmax.data(), x, n.poolDesc(ins[0]));
-                break;
-            case Op::Activation:
-                activationForward(target, x, shapeNumel(out), n.activation);
-                break;
-            case Op::Add:
-                addForward(target, x, m.inputTensor(n.inputs[1]).data(), shapeNumel(out));
-                break;
-            case Op::Concat: {
-                std::vector<const float*> sources;
-                std::vector<int64_t> channels;
-                for (size_t i = 0; i < n.inputs.size(); ++i) {
-                    sources.push_back(m.inputTensor(n.inputs[i]).data());
-                    channels.push_back(ins[i][1]);
-                }
-                concatForward(target, sources, channels, out[0], out[2] * out[3]);
-                break;
-            }
-            case Op::Upsample:
-                if (n.bilinear)
-                    upsampleBilinearForward(target, x, n.resampleDesc(ins[0]));
-                else
-                    upsampleNearestForward(target, x, n.resampleDesc(ins[0]));
-                break;
-            case Op::PixelShuffle:
-                pixelShuffleForward(target, x, n.resampleDesc(ins[0]));
-                break;
-            case Op::KernelFilter:
-                kernelFilterForward(target, x, m.inputTensor(n.inputs[1]).data(), n.kernelFilterDesc(ins[0]));
-                break;
-            case Op::Count:
-                break;
+        if (m.fastKernels && (n.op == Op::Conv2d || n.op == Op::ConvTranspose2d)) {
+            // The convolutions' fast forward (nn/fast_conv.h), tested against the reference below.
+            n.fastConv.reset();  // weights change between steps: pack again
+            // A few input channels (the RGB or grey image): planar, a 16th of the traffic.
+            const int inputBlock = n.inChannels <= 4 ? 1 : 0;
+            if (n.op == Op::Conv2d)
+                n.fastConv.emplace(n.convDesc(ins[0]), weight, bias, ActivationDesc{Activation::None},
+                                   inputBlock);
+            else
+                n.fastConv.emplace(n.convTransposeDesc(ins[0]), weight, bias,
+                                   ActivationDesc{Activation::None}, inputBlock);
+            const BlockedShape inShape = n.fastConv->inputShape(n.fastConv->requiredInputBorder());
+            const BlockedShape outShape = n.fastConv->outputShape(0);
+            if (n.blockedInput.numel() != inShape.floatCount() ||
+                n.blockedInputShape.border != inShape.border || n.blockedInputShape.block != inShape.block)
+                n.blockedInput = allocateBlocked(inShape);  // zero border and unused channels
+            n.blockedInputShape = inShape;
+            ensureBlocked(n.blockedOutput, outShape);
+            toBlocked(n.blockedInput.data(), x, inShape);
+            n.fastConv->forward(n.blockedOutput.data(), outShape, n.blockedInput.data(), inShape);
+            fromBlocked(target, n.blockedOutput.data(), outShape);
+        } else {
+            OpForward<float> call{n, ins, out};
+            for (int i : n.inputs) call.inputs.push_back(m.inputTensor(i).data());
+            call.weight = weight, call.bias = bias, call.output = target, call.indices = &n.argmax;
+            def.forward(call);
         }
         if (fused) activationForward(n.output.data(), n.preActivation.data(), shapeNumel(out), n.activation);
     }
@@ -700,8 +491,8 @@ void Model::backward(const Tensor& doutput) {
         float* dbias = n.biasOffset >= 0 ? m.grads.data() + n.biasOffset : nullptr;
         const int64_t count = n.output.numel();
         const float* g = n.gradient.data();
-        const bool fused =
-            (n.op == Op::Conv2d || n.op == Op::ConvTranspose2d) && n.activation.kind != Activation::None;
+        const OpDef& def = opDef(n.op);
+        const bool fused = def.fusesActivation && n.activation.kind != Activation::None;
         if (fused) {
             ensureShape(n.preActivationGradient, n.output.shape());
             n.preActivationGradient.zero();
@@ -709,85 +500,42 @@ void Model::backward(const Tensor& doutput) {
                                count, n.activation);
             g = n.preActivationGradient.data();
         }
-        switch (n.op) {
-            case Op::Conv2d:
-            case Op::ConvTranspose2d:
-                if (m.fastKernels && n.fastConv) {
-                    // Weight and bias gradients from the blocked forward input; the input gradient as the
-                    // adjoint convolution when there is one, else the reference kernel.
-                    std::optional<BlockedConv> adjoint;
-                    if (dx)
-                        adjoint = n.op == Op::Conv2d
-                                      ? BlockedConv::inputGradient(n.convDesc(ins[0]), weight)
-                                      : BlockedConv::inputGradient(n.convTransposeDesc(ins[0]), weight);
-                    const int border = adjoint ? adjoint->requiredInputBorder() : 0;
-                    const BlockedShape gShape = n.fastConv->outputShape(border);
-                    if (n.blockedGradient.numel() != gShape.floatCount())
-                        n.blockedGradient = allocateBlocked(gShape);
-                    toBlocked(n.blockedGradient.data(), g, gShape);
-                    n.fastConv->backwardWeights(dweight, dbias, n.blockedGradient.data(), gShape,
-                                                n.blockedInput.data(), n.blockedInputShape);
-                    if (adjoint) {
-                        const BlockedShape dinShape = adjoint->outputShape(0);
-                        ensureBlocked(n.blockedInputGradient, dinShape);
-                        adjoint->forward(n.blockedInputGradient.data(), dinShape, n.blockedGradient.data(),
-                                         gShape);
-                        ensureShape(n.inputGradient, ins[0]);
-                        fromBlocked(n.inputGradient.data(), n.blockedInputGradient.data(), dinShape);
-                        addForward(dx, dx, n.inputGradient.data(), n.inputGradient.numel());
-                    } else if (dx && n.op == Op::Conv2d) {
-                        conv2dBackward<float>(dx, nullptr, nullptr, g, x, weight, n.convDesc(ins[0]));
-                    } else if (dx) {
-                        convTranspose2dBackward<float>(dx, nullptr, nullptr, g, x, weight,
-                                                       n.convTransposeDesc(ins[0]));
-                    }
-                } else if (n.op == Op::Conv2d) {
-                    conv2dBackward(dx, dweight, dbias, g, x, weight, n.convDesc(ins[0]));
-                } else {
-                    convTranspose2dBackward(dx, dweight, dbias, g, x, weight, n.convTransposeDesc(ins[0]));
-                }
-                break;
-            case Op::MaxPool2d:
-                if (dx) maxPool2dBackward(dx, g, n.argmax.data(), n.poolDesc(ins[0]));
-                break;
-            case Op::Activation:
-                if (dx) activationBackward(dx, g, x, n.output.data(), count, n.activation);
-                break;
-            case Op::Add: {
-                float* db = n.inputs[1] >= 0 ? m.nodes[size_t(n.inputs[1])].gradient.data() : nullptr;
-                addBackward(dx, db, g, count);
-                break;
+        if (m.fastKernels && n.fastConv && (n.op == Op::Conv2d || n.op == Op::ConvTranspose2d)) {
+            // Weight and bias gradients from the blocked forward input; the input gradient as the
+            // adjoint convolution when there is one, else the reference kernel.
+            std::optional<BlockedConv> adjoint;
+            if (dx)
+                adjoint = n.op == Op::Conv2d
+                              ? BlockedConv::inputGradient(n.convDesc(ins[0]), weight)
+                              : BlockedConv::inputGradient(n.convTransposeDesc(ins[0]), weight);
+            const int border = adjoint ? adjoint->requiredInputBorder() : 0;
+            const BlockedShape gShape = n.fastConv->outputShape(border);
+            if (n.blockedGradient.numel() != gShape.floatCount()) n.blockedGradient = allocateBlocked(gShape);
+            toBlocked(n.blockedGradient.data(), g, gShape);
+            n.fastConv->backwardWeights(dweight, dbias, n.blockedGradient.data(), gShape,
+                                        n.blockedInput.data(), n.blockedInputShape);
+            if (adjoint) {
+                const BlockedShape dinShape = adjoint->outputShape(0);
+                ensureBlocked(n.blockedInputGradient, dinShape);
+                adjoint->forward(n.blockedInputGradient.data(), dinShape, n.blockedGradient.data(), gShape);
+                ensureShape(n.inputGradient, ins[0]);
+                fromBlocked(n.inputGradient.data(), n.blockedInputGradient.data(), dinShape);
+                addForward(dx, dx, n.inputGradient.data(), n.inputGradient.numel());
+            } else if (dx && n.op == Op::Conv2d) {
+                conv2dBackward<float>(dx, nullptr, nullptr, g, x, weight, n.convDesc(ins[0]));
+            } else if (dx) {
+                convTranspose2dBackward<float>(dx, nullptr, nullptr, g, x, weight,
+                                               n.convTransposeDesc(ins[0]));
             }
-            case Op::Concat: {
-                std::vector<float*> grads;
-                std::vector<int64_t> channels;
-                for (size_t k = 0; k < n.inputs.size(); ++k) {
-                    grads.push_back(n.inputs[k] >= 0 ? m.nodes[size_t(n.inputs[k])].gradient.data()
-                                                     : nullptr);
-                    channels.push_back(ins[k][1]);
-                }
-                concatBackward(grads, g, channels, n.output.dim(0), n.output.dim(2) * n.output.dim(3));
-                break;
+        } else {
+            OpBackward<float> call{n, ins, n.output.shape()};
+            for (int k : n.inputs) {
+                call.inputs.push_back(m.inputTensor(k).data());
+                call.dInputs.push_back(k >= 0 ? m.nodes[size_t(k)].gradient.data() : nullptr);
             }
-            case Op::Upsample:
-                if (dx) {
-                    if (n.bilinear)
-                        upsampleBilinearBackward(dx, g, n.resampleDesc(ins[0]));
-                    else
-                        upsampleNearestBackward(dx, g, n.resampleDesc(ins[0]));
-                }
-                break;
-            case Op::PixelShuffle:
-                if (dx) pixelShuffleBackward(dx, g, n.resampleDesc(ins[0]));
-                break;
-            case Op::KernelFilter: {
-                float* dlogits = n.inputs[1] >= 0 ? m.nodes[size_t(n.inputs[1])].gradient.data() : nullptr;
-                kernelFilterBackward(dx, dlogits, g, x, m.inputTensor(n.inputs[1]).data(),
-                                     n.kernelFilterDesc(ins[0]));
-                break;
-            }
-            case Op::Count:
-                break;
+            call.weight = weight, call.output = n.output.data(), call.dOutput = g;
+            call.dWeight = dweight, call.dBias = dbias, call.indices = &n.argmax;
+            def.backward(call);
         }
     }
 }
@@ -867,54 +615,18 @@ std::vector<double> forwardInDouble(const Model& model, const std::vector<double
     auto shapeOf = [&](int index) -> const Shape& { return index < 0 ? inputShape : shapes[size_t(index)]; };
     for (size_t k = 0; k < graph.size(); ++k) {
         const GraphNode& n = graph[k];
-        const Shape& in = shapeOf(n.inputs[0]);
         std::vector<double>& out = outputs[k];
         out.assign(size_t(shapeNumel(shapes[k])), 0.0);
-        const double* x = tensor(n.inputs[0]).data();
         const double* weight = n.weightOffset >= 0 ? params.data() + n.weightOffset : nullptr;
         const double* bias = n.biasOffset >= 0 ? params.data() + n.biasOffset : nullptr;
-        switch (n.op) {
-            case GraphOp::Conv2d:
-                conv2dForward(out.data(), x, weight, bias, n.convDesc(in));
-                activationForward(out.data(), out.data(), int64_t(out.size()), n.activation);
-                break;
-            case GraphOp::ConvTranspose2d:
-                convTranspose2dForward(out.data(), x, weight, bias, n.convTransposeDesc(in));
-                activationForward(out.data(), out.data(), int64_t(out.size()), n.activation);
-                break;
-            case GraphOp::MaxPool2d: {
-                std::vector<int32_t> argmax(out.size());
-                maxPool2dForward(out.data(), argmax.data(), x, n.poolDesc(in));
-                break;
-            }
-            case GraphOp::Activation:
-                activationForward(out.data(), x, int64_t(out.size()), n.activation);
-                break;
-            case GraphOp::Add:
-                addForward(out.data(), x, tensor(n.inputs[1]).data(), int64_t(out.size()));
-                break;
-            case GraphOp::Concat: {
-                std::vector<const double*> sources;
-                std::vector<int64_t> channels;
-                for (int i : n.inputs) sources.push_back(tensor(i).data()), channels.push_back(shapeOf(i)[1]);
-                concatForward(out.data(), sources, channels, shapes[k][0], shapes[k][2] * shapes[k][3]);
-                break;
-            }
-            case GraphOp::Upsample:
-                if (n.bilinear)
-                    upsampleBilinearForward(out.data(), x, n.resampleDesc(in));
-                else
-                    upsampleNearestForward(out.data(), x, n.resampleDesc(in));
-                break;
-            case GraphOp::PixelShuffle:
-                pixelShuffleForward(out.data(), x, n.resampleDesc(in));
-                break;
-            case GraphOp::KernelFilter:
-                kernelFilterForward(out.data(), x, tensor(n.inputs[1]).data(), n.kernelFilterDesc(in));
-                break;
-            default:
-                throw Error("forwardInDouble: node '" + n.name + "' has an op it does not know");
-        }
+        const OpDef& def = opDef(n.op);
+        std::vector<Shape> ins;
+        for (int i : n.inputs) ins.push_back(shapeOf(i));
+        OpForward<double> call{n, ins, shapes[k]};
+        for (int i : n.inputs) call.inputs.push_back(tensor(i).data());
+        call.weight = weight, call.bias = bias, call.output = out.data();
+        def.forwardDouble(call);
+        if (def.fusesActivation) activationForward(out.data(), out.data(), int64_t(out.size()), n.activation);
     }
     return outputs[size_t(model.outputNode())];
 }

@@ -23,6 +23,7 @@
 #include "nn/inference.h"
 #include "nn/init.h"
 #include "nn/losses.h"
+#include "nn/ops.h"
 #include "nn/optim.h"
 #include "nn/safetensors.h"
 
@@ -1095,16 +1096,9 @@ std::string exportModel(const std::string& run, const std::string& modelPath,
         std::string inputs;
         for (int i : n.inputs)
             inputs += (inputs.empty() ? "" : ", ") + (i < 0 ? std::string("input") : graph[size_t(i)].name);
-        const bool conv = n.op == nn::GraphOp::Conv2d || n.op == nn::GraphOp::ConvTranspose2d;
+        const nn::OpCard cells = nn::opDef(n.op).card(n);
         md << "| " << n.name << " | " << nn::graphOpName(n.op) << " | " << inputs << " | "
-           << (conv ? std::to_string(n.outChannels) : "") << " | "
-           << (conv || n.op == nn::GraphOp::MaxPool2d || n.op == nn::GraphOp::KernelFilter
-                   ? std::to_string(n.kernel) + "x" + std::to_string(n.kernel)
-                   : "")
-           << " | " << (conv || n.op == nn::GraphOp::MaxPool2d ? std::to_string(n.stride) : "") << " | "
-           << (conv || n.op == nn::GraphOp::Activation ? nn::activationName(n.activation.kind)
-               : n.op == nn::GraphOp::KernelFilter     ? "softmax weights"
-                                                       : "")
+           << cells.outChannels << " | " << cells.kernel << " | " << cells.stride << " | " << cells.activation
            << " |\n";
     }
     md << "\n## Training\n\n";

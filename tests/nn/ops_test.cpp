@@ -1,0 +1,317 @@
+// The op harness, after ggml's test-backend-ops: one case per op and parameters, each a small graph whose
+// last node is the op under test, and every case through the same checks, its parameters printed when
+// one fails:
+//   - the registry: the output shape it declares is what the forward writes, in float and in double;
+//   - backward against central differences in double (the op alone, on random inputs and weights);
+//   - the fast paths against the reference forward: training's blocked convolutions and the inference
+//     plan (nn/inference.h), and bf16 activations against float where the CPU has AVX-512 BF16;
+//   - the receptive field (nn/frame_network.h): a pixel changed in the input changes no output pixel
+//     beyond the radius the registry gives.
+// The PyTorch goldens of every layer stay in tests/nn/golden_test.cpp.
+#include "nn/ops.h"
+
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <ostream>
+#include <random>
+#include <string>
+#include <vector>
+
+#include "base/error.h"
+#include "base/simd.h"
+#include "nn/frame_network.h"
+#include "nn/gradient_check.h"
+#include "nn/inference.h"
+#include "nn/layers.h"
+
+namespace dejag::nn {
+namespace {
+
+using nlohmann::json;
+using Vec = std::vector<double>;
+
+struct OpCase {
+    std::string label;
+    int inputChannels = 3;
+    json nodes;  // the graph; its last node is the op under test
+    int height = 12, width = 16;
+    bool piecewise = false;  // max or ReLU kinks: one-sided differences may disagree
+};
+
+json node(const std::string& name, const std::string& op, std::vector<std::string> inputs, json fields = {}) {
+    json n = {{"name", name}, {"op", op}, {"inputs", inputs}};
+    for (auto& [k, v] : fields.items()) n[k] = v;
+    return n;
+}
+
+std::vector<OpCase> cases() {
+    std::vector<OpCase> c;
+    auto single = [&](std::string label, json n, bool piecewise = false, int cin = 3) {
+        c.push_back({std::move(label), cin, json::array({std::move(n)}), 12, 16, piecewise});
+    };
+    single("conv2d 3x3 same",
+           node("op", "conv2d", {"input"}, {{"out_channels", 5}, {"kernel", 3}, {"padding", "same"}}));
+    single(
+        "conv2d 3x3 stride 2 relu",
+        node(
+            "op", "conv2d", {"input"},
+            {{"out_channels", 4}, {"kernel", 3}, {"stride", 2}, {"padding", "same"}, {"activation", "relu"}}),
+        true);
+    single("conv2d 5x5 dilation 2 sigmoid", node("op", "conv2d", {"input"},
+                                                 {{"out_channels", 3},
+                                                  {"kernel", 5},
+                                                  {"dilation", 2},
+                                                  {"padding", "same"},
+                                                  {"activation", "sigmoid"}}));
+    single("conv2d 1x1 no bias",
+           node("op", "conv2d", {"input"}, {{"out_channels", 7}, {"kernel", 1}, {"bias", false}}));
+    single("conv2d 3x3 padding 1 leaky",
+           node("op", "conv2d", {"input"},
+                {{"out_channels", 6},
+                 {"kernel", 3},
+                 {"padding", 1},
+                 {"activation", "leaky_relu"},
+                 {"slope", 0.1}}),
+           true);
+    single("conv2d 16 in",
+           node("op", "conv2d", {"input"}, {{"out_channels", 8}, {"kernel", 3}, {"padding", "same"}}), false,
+           16);
+    single("conv_transpose2d 3x3 s2 p1 op1",
+           node("op", "conv_transpose2d", {"input"},
+                {{"out_channels", 4}, {"kernel", 3}, {"stride", 2}, {"padding", 1}, {"output_padding", 1}}));
+    single("conv_transpose2d 2x2 s2 relu",
+           node("op", "conv_transpose2d", {"input"},
+                {{"out_channels", 3}, {"kernel", 2}, {"activation", "relu"}}),
+           true);
+    single("maxpool2d 2", node("op", "maxpool2d", {"input"}, {{"kernel", 2}}), true);
+    single("maxpool2d 3 stride 2", node("op", "maxpool2d", {"input"}, {{"kernel", 3}, {"stride", 2}}), true);
+    for (const char* a : {"relu", "leaky_relu", "sigmoid", "clamp"})
+        single(std::string("activation ") + a, node("op", "activation", {"input"}, {{"activation", a}}),
+               std::string(a) != "sigmoid");
+    single("upsample nearest 2", node("op", "upsample", {"input"}, {{"mode", "nearest"}}));
+    single("upsample bilinear 2", node("op", "upsample", {"input"}, {{"mode", "bilinear"}}));
+    single("upsample bilinear 3", node("op", "upsample", {"input"}, {{"mode", "bilinear"}, {"factor", 3}}));
+    single("pixel_shuffle 2", node("op", "pixel_shuffle", {"input"}, {{"factor", 2}}), false, 8);
+    single("pixel_shuffle 3", node("op", "pixel_shuffle", {"input"}, {{"factor", 3}}), false, 9);
+    const json conv =
+        node("branch", "conv2d", {"input"}, {{"out_channels", 3}, {"kernel", 3}, {"padding", "same"}});
+    c.push_back({"add input + conv", 3, json::array({conv, node("op", "add", {"input", "branch"})})});
+    c.push_back(
+        {"concat 3 inputs", 3, json::array({conv, node("op", "concat", {"input", "branch", "input"})})});
+    for (int k : {3, 5}) {
+        const json logits = node("logits", "conv2d", {"input"},
+                                 {{"out_channels", k * k}, {"kernel", 3}, {"padding", "same"}});
+        c.push_back({"kernel_filter " + std::to_string(k) + (k == 5 ? " centre_bias 1" : ""), 3,
+                     json::array({logits, node("op", "kernel_filter", {"input", "logits"},
+                                               {{"kernel", k}, {"centre_bias", k == 5 ? 1.0 : 0.0}})})});
+    }
+    return c;
+}
+
+Model buildModel(const OpCase& c) {
+    Model model = Model::fromArchitecture(
+        {{"name", "case"}, {"input_channels", c.inputChannels}, {"nodes", c.nodes}, {"output", "op"}});
+    model.initialize(7);
+    // Biases away from zero, so that their gradients and the fused activations' kinks are exercised.
+    std::mt19937 rng(3);
+    std::uniform_real_distribution<float> u(-0.3f, 0.3f);
+    for (const ParameterInfo& p : model.parameters())
+        if (p.isBias)
+            for (int64_t i = 0; i < shapeNumel(p.shape); ++i) model.parameterData()[p.offset + i] = u(rng);
+    return model;
+}
+
+Tensor randomInput(const Shape& shape, uint64_t seed) {
+    Tensor t(shape);
+    std::mt19937 rng{static_cast<uint32_t>(seed)};
+    std::uniform_real_distribution<float> u(0.0f, 1.0f);
+    for (int64_t i = 0; i < t.numel(); ++i) t.data()[i] = u(rng);
+    return t;
+}
+
+void PrintTo(const OpCase& c, std::ostream* os) {
+    *os << c.label;
+}
+
+class Ops : public ::testing::TestWithParam<OpCase> {};
+
+std::string describe(const OpCase& c) {
+    return c.label + ": input (1, " + std::to_string(c.inputChannels) + ", " + std::to_string(c.height) +
+           ", " + std::to_string(c.width) + "), nodes " + c.nodes.dump();
+}
+
+// The registry's shape and the forward agree, in float (Model) and in double (forwardInDouble).
+TEST_P(Ops, TheDeclaredShapeIsWhatTheForwardWritesInFloatAndDouble) {
+    const OpCase& c = GetParam();
+    SCOPED_TRACE(describe(c));
+    Model model = buildModel(c);
+    model.setFastKernels(false);
+    const Shape inShape{1, c.inputChannels, c.height, c.width};
+    const Tensor x = randomInput(inShape, 1);
+    const Tensor& y = model.forward(x);
+    EXPECT_EQ(y.shape(), model.outputShape(inShape));
+    const Vec xd(x.data(), x.data() + x.numel());
+    const Vec yd = forwardInDouble(model, xd, inShape);
+    ASSERT_EQ(int64_t(yd.size()), y.numel());
+    double worst = 0;
+    for (int64_t i = 0; i < y.numel(); ++i) worst = std::max(worst, std::abs(yd[size_t(i)] - y.data()[i]));
+    EXPECT_LE(worst, 1e-5);
+}
+
+// The op alone in double: L = sum(r * y) for a random r, its backward with dL/dy = r against central
+// differences of L, for every input and the weights.
+TEST_P(Ops, BackwardMatchesCentralDifferencesInDouble) {
+    const OpCase& c = GetParam();
+    SCOPED_TRACE(describe(c));
+    const Model model = buildModel(c);
+    const std::vector<GraphNode> graph = model.graph();
+    const GraphNode& n = graph.back();
+    const OpDef& def = opDef(n.op);
+    const Shape inShape{1, c.inputChannels, c.height, c.width};
+    const std::vector<Shape> shapes = model.nodeShapes(inShape);
+    std::vector<Shape> ins;
+    for (int i : n.inputs) ins.push_back(i < 0 ? inShape : shapes[size_t(i)]);
+    const Shape out = shapes.back();
+    std::mt19937 rng(11);
+    std::vector<Vec> x;
+    for (const Shape& s : ins) x.push_back(randomValues(size_t(shapeNumel(s)), rng, -1.0, 1.0));
+    Vec w(model.parameterData(), model.parameterData() + model.parameterCount());
+    const Vec r = randomValues(size_t(shapeNumel(out)), rng);
+    Vec y(r.size()), pre(r.size());
+    std::vector<int32_t> indices;
+    const bool fused = def.fusesActivation && n.activation.kind != Activation::None;
+    auto run = [&] {
+        OpForward<double> call{n, ins, out};
+        for (const Vec& v : x) call.inputs.push_back(v.data());
+        call.weight = n.weightOffset >= 0 ? w.data() + n.weightOffset : nullptr;
+        call.bias = n.biasOffset >= 0 ? w.data() + n.biasOffset : nullptr;
+        call.output = fused ? pre.data() : y.data(), call.indices = &indices;
+        def.forwardDouble(call);
+        if (fused) activationForward(y.data(), pre.data(), int64_t(y.size()), n.activation);
+        return dot(y, r);
+    };
+    run();
+    Vec g = r;
+    if (fused) {
+        g.assign(r.size(), 0.0);
+        activationBackward(g.data(), r.data(), pre.data(), y.data(), int64_t(r.size()), n.activation);
+    }
+    std::vector<Vec> dx;
+    for (const Vec& v : x) dx.emplace_back(v.size(), 0.0);
+    Vec dw(w.size(), 0.0);
+    OpBackward<double> call{n, ins, out};
+    for (size_t k = 0; k < x.size(); ++k)
+        call.inputs.push_back(x[k].data()), call.dInputs.push_back(dx[k].data());
+    call.weight = n.weightOffset >= 0 ? w.data() + n.weightOffset : nullptr;
+    call.output = y.data(), call.dOutput = g.data(), call.indices = &indices;
+    call.dWeight = n.weightOffset >= 0 ? dw.data() + n.weightOffset : nullptr;
+    call.dBias = n.biasOffset >= 0 ? dw.data() + n.biasOffset : nullptr;
+    def.backwardDouble(call);
+    GradientCheckOptions options;
+    options.samples = 40, options.step = 1e-5, options.floorOfLargest = 1e-3, options.piecewise = c.piecewise;
+    std::mt19937_64 coordinates(5);
+    for (size_t k = 0; k < x.size(); ++k)
+        EXPECT_LE(checkGradient(x[k], dx[k], run, coordinates, options).worst, 1e-6) << "input " << k;
+    if (n.weightOffset >= 0) {
+        // Only this node's parameters: the others are not the op's.
+        const int64_t first = n.weightOffset,
+                      last = n.biasOffset >= 0 ? n.biasOffset + n.outChannels
+                                               : n.weightOffset + int64_t(n.inChannels) * n.outChannels *
+                                                                      n.kernel * n.kernel;
+        Vec own(w.begin() + first, w.begin() + last), ownGradient(dw.begin() + first, dw.begin() + last);
+        auto runOwn = [&] {
+            std::copy(own.begin(), own.end(), w.begin() + first);
+            return run();
+        };
+        EXPECT_LE(checkGradient(own, ownGradient, runOwn, coordinates, options).worst, 1e-6) << "weights";
+    }
+}
+
+// Training's fast kernels and the inference plan against the reference forward; bf16 against float.
+TEST_P(Ops, TheFastPathsMatchTheReference) {
+    const OpCase& c = GetParam();
+    SCOPED_TRACE(describe(c));
+    Model model = buildModel(c);
+    const Shape inShape{1, c.inputChannels, c.height, c.width};
+    const Tensor x = randomInput(inShape, 2);
+    model.setFastKernels(false);
+    const Tensor reference = model.forward(x).clone();
+    model.setFastKernels(true);
+    const Tensor fast = model.forward(x).clone();
+    InferencePlan plan(model, inShape);
+    const Tensor planned = plan.run(x).clone();
+    float worstFast = 0, worstPlan = 0, scale = 1;
+    for (int64_t i = 0; i < reference.numel(); ++i) {
+        worstFast = std::max(worstFast, std::abs(fast.data()[i] - reference.data()[i]));
+        worstPlan = std::max(worstPlan, std::abs(planned.data()[i] - reference.data()[i]));
+        scale = std::max(scale, std::abs(reference.data()[i]));
+    }
+    EXPECT_LE(worstFast, 1e-5f * scale) << "training's fast kernels";
+    EXPECT_LE(worstPlan, 1e-5f * scale) << "the inference plan";
+    if (bf16Available()) {
+        InferencePlan half(model, inShape, InferencePrecision::BFloat16);
+        const Tensor& y = half.run(x);
+        float worst = 0;
+        for (int64_t i = 0; i < reference.numel(); ++i)
+            worst = std::max(worst, std::abs(y.data()[i] - reference.data()[i]));
+        EXPECT_LE(worst, 3e-2f * scale) << "bf16 activations (" << half.bf16Activations() << ")";
+    }
+}
+
+INSTANTIATE_TEST_SUITE_P(Registry, Ops, ::testing::ValuesIn(cases()), [](const auto& p) {
+    std::string name = p.param.label;
+    for (char& ch : name)
+        if (!std::isalnum(static_cast<unsigned char>(ch))) ch = '_';
+    return name;
+});
+
+// A pixel changed at the centre of the input changes no output pixel further than the receptive field's
+// radius from it (every case whose graph keeps the input's size).
+TEST(OpTable, NothingBeyondTheReceptiveFieldChanges) {
+    int checked = 0;
+    for (const OpCase& c : cases()) {
+        SCOPED_TRACE(describe(c));
+        Model model = buildModel(c);
+        model.setFastKernels(false);
+        const int H = 24, W = 28;
+        const Shape inShape{1, c.inputChannels, H, W};
+        const Shape out = model.outputShape(inShape);
+        if (out[2] != H || out[3] != W) continue;  // the op changes the size
+        ++checked;
+        const ReceptiveField field = receptiveField(model);
+        Tensor x = randomInput(inShape, 3);
+        const Tensor before = model.forward(x).clone();
+        const int cy = H / 2, cx = W / 2;
+        for (int ch = 0; ch < c.inputChannels; ++ch) x.at(0, ch, cy, cx) += 0.5f;
+        const Tensor& after = model.forward(x);
+        int changedFar = 0, changedNear = 0;
+        for (int64_t ch = 0; ch < out[1]; ++ch)
+            for (int y = 0; y < H; ++y)
+                for (int xx = 0; xx < W; ++xx) {
+                    const bool changed = after.at(0, ch, y, xx) != before.at(0, ch, y, xx);
+                    const bool far = std::abs(y - cy) > field.radius || std::abs(xx - cx) > field.radius;
+                    changedFar += changed && far, changedNear += changed && !far;
+                }
+        EXPECT_EQ(changedFar, 0) << "radius " << field.radius;
+        EXPECT_GT(changedNear, 0) << "the change reached no output at all";
+    }
+    EXPECT_GE(checked, 12);
+}
+
+TEST(OpTable, EveryOpHasItsEntryAndItsName) {
+    for (int i = 0; i < int(GraphOp::Count); ++i) {
+        const OpDef& d = opDef(GraphOp(i));
+        EXPECT_EQ(d.op, GraphOp(i));
+        EXPECT_EQ(opNamed(d.name), GraphOp(i)) << d.name;
+        EXPECT_STREQ(graphOpName(GraphOp(i)), d.name);
+    }
+    EXPECT_EQ(opNamed("conv3d"), GraphOp::Count);
+    EXPECT_THROW(Model::fromArchitecture(
+                     {{"input_channels", 3}, {"nodes", json::array({node("x", "conv3d", {"input"})})}}),
+                 Error);
+}
+
+}  // namespace
+}  // namespace dejag::nn
