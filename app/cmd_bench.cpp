@@ -165,7 +165,7 @@ void registerBenchCommand(CLI::App& app) {
     auto filterArgs = std::make_shared<FilterBenchArguments>();
     CLI::App* filterBench = bench->add_subcommand(
         "filter",
-        "post-process filters on a rendered frame (issue target: FXAA <= 2 ms at 1920x1080 on 2 cores)");
+        "post-process filters on a rendered frame (target: FXAA <= 2 ms at 1920x1080 on 2 cores)");
     filterBench->add_option("--repeat", filterArgs->repeat, "Timed runs per case (median reported)")
         ->check(CLI::Range(1, 10000))
         ->capture_default_str();
@@ -474,7 +474,7 @@ void registerBenchCommand(CLI::App& app) {
     auto args = std::make_shared<BenchArguments>();
     CLI::App* metrics = bench->add_subcommand(
         "metrics",
-        "SSIM and full metrics of two RGB images (issue target: SSIM at 1920x1080 <= 30 ms on 2 cores)");
+        "SSIM and full metrics of two RGB images (target: SSIM at 1920x1080 <= 30 ms on 2 cores)");
     metrics->add_option("--size", args->size, "Image size WIDTHxHEIGHT")->capture_default_str();
     metrics->add_option("--repeat", args->repeat, "Timed runs per case (median reported)")
         ->check(CLI::Range(1, 10000))
