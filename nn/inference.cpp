@@ -13,6 +13,7 @@
 #include "base/thread_pool.h"
 #include "nn/fast_conv.h"
 #include "nn/kernel_filter_kernels.h"
+#include "nn/plan_passes.h"
 #include "nn/shuffle_kernels.h"
 
 namespace dejag::nn {
@@ -175,25 +176,14 @@ void forEachOutputElement(const BlockedShape& os, const F& body) {
 // ---- The plan ---------------------------------------------------------------------------------------
 
 struct InferencePlan::Impl {
-    struct Step {
+    // A node's step: the passes' decisions (plan::NodePlan), its shape, place and packed convolution.
+    struct Step : plan::NodePlan {
         GraphNode node;
         BlockedShape shape;               // this node's output
         int64_t offset = 0;               // into the arena (floats)
         std::optional<BlockedConv> conv;  // conv2d, conv_transpose2d
         MaxPool2dDesc pool;               // maxpool2d
         bool sigmoidAfterConv = false;
-        int pooledInto = -1;           // conv2d: the maxpool2d step whose output it writes (pooling fused)
-        bool fusedIntoConv = false;    // maxpool2d: computed by its input's convolution
-        bool fusedIntoOutput = false;  // the residual output stage computes it (see residualSource)
-        // Concatenation in place (batch 1): `concat(shuffle, conv)` or `concat(conv, shuffle)` read only by
-        // convolutions is never copied. The conv writes its blocks at the start of the concatenation's
-        // buffer, the shuffle writes its channels into the lanes after them (from laneOffset), and the
-        // readers' weights are permuted to that order.
-        int concatBuffer = -1;       // conv2d, pixel_shuffle: the concat step whose buffer this writes
-        int laneOffset = 0;          // pixel_shuffle: the first lane it writes in that buffer
-        bool concatInPlace = false;  // concat: computed by its inputs
-        // InferencePrecision::BFloat16: this step reads its first input / writes its output as bf16.
-        bool inBf16 = false, outBf16 = false;
     };
     InferencePrecision precision = InferencePrecision::Float32;
     int bf16Activations = 0;
@@ -223,7 +213,7 @@ struct InferencePlan::Impl {
     int kernelFeatureChannels = 0;
     std::vector<float> kernelHeadWeights, kernelHeadBias;
     static constexpr int kRowParts = 16;  // the output stages' row ranges, each with its own scratch
-    static constexpr int kKernelMaxChannels = 4;
+    static constexpr int kKernelMaxChannels = plan::kKernelMaxChannels;
     Tensor kernelScratch;                   // [parts][kernel^2][W]
     Tensor rowScratch;                      // [parts][C][W]: output rows on their way to a sink (runInPlace)
     std::vector<const float*> rowPointers;  // [parts][C]: the rows handed to a sink
@@ -276,6 +266,17 @@ struct InferencePlan::Impl {
     void runSteps(InputRowSource* streamed);
     void finish(const float* planes, OutputRowSink* sink, int64_t rowBegin, int64_t rowEnd,
                 InputRowSource* streamed);
+    // The constructor's steps after the passes (nn/plan_passes.h).
+    void useOutputStages(const std::optional<plan::ResidualOutput>& residual,
+                         std::optional<plan::KernelOutput>& kernel);
+    void packConv(const plan::PlanGraph& g, Step& step, const float* weight, int inputBlock);
+    void shapeActivations(const plan::PlanGraph& g, bool planarInput);
+    void assignPrecision(const plan::PlanGraph& g);
+    void planArena(const plan::PlanGraph& g);
+    void planOutputStages(const plan::PlanGraph& g);
+    void planStreaming(const plan::PlanGraph& g, bool planarInput,
+                       const std::optional<plan::ResidualOutput>& residual,
+                       const std::optional<plan::KernelOutput>& kernel);
     Tensor arena;
     Tensor output;
     size_t unpackedBytes = 0;
@@ -297,373 +298,216 @@ InferencePlan::InferencePlan(const Model& model, const Shape& inputShape, Infere
     if (precision == InferencePrecision::BFloat16 && !bf16Available())
         throw Error("inference: bf16 needs a CPU with AVX-512 BF16 and the avx512 SIMD level");
     m.precision = precision;
-    const std::vector<Shape> shapes = model.nodeShapes(inputShape);
-    const std::vector<GraphNode> graph = model.graph();
+    const plan::PlanGraph g(model, inputShape);
     m.inputShape = inputShape;
-    m.outputStep = model.outputNode();
-    m.outputShape = shapes[size_t(m.outputStep)];
+    m.outputStep = g.output;
+    m.outputShape = g.shapeOf(g.output);
     m.block = simdFloatLanes(activeSimdLevel());
-    const float* params = model.parameterData();
 
-    auto readers = [&](int node) {  // how many inputs of the graph's nodes are `node`
-        int count = 0;
-        for (const GraphNode& n : graph)
-            for (int source : n.inputs) count += source == node;
-        return count;
-    };
-    // The residual output stage (see Impl::residualSource).
-    int residualAdd = -1, residualShuffle = -1;
-    if (const GraphNode& out = graph[size_t(m.outputStep)];
-        out.op == GraphOp::Add && out.inputs.size() == 2 && out.activation.kind == Activation::None) {
-        const int other = out.inputs[0] < 0 ? out.inputs[1] : out.inputs[1] < 0 ? out.inputs[0] : -1;
-        if (other >= 0 && graph[size_t(other)].op == GraphOp::PixelShuffle &&
-            shapes[size_t(other)] == inputShape) {
-            if (readers(other) == 1 && readers(m.outputStep) == 0) {
-                residualAdd = m.outputStep, residualShuffle = other;
-                m.residualSource = graph[size_t(other)].inputs[0];
-                m.residualFactor = graph[size_t(other)].factor;
-            }
-        }
-    }
-    // The kernel filter output stage (see Impl::kernelSource).
-    int filterNode = -1, filterShuffle = -1;
-    if (const GraphNode& out = graph[size_t(m.outputStep)]; out.op == GraphOp::KernelFilter &&
-                                                            out.inputs[0] < 0 && out.inputs[1] >= 0 &&
-                                                            inputShape[1] <= Impl::kKernelMaxChannels) {
-        const int shuffle = out.inputs[1];
-        if (graph[size_t(shuffle)].op == GraphOp::PixelShuffle && graph[size_t(shuffle)].inputs[0] >= 0 &&
-            readers(shuffle) == 1 && readers(m.outputStep) == 0) {
-            filterNode = m.outputStep, filterShuffle = shuffle;
-            m.kernelSource = graph[size_t(shuffle)].inputs[0];
-            m.kernelFactor = graph[size_t(shuffle)].factor;
-            m.kernelFilter = out.kernelFilterDesc(inputShape);
-            m.kernelScratch = Tensor({Impl::kRowParts, m.kernelFilter.taps(), inputShape[3]});
-        }
-    }
-    // The head convolution fused into the filter stage (see Impl::kernelFeatures).
-    if (const int head = m.kernelSource; head >= 0 && graph[size_t(head)].op == GraphOp::Conv2d &&
-                                         graph[size_t(head)].inputs[0] >= 0 && readers(head) == 1) {
-        const GraphNode& n = graph[size_t(head)];
-        const Shape& in = shapes[size_t(n.inputs[0])];
-        const Conv2dDesc d = n.convDesc(in);
-        const int64_t f = m.kernelFactor, taps = m.kernelFilter.taps();
-        if (d.kernelHeight == 1 && d.kernelWidth == 1 && d.strideH == 1 && d.strideW == 1 && d.padTop == 0 &&
-            d.padBottom == 0 && d.padLeft == 0 && d.padRight == 0 && n.activation.kind == Activation::None &&
-            d.outChannels == taps * f * f && in[1] <= 16) {
-            m.kernelFeatures = n.inputs[0];
-            m.kernelFeatureChannels = int(in[1]);
-            const float* weight = params + n.weightOffset;  // (Cout, Cin, 1, 1)
-            const float* bias = n.biasOffset >= 0 ? params + n.biasOffset : nullptr;
-            m.kernelHeadWeights.resize(size_t(f * taps * f * in[1]));
-            m.kernelHeadBias.resize(size_t(f * taps * f));
-            // Logit channel of tap j, row phase py, column phase px: (j f + py) f + px (the shuffle's order).
-            for (int64_t py = 0; py < f; ++py)
-                for (int64_t j = 0; j < taps; ++j)
-                    for (int64_t px = 0; px < f; ++px) {
-                        const int64_t k = (j * f + py) * f + px, slot = (py * taps + j) * f + px;
-                        m.kernelHeadBias[size_t(slot)] = bias ? bias[k] : 0.0f;
-                        std::copy_n(weight + k * in[1], in[1], m.kernelHeadWeights.data() + slot * in[1]);
-                    }
-        }
-    }
-    // The model input goes in planar (block 1) when only convolutions read it (and the residual output
-    // stage, which reads the caller's tensor) and it has a few channels: a 16th of the memory traffic
-    // of the blocked layout for an RGB or grey frame.
-    bool planarInput = inputShape[1] <= 4;
-    for (int i = 0; i < int(graph.size()); ++i)
-        for (int source : graph[size_t(i)].inputs)
-            if (source < 0 && graph[size_t(i)].op != GraphOp::Conv2d &&
-                graph[size_t(i)].op != GraphOp::ConvTranspose2d && i != residualAdd && i != filterNode)
-                planarInput = false;
+    // The output stages, then the layout of the input.
+    const std::optional<plan::ResidualOutput> residual = plan::fuseResidualOutput(g);
+    std::optional<plan::KernelOutput> kernel = plan::fuseKernelOutput(g);
+    if (kernel) plan::fuseKernelHead(g, *kernel);
+    const bool planarInput = plan::planarInput(g, residual, kernel);
+    m.useOutputStages(residual, kernel);
 
-    // A step's convolution packed from `weight` (the model's, or permuted for a concatenation in place).
-    auto packConv = [&](Impl::Step& step, const float* weight, int inputBlock) {
-        const GraphNode& n = step.node;
-        const Shape& in = n.inputs[0] < 0 ? inputShape : shapes[size_t(n.inputs[0])];
-        const float* bias = n.biasOffset >= 0 ? params + n.biasOffset : nullptr;
-        ActivationDesc fused = n.activation;
-        step.sigmoidAfterConv = fused.kind == Activation::Sigmoid;  // not fused: applied afterwards
-        if (step.sigmoidAfterConv) fused.kind = Activation::None;
-        if (n.op == GraphOp::Conv2d)
-            step.conv.emplace(n.convDesc(in), weight, bias, fused, inputBlock);
-        else
-            step.conv.emplace(n.convTransposeDesc(in), weight, bias, fused, inputBlock);
-    };
-    // Convolutions first: their kernels say how wide a border every activation needs.
-    int border = 0;
-    for (size_t i = 0; i < graph.size(); ++i) {
+    // Every step, its convolution packed; the convolutions' kernels say how wide a border every
+    // activation needs.
+    for (int i = 0; i < g.size(); ++i) {
         Impl::Step step;
-        step.node = graph[i];
-        const GraphNode& n = step.node;
-        if (n.op == GraphOp::Conv2d || n.op == GraphOp::ConvTranspose2d) {
-            packConv(step, params + n.weightOffset, planarInput && n.inputs[0] < 0 ? 1 : 0);
+        step.node = g.node(i);
+        if (g.isConvolution(i)) {
+            m.packConv(g, step, g.params + step.node.weightOffset,
+                       planarInput && step.node.inputs[0] < 0 ? 1 : 0);
             m.macs += step.conv->macs();
-        } else if (n.op == GraphOp::MaxPool2d) {
-            step.pool = n.poolDesc(n.inputs[0] < 0 ? inputShape : shapes[size_t(n.inputs[0])]);
+        } else if (step.node.op == GraphOp::MaxPool2d) {
+            step.pool = step.node.poolDesc(g.shapeOf(step.node.inputs[0]));
         }
-        if (step.conv) border = std::max(border, step.conv->requiredInputBorder());
         m.steps.push_back(std::move(step));
     }
-    // Concatenations in place (see Step::concatBuffer): the last layers of a U-Net concatenate an
-    // upsampled coarse level with an encoder's output, a copy of both per pixel.
-    auto readByConvsOnly = [&](int node, int except) {
-        for (int i = 0; i < int(graph.size()); ++i)
-            for (int source : graph[size_t(i)].inputs)
-                if (source == node && i != except && graph[size_t(i)].op != GraphOp::Conv2d &&
-                    graph[size_t(i)].op != GraphOp::ConvTranspose2d)
-                    return false;
-        return true;
-    };
-    for (int i = 0; inputShape[0] == 1 && i < int(graph.size()); ++i) {
-        const GraphNode& cat = graph[size_t(i)];
-        if (cat.op != GraphOp::Concat || cat.inputs.size() != 2 || i == m.outputStep || readers(i) == 0 ||
-            !readByConvsOnly(i, -1))
-            continue;
-        const int a = cat.inputs[0], b = cat.inputs[1];
-        if (a < 0 || b < 0) continue;
-        const bool convFirst = graph[size_t(a)].op == GraphOp::Conv2d;
-        const int conv = convFirst ? a : b, shuffle = convFirst ? b : a;
-        if (graph[size_t(conv)].op != GraphOp::Conv2d || graph[size_t(shuffle)].op != GraphOp::PixelShuffle ||
-            conv >= shuffle || conv == m.outputStep || readers(shuffle) != 1 || !readByConvsOnly(conv, i) ||
-            m.steps[size_t(conv)].concatBuffer >= 0)
-            continue;
-        const int64_t convChannels = shapes[size_t(conv)][1], shuffleChannels = shapes[size_t(shuffle)][1];
-        m.steps[size_t(conv)].concatBuffer = m.steps[size_t(shuffle)].concatBuffer = i;
-        m.steps[size_t(shuffle)].laneOffset = int(convChannels);
-        m.steps[size_t(i)].concatInPlace = true;
-        // Physical lane of each of the concatenation's channels, and the readers' weights in that order.
-        std::vector<int64_t> lane(size_t(convChannels + shuffleChannels));
-        for (int64_t c = 0; c < int64_t(lane.size()); ++c)
-            lane[size_t(c)] = convFirst ? c : c < shuffleChannels ? convChannels + c : c - shuffleChannels;
-        for (int r = 0; r < int(graph.size()); ++r) {
-            const GraphNode& reader = graph[size_t(r)];
-            if (std::find(reader.inputs.begin(), reader.inputs.end(), i) == reader.inputs.end()) continue;
-            const int64_t cin = int64_t(lane.size()), cout = reader.outChannels,
-                          taps = int64_t(reader.kernel) * reader.kernel;
-            const float* weight = params + reader.weightOffset;
-            const bool transposed =
-                reader.op == GraphOp::ConvTranspose2d;  // (Cin, Cout, k, k), else (Cout, Cin, k, k)
-            std::vector<float> permuted(size_t(cin * cout * taps));
-            for (int64_t o = 0; o < cout; ++o)
-                for (int64_t c = 0; c < cin; ++c) {
-                    const int64_t from = transposed ? c * cout + o : o * cin + c;
-                    const int64_t to = transposed ? lane[size_t(c)] * cout + o : o * cin + lane[size_t(c)];
-                    std::copy_n(weight + from * taps, taps, permuted.data() + to * taps);
-                }
-            packConv(m.steps[size_t(r)], permuted.data(), 0);
-        }
+    for (const plan::ConcatInPlace& c : plan::concatInPlace(g)) {
+        m.steps[size_t(c.conv)].concatBuffer = m.steps[size_t(c.shuffle)].concatBuffer = c.concat;
+        m.steps[size_t(c.shuffle)].laneOffset = c.laneOffset;
+        m.steps[size_t(c.concat)].concatInPlace = true;
+        for (int r = 0; r < g.size(); ++r)  // its readers' weights in the lanes' order
+            if (std::find(g.node(r).inputs.begin(), g.node(r).inputs.end(), c.concat) !=
+                g.node(r).inputs.end())
+                m.packConv(g, m.steps[size_t(r)], plan::permutedWeights(g, c, r).data(), 0);
     }
-    // A 2x2 stride-2 max pooling that is its convolution's only consumer is fused into it: the
-    // full-size activation is never stored.
-    for (size_t i = 0; i < graph.size(); ++i) {
-        Impl::Step& pool = m.steps[i];
-        if (pool.node.op != GraphOp::MaxPool2d || pool.pool.kernel != 2 || pool.pool.stride != 2 ||
-            pool.pool.padding != 0)
-            continue;
-        const int source = pool.node.inputs[0];
-        if (source < 0 || source == m.outputStep || graph[size_t(source)].op != GraphOp::Conv2d) continue;
-        Impl::Step& conv = m.steps[size_t(source)];
-        if (readers(source) != 1 || shapes[size_t(source)][2] < 2 || shapes[size_t(source)][3] < 2) continue;
-        conv.conv->fuseMaxPool2x2();
-        conv.pooledInto = int(i);
-        pool.fusedIntoConv = true;
+    for (const plan::PoolFusion& p : plan::fusePooling(g)) {
+        m.steps[size_t(p.conv)].conv->fuseMaxPool2x2();
+        m.steps[size_t(p.conv)].pooledInto = p.pool;
+        m.steps[size_t(p.pool)].fusedIntoConv = true;
     }
-    if (residualAdd >= 0) m.steps[size_t(residualAdd)].fusedIntoOutput = true;
-    if (residualShuffle >= 0) m.steps[size_t(residualShuffle)].fusedIntoOutput = true;
-    if (filterNode >= 0) m.steps[size_t(filterNode)].fusedIntoOutput = true;
-    if (filterShuffle >= 0) m.steps[size_t(filterShuffle)].fusedIntoOutput = true;
-    if (m.kernelFeatures >= 0) m.steps[size_t(m.kernelSource)].fusedIntoOutput = true;
-    auto blockedOf = [&](const Shape& s) { return BlockedShape{s[0], s[1], s[2], s[3], m.block, border}; };
-    m.inputBlocked = blockedOf(inputShape);
-    if (planarInput) m.inputBlocked.block = 1;
-    for (size_t i = 0; i < graph.size(); ++i) m.steps[i].shape = blockedOf(shapes[i]);
+    for (int node :
+         {residual ? residual->add : -1, residual ? residual->shuffle : -1, kernel ? kernel->filter : -1,
+          kernel ? kernel->shuffle : -1, kernel && kernel->features >= 0 ? kernel->source : -1})
+        if (node >= 0) m.steps[size_t(node)].fusedIntoOutput = true;
+    m.shapeActivations(g, planarInput);
+    if (precision == InferencePrecision::BFloat16) m.assignPrecision(g);
+    m.planArena(g);
+    m.planOutputStages(g);
+    m.planStreaming(g, planarInput, residual, kernel);
+}
+
+// The output stages' fields from the passes' decisions.
+void InferencePlan::Impl::useOutputStages(const std::optional<plan::ResidualOutput>& residual,
+                                          std::optional<plan::KernelOutput>& kernel) {
+    if (residual) residualSource = residual->source, residualFactor = residual->factor;
+    if (!kernel) return;
+    kernelSource = kernel->source, kernelFactor = kernel->factor;
+    kernelFilter = kernel->desc;
+    kernelScratch = Tensor({kRowParts, kernelFilter.taps(), inputShape[3]});
+    kernelFeatures = kernel->features, kernelFeatureChannels = kernel->featureChannels;
+    kernelHeadWeights = std::move(kernel->headWeights);
+    kernelHeadBias = std::move(kernel->headBias);
+}
+
+// A step's convolution packed from `weight` (the model's, or permuted for a concatenation in place).
+void InferencePlan::Impl::packConv(const plan::PlanGraph& g, Step& step, const float* weight,
+                                   int inputBlock) {
+    const GraphNode& n = step.node;
+    const Shape& in = g.shapeOf(n.inputs[0]);
+    const float* bias = n.biasOffset >= 0 ? g.params + n.biasOffset : nullptr;
+    ActivationDesc fused = n.activation;
+    step.sigmoidAfterConv = fused.kind == Activation::Sigmoid;  // not fused: applied afterwards
+    if (step.sigmoidAfterConv) fused.kind = Activation::None;
+    if (n.op == GraphOp::Conv2d)
+        step.conv.emplace(n.convDesc(in), weight, bias, fused, inputBlock);
+    else
+        step.conv.emplace(n.convTransposeDesc(in), weight, bias, fused, inputBlock);
+}
+
+// Every activation's blocked shape, with the border the widest convolution needs.
+void InferencePlan::Impl::shapeActivations(const plan::PlanGraph& g, bool planarInput) {
+    int border = 0;
+    for (const Step& step : steps)
+        if (step.conv) border = std::max(border, step.conv->requiredInputBorder());
+    auto blockedOf = [&](const Shape& s) { return BlockedShape{s[0], s[1], s[2], s[3], block, border}; };
+    inputBlocked = blockedOf(inputShape);
+    if (planarInput) inputBlocked.block = 1;
+    for (int i = 0; i < g.size(); ++i) steps[size_t(i)].shape = blockedOf(g.shapeOf(i));
     // A network's last layer with 1-4 outputs, read by nothing but the conversion to planes, writes them
     // compactly (4 floats per pixel for 3 channels instead of a vector of 16).
-    if (Impl::Step& last = m.steps[size_t(m.outputStep)];
-        last.conv && last.conv->compactOutputBlock() > 0 && readers(m.outputStep) == 0) {
+    if (Step& last = steps[size_t(outputStep)];
+        last.conv && last.conv->compactOutputBlock() > 0 && g.readers(outputStep) == 0) {
         last.conv->useCompactOutput();
         last.shape.block = last.conv->outputShape(border).block;
     }
+}
 
-    // bf16 activations (InferencePrecision::BFloat16): a stored tensor is bf16 when everything that writes
-    // it can round its output to bf16 (the wide convolution kernel, a pixel shuffle into a concatenation
-    // in place) and everything that reads it can take bf16 (a blocked convolution the wide kernel runs, a
-    // pixel shuffle into a concatenation in place). The input, the output and the fused output stages'
-    // sources stay float.
-    if (precision == InferencePrecision::BFloat16) {
-        const int nodes = int(graph.size());
-        // The buffer a node's output lives in (a concatenation in place shares its inputs' buffer; a
-        // conv with fused pooling writes the pooling's).
-        auto bufferOf = [&](int node) {
-            const Impl::Step& step = m.steps[size_t(node)];
-            if (step.concatBuffer >= 0) return step.concatBuffer;
-            if (step.pooledInto >= 0) return step.pooledInto;
-            return node;
-        };
-        std::vector<char> bf16(size_t(nodes), 1);
-        auto keepFloat = [&](int node) {
-            if (node >= 0) bf16[size_t(bufferOf(node))] = 0;
-        };
-        keepFloat(m.outputStep);
-        keepFloat(m.residualSource);
-        keepFloat(m.kernelSource);
-        keepFloat(m.kernelFeatures);
-        for (int i = 0; i < nodes; ++i) {
-            const Impl::Step& step = m.steps[size_t(i)];
-            const GraphOp op = step.node.op;
-            const bool shuffleInPlace = op == GraphOp::PixelShuffle && step.concatBuffer >= 0;
-            if (step.fusedIntoConv || step.concatInPlace) continue;  // written by their inputs' steps
-            // Its output: bf16 only from a convolution that can round it, or a shuffle in place.
-            const bool convWrites = step.conv && step.conv->canWriteBf16() && !step.sigmoidAfterConv;
-            if (step.fusedIntoOutput || !(convWrites || shuffleInPlace)) keepFloat(i);
-            // Its inputs: bf16 only into a convolution that can read it, or a shuffle in place.
-            const bool convReads = step.conv && step.conv->canReadBf16() && !step.fusedIntoOutput;
-            for (int source : step.node.inputs)
-                if (!(convReads || shuffleInPlace)) keepFloat(source);
-        }
-        for (int i = 0; i < nodes; ++i) {
-            Impl::Step& step = m.steps[size_t(i)];
-            if (step.fusedIntoConv || step.concatInPlace || step.fusedIntoOutput) continue;
-            const int source = step.node.inputs.empty() ? -1 : step.node.inputs[0];
-            step.inBf16 = source >= 0 && bf16[size_t(bufferOf(source))];
-            step.outBf16 = bf16[size_t(bufferOf(i))];
-            if (step.conv && step.inBf16) step.conv->useBf16Input();
-        }
-        std::vector<int> written;  // distinct bf16 buffers
-        for (int i = 0; i < nodes; ++i)
-            if (m.steps[size_t(i)].outBf16 &&
-                std::find(written.begin(), written.end(), bufferOf(i)) == written.end())
-                written.push_back(bufferOf(i));
-        m.bf16Activations = int(written.size());
-        m.bf16Buffer = std::move(bf16);
+// bf16 activations (plan::assignPrecision): the input, the output and the output stages' sources stay
+// float.
+void InferencePlan::Impl::assignPrecision(const plan::PlanGraph& g) {
+    std::vector<plan::NodePlan> nodes(steps.begin(), steps.end());
+    std::vector<plan::NodeKernel> kernels(steps.size());
+    for (size_t i = 0; i < steps.size(); ++i)
+        if (const Step& step = steps[i]; step.conv)
+            kernels[i] = {step.conv->canWriteBf16() && !step.sigmoidAfterConv, step.conv->canReadBf16()};
+    plan::Precision p =
+        plan::assignPrecision(g, nodes, kernels, {outputStep, residualSource, kernelSource, kernelFeatures});
+    for (size_t i = 0; i < steps.size(); ++i) {
+        Step& step = steps[i];
+        step.inBf16 = nodes[i].inBf16, step.outBf16 = nodes[i].outBf16;
+        if (step.conv && step.inBf16) step.conv->useBf16Input();
     }
+    bf16Activations = p.bf16Activations;
+    bf16Buffer = std::move(p.bf16Buffer);
+}
 
-    // Arena: a tensor lives from its producer to its last consumer; first-fit reuse of dead regions.
-    const int count = int(graph.size());
-    std::vector<int> lastUse(size_t(count) + 1, -1);  // index 0: the model input, i + 1: node i
-    for (int i = 0; i < count; ++i)
-        for (int input : graph[size_t(i)].inputs)
-            lastUse[size_t(input + 1)] = std::max(lastUse[size_t(input + 1)], i);
-    lastUse[size_t(m.outputStep + 1)] = count;  // the output is read after the last step
-    if (m.residualSource >= 0)
-        lastUse[size_t(m.residualSource + 1)] = count;  // ... or the residual stage's source
-    if (m.kernelSource >= 0)  // ... or the filter stage's (its head convolution's input when that is fused)
-        lastUse[size_t((m.kernelFeatures >= 0 ? m.kernelFeatures : m.kernelSource) + 1)] = count;
-    struct Region {
-        int64_t offset, size;
-        int owner;  // tensor index as in lastUse
-    };
-    std::vector<Region> live;
-    int64_t arenaFloats = 0;
-    auto place = [&](int owner, int64_t floats, int now) {
-        live.erase(std::remove_if(live.begin(), live.end(),
-                                  [&](const Region& r) { return lastUse[size_t(r.owner)] < now; }),
-                   live.end());
-        std::sort(live.begin(), live.end(),
-                  [](const Region& a, const Region& b) { return a.offset < b.offset; });
-        floats = (floats + 15) / 16 * 16;  // 64-byte aligned regions
-        int64_t offset = 0;
-        for (const Region& r : live) {
-            if (r.offset - offset >= floats) break;
-            offset = std::max(offset, r.offset + r.size);
-        }
-        live.push_back({offset, floats, owner});
-        arenaFloats = std::max(arenaFloats, offset + floats);
-        m.unpackedBytes += size_t(floats) * sizeof(float);
-        return offset;
-    };
-    // A bf16 buffer takes half the floats.
-    auto floatsOf = [&](int buffer, const BlockedShape& shape) {
-        return m.isBf16(buffer) ? (shape.floatCount() + 1) / 2 : shape.floatCount();
-    };
-    m.inputOffset = place(0, m.inputBlocked.floatCount(), 0);
-    for (int i = 0; i < count; ++i)  // a concatenation in place lives as long as its conv input's buffer
-        if (const int cat = m.steps[size_t(i)].concatBuffer;
-            cat >= 0 && graph[size_t(i)].op == GraphOp::Conv2d)
-            lastUse[size_t(i + 1)] = std::max(lastUse[size_t(i + 1)], lastUse[size_t(cat + 1)]);
-    for (int i = 0; i < count; ++i) {
-        Impl::Step& step = m.steps[size_t(i)];
-        if (step.fusedIntoConv || step.fusedIntoOutput || step.concatInPlace ||
-            (step.concatBuffer >= 0 && step.node.op == GraphOp::PixelShuffle))
-            continue;  // placed with its convolution or its concatenation's conv input, or never stored
-        if (step.concatBuffer >= 0) {  // the conv's buffer is its concatenation's
-            Impl::Step& cat = m.steps[size_t(step.concatBuffer)];
-            step.offset = cat.offset = place(i + 1, floatsOf(step.concatBuffer, cat.shape), i);
-            for (Impl::Step& other : m.steps)
-                if (other.concatBuffer == step.concatBuffer) other.offset = step.offset;
+// The arena (plan::placeFirstFit): a tensor lives from its producer to its last consumer; a bf16 buffer
+// takes half the floats.
+void InferencePlan::Impl::planArena(const plan::PlanGraph& g) {
+    std::vector<int64_t> floats(steps.size() + 1);
+    floats[0] = inputBlocked.floatCount();
+    for (size_t i = 0; i < steps.size(); ++i)
+        floats[i + 1] = isBf16(int(i)) ? (steps[i].shape.floatCount() + 1) / 2 : steps[i].shape.floatCount();
+    const std::vector<plan::NodePlan> nodes(steps.begin(), steps.end());
+    const plan::ArenaTensors tensors = plan::arenaTensors(
+        g, nodes, floats, {outputStep, residualSource, kernelFeatures >= 0 ? kernelFeatures : kernelSource});
+    const plan::ArenaPlan arenaPlan = plan::placeFirstFit(tensors.tensors);
+    for (size_t t = 0; t < tensors.buffer.size(); ++t) {
+        const int buffer = tensors.buffer[t];
+        const int64_t offset = arenaPlan.offsets[t];
+        if (buffer < 0) {
+            inputOffset = offset;
             continue;
         }
-        if (step.pooledInto >= 0) {  // the conv writes the pooled tensor; its own is never stored
-            Impl::Step& pool = m.steps[size_t(step.pooledInto)];
-            pool.offset = place(step.pooledInto + 1, floatsOf(step.pooledInto, pool.shape), i);
-            continue;
-        }
-        step.offset = place(i + 1, floatsOf(i, step.shape), i);
+        steps[size_t(buffer)].offset = offset;
+        for (Step& step :
+             steps)  // the concatenation's inputs write into its buffer, a pooled conv its pooling's
+            if (step.concatBuffer == buffer || step.pooledInto == buffer) step.offset = offset;
     }
-    m.arena = Tensor({std::max<int64_t>(arenaFloats, 16)});
-    m.output = Tensor(m.outputShape);
-    if (m.residualSource >= 0 || m.kernelSource >= 0)
-        m.rowScratch = Tensor({Impl::kRowParts, m.outputShape[1], m.outputShape[3]});
-    m.rowPointers.resize(size_t(Impl::kRowParts * m.outputShape[1]));
-    if (m.inputBlocked.block != 1) m.staged = Tensor(inputShape);
-    if (m.kernelSource >= 0 && m.kernelFeatures >= 0 && inputShape[0] == 1 &&
-        kPassGroup % m.kernelFactor == 0) {
+    unpackedBytes = size_t(arenaPlan.unpackedFloats) * sizeof(float);
+    arena = Tensor({std::max<int64_t>(arenaPlan.floats, 16)});
+}
+// The output and the output stages' scratch: the rows on their way to a sink, the pass-through groups and
+// the marks for the whole run.
+void InferencePlan::Impl::planOutputStages(const plan::PlanGraph& g) {
+    output = Tensor(outputShape);
+    if (residualSource >= 0 || kernelSource >= 0)
+        rowScratch = Tensor({kRowParts, outputShape[1], outputShape[3]});
+    rowPointers.resize(size_t(kRowParts * outputShape[1]));
+    if (inputBlocked.block != 1) staged = Tensor(inputShape);
+    if (kernelSource >= 0 && kernelFeatures >= 0 && inputShape[0] == 1 && kPassGroup % kernelFactor == 0) {
         const int64_t groups = (inputShape[3] + kPassGroup - 1) / kPassGroup;
-        m.flatRows.assign(size_t(inputShape[2] * groups), 0);
-        m.keepFeatures.assign(size_t((inputShape[2] + m.kernelFactor - 1) / m.kernelFactor * groups), 1);
+        flatRows.assign(size_t(inputShape[2] * groups), 0);
+        keepFeatures.assign(size_t((inputShape[2] + kernelFactor - 1) / kernelFactor * groups), 1);
         // Further back (a U-Net's last level): when the features' layer reads a concatenation in place
         // whose other part is a factor-2 pixel shuffle of a convolution read by nothing else, that shuffle
         // and that convolution are needed only around the kept features too.
-        const GraphNode& features = graph[size_t(m.kernelFeatures)];
+        const GraphNode& features = g.node(kernelFeatures);
         const int cat = features.inputs.empty() ? -1 : features.inputs[0];
-        if (features.op == GraphOp::Conv2d && cat >= 0 && m.steps[size_t(cat)].concatInPlace &&
-            readers(cat) == 1 && m.kernelFactor == 2)
-            for (int i = 0; i < int(graph.size()); ++i) {
-                const GraphNode& n = graph[size_t(i)];
-                if (n.op != GraphOp::PixelShuffle || m.steps[size_t(i)].concatBuffer != cat || n.factor != 2)
+        if (features.op == GraphOp::Conv2d && cat >= 0 && steps[size_t(cat)].concatInPlace &&
+            g.readers(cat) == 1 && kernelFactor == 2)
+            for (int i = 0; i < g.size(); ++i) {
+                const GraphNode& n = g.node(i);
+                if (n.op != GraphOp::PixelShuffle || steps[size_t(i)].concatBuffer != cat || n.factor != 2)
                     continue;
                 const int source = n.inputs[0];
-                if (source < 0 || graph[size_t(source)].op != GraphOp::Conv2d || readers(source) != 1)
-                    continue;
-                m.keepShuffleStep = i, m.keepShuffleSourceStep = source;
-                m.keepRadius = int(std::max(features.kernel / 2, 1) * features.dilation);
-                m.keepShuffle.assign(size_t(shapes[size_t(cat)][2] * groups), 1);
-                m.keepShuffleSource.assign(size_t(shapes[size_t(source)][2] * groups), 1);
+                if (source < 0 || g.opOf(source) != GraphOp::Conv2d || g.readers(source) != 1) continue;
+                keepShuffleStep = i, keepShuffleSourceStep = source;
+                keepRadius = int(std::max(features.kernel / 2, 1) * features.dilation);
+                keepShuffle.assign(size_t(g.shapeOf(cat)[2] * groups), 1);
+                keepShuffleSource.assign(size_t(g.shapeOf(source)[2] * groups), 1);
             }
     }
-    if (m.kernelSource >= 0) {
-        m.passGroupsPerRow = (inputShape[3] + kPassGroup - 1) / kPassGroup;
-        m.passGroups.assign(size_t(Impl::kRowParts * m.passGroupsPerRow), 0);
-        m.passCounts.assign(size_t(Impl::kRowParts), 0);
+    if (kernelSource >= 0) {
+        passGroupsPerRow = (inputShape[3] + kPassGroup - 1) / kPassGroup;
+        passGroups.assign(size_t(kRowParts * passGroupsPerRow), 0);
+        passCounts.assign(size_t(kRowParts), 0);
     }
-    // A streamed input (runStreamed): one image, planar, read only by single-pass convolutions (given it
-    // in bands) and the output stage (given it in rows).
-    m.streamInput = planarInput && inputShape[0] == 1 && inputShape[1] <= 16;
+}
+
+// A streamed input (runStreamed): one image, planar, read only by single-pass convolutions (given it in
+// bands) and the output stage (given it in rows).
+void InferencePlan::Impl::planStreaming(const plan::PlanGraph& g, bool planarInput,
+                                        const std::optional<plan::ResidualOutput>& residual,
+                                        const std::optional<plan::KernelOutput>& kernel) {
+    streamInput = planarInput && inputShape[0] == 1 && inputShape[1] <= 16;
     int64_t bandFloats = 0;
-    for (int i = 0; i < int(graph.size()); ++i)
-        for (int source : graph[size_t(i)].inputs) {
-            if (source >= 0 || i == filterNode || i == residualAdd) continue;
-            const Impl::Step& step = m.steps[size_t(i)];
-            if (graph[size_t(i)].op == GraphOp::Conv2d && step.conv && step.conv->canBandInput())
-                bandFloats = std::max(bandFloats, step.conv->bandShape(m.inputBlocked).floatCount());
+    for (int i = 0; i < g.size(); ++i)
+        for (int source : g.node(i).inputs) {
+            if (source >= 0 || (kernel && i == kernel->filter) || (residual && i == residual->add)) continue;
+            const Step& step = steps[size_t(i)];
+            if (g.opOf(i) == GraphOp::Conv2d && step.conv && step.conv->canBandInput())
+                bandFloats = std::max(bandFloats, step.conv->bandShape(inputBlocked).floatCount());
             else
-                m.streamInput = false;
+                streamInput = false;
         }
-    if (m.streamInput) {
-        const int chunks = std::max(1, threadCount());
-        m.bandBuffers = Tensor({chunks, (bandFloats + 15) / 16 * 16});
-        for (int k = 0; k < chunks; ++k)
-            m.bandPointers.push_back(m.bandBuffers.data() + k * m.bandBuffers.shape()[1]);
-        m.ringSlots = m.kernelSource >= 0 ? m.kernelFilter.kernel : 1;
-        m.inputRing = Tensor({Impl::kRowParts, m.ringSlots, inputShape[1], inputShape[3]});
-        m.ringRows.assign(size_t(Impl::kRowParts * m.ringSlots), -1);
-        if (!m.flatRows.empty()) {
-            const int64_t H = inputShape[2], G = m.passGroupsPerRow, C = inputShape[1];
-            m.rowLow.assign(size_t(H * G * C), 0.0f);
-            m.rowHigh.assign(size_t(H * G * C), 0.0f);
-            m.rowBad.assign(size_t(H * G), 0);
-            m.rowRanged.assign(size_t(H), 0);
-        }
+    if (!streamInput) return;
+    const int chunks = std::max(1, threadCount());
+    bandBuffers = Tensor({chunks, (bandFloats + 15) / 16 * 16});
+    for (int k = 0; k < chunks; ++k) bandPointers.push_back(bandBuffers.data() + k * bandBuffers.shape()[1]);
+    ringSlots = kernelSource >= 0 ? kernelFilter.kernel : 1;
+    inputRing = Tensor({kRowParts, ringSlots, inputShape[1], inputShape[3]});
+    ringRows.assign(size_t(kRowParts * ringSlots), -1);
+    if (!flatRows.empty()) {
+        const int64_t H = inputShape[2], G = passGroupsPerRow, C = inputShape[1];
+        rowLow.assign(size_t(H * G * C), 0.0f);
+        rowHigh.assign(size_t(H * G * C), 0.0f);
+        rowBad.assign(size_t(H * G), 0);
+        rowRanged.assign(size_t(H), 0);
     }
 }
 
