@@ -1,4 +1,6 @@
-// dejag metrics REF TEST: MSE, RMSE, PSNR, SNR and SSIM of a test image against its reference.
+// dejag metrics REF TEST: MSE, RMSE, PSNR, SNR and SSIM of a test image against its reference; for two
+// sequences, each frame's figures, the best, worst and mean frame and the flicker (docs/metrics.md).
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <memory>
@@ -7,6 +9,7 @@
 
 #include "app/cli.h"
 #include "app/commands.h"
+#include "app/sequence.h"
 #include "base/error.h"
 #include "data/image.h"
 #include "data/metrics.h"
@@ -39,17 +42,18 @@ const char* spaceOf(const Image& image) {
 // the two encodings of one frame is no measure of anything. Mixed inputs are refused unless --space names
 // the space to score in; then each image is converted into it (colour channels only). Returns the note the
 // report prints ("" when nothing was converted).
-std::string bringIntoOneSpace(Image& reference, Image& test, const MetricsArguments& args) {
+std::string bringIntoOneSpace(Image& reference, Image& test, const std::string& referencePath,
+                              const std::string& testPath, const MetricsArguments& args) {
     const bool referenceLinear = holdsLinearLight(reference.storage),
                testLinear = holdsLinearLight(test.storage);
     if (args.space == "auto") {
         if (referenceLinear == testLinear) return "";
-        throw Error("'" + args.reference + "' holds " + spaceOf(reference) + " and '" + args.test + "' " +
+        throw Error("'" + referencePath + "' holds " + spaceOf(reference) + " and '" + testPath + "' " +
                     spaceOf(test) + "; score them in one space with --space srgb or --space linear");
     }
     const bool linear = args.space == "linear";
     std::string converted;
-    for (auto [image, path] : {std::pair{&reference, &args.reference}, std::pair{&test, &args.test}}) {
+    for (auto [image, path] : {std::pair{&reference, &referencePath}, std::pair{&test, &testPath}}) {
         if (holdsLinearLight(image->storage) == linear) continue;
         if (linear)
             convertSrgbToLinear(*image);
@@ -74,19 +78,28 @@ std::string formatDecibels(double value) {
     return text;
 }
 
-void runMetrics(const MetricsArguments& args) {
-    applyRuntimeOptions(args.runtime);
-    Image reference = readScoredImage(args.reference);
-    Image test = readScoredImage(args.test);
-    const std::string referenceDescription = reference.describe(), testDescription = test.describe();
-    const std::string spaceNote = bringIntoOneSpace(reference, test, args);
+// One pair scored: both images as scored (in one space, on the channels they share) and the figures.
+struct ScoredPair {
+    Image reference, test;
+    std::string referenceDescription, testDescription, spaceNote, matchedNote;
+    ImageMetrics metrics;
+};
+
+ScoredPair scorePair(const std::string& referencePath, const std::string& testPath,
+                     const MetricsArguments& args, const Image* mask, bool wantSsimMap) {
+    ScoredPair r;
+    Image& reference = r.reference;
+    Image& test = r.test;
+    reference = readScoredImage(referencePath);
+    test = readScoredImage(testPath);
+    r.referenceDescription = reference.describe(), r.testDescription = test.describe();
+    r.spaceNote = bringIntoOneSpace(reference, test, referencePath, testPath, args);
     if (reference.width != test.width || reference.height != test.height)
-        throw Error("'" + args.test + "' is " + std::to_string(test.width) + "x" +
-                    std::to_string(test.height) + " but '" + args.reference + "' is " +
+        throw Error("'" + testPath + "' is " + std::to_string(test.width) + "x" +
+                    std::to_string(test.height) + " but '" + referencePath + "' is " +
                     std::to_string(reference.width) + "x" + std::to_string(reference.height));
     // Different channel counts: score the channels the two share by name (a dataset input holds R, G, B
     // and its G-buffers, its truth R, G, B), if one image holds all the other's.
-    std::string matchedNote;
     if (reference.channels() != test.channels()) {
         const auto holdsAll = [](const Image& image, const std::vector<std::string>& names) {
             for (const std::string& name : names)
@@ -94,35 +107,57 @@ void runMetrics(const MetricsArguments& args) {
             return true;
         };
         if (holdsAll(test, reference.channelNames)) {
-            matchedNote = "channels " + reference.channelList() + " of the test image's " +
-                          std::to_string(test.channels());
+            r.matchedNote = "channels " + reference.channelList() + " of the test image's " +
+                            std::to_string(test.channels());
             test = selectChannels(test, reference.channelNames);
         } else if (holdsAll(reference, test.channelNames)) {
-            matchedNote = "channels " + test.channelList() + " of the reference's " +
-                          std::to_string(reference.channels());
+            r.matchedNote = "channels " + test.channelList() + " of the reference's " +
+                            std::to_string(reference.channels());
             reference = selectChannels(reference, test.channelNames);
         } else {
-            throw Error("'" + args.test + "' has " + std::to_string(test.channels()) + " channels (" +
-                        test.channelList() + ") but '" + args.reference + "' has " +
+            throw Error("'" + testPath + "' has " + std::to_string(test.channels()) + " channels (" +
+                        test.channelList() + ") but '" + referencePath + "' has " +
                         std::to_string(reference.channels()) + " (" + reference.channelList() +
                         "), and neither holds all the other's");
         }
     }
-    std::optional<Image> mask;
-    if (!args.mask.empty()) {
-        mask = readImage(args.mask);
-        if (mask->width != reference.width || mask->height != reference.height)
-            throw Error("mask '" + args.mask + "' is " + std::to_string(mask->width) + "x" +
-                        std::to_string(mask->height) + " but the images are " +
-                        std::to_string(reference.width) + "x" + std::to_string(reference.height));
-    }
-
+    if (mask && (mask->width != reference.width || mask->height != reference.height))
+        throw Error("mask '" + args.mask + "' is " + std::to_string(mask->width) + "x" +
+                    std::to_string(mask->height) + " but the images are " + std::to_string(reference.width) +
+                    "x" + std::to_string(reference.height));
     MetricOptions options;
     options.dataRange = args.dataRange;
-    options.mask = mask ? &*mask : nullptr;
-    options.wantSsimMap = !args.ssimMap.empty();
-    const ImageMetrics metrics = compareImages(reference, test, options);
-    if (options.wantSsimMap)
+    options.mask = mask;
+    options.wantSsimMap = wantSsimMap;
+    r.metrics = compareImages(reference, test, options);
+    return r;
+}
+
+void runSequenceMetrics(const MetricsArguments& args, const Image* mask);
+
+void runMetrics(const MetricsArguments& args) {
+    applyRuntimeOptions(args.runtime);
+    std::optional<Image> mask;
+    if (!args.mask.empty()) mask = readImage(args.mask);
+    const bool referenceSequence = isSequence(args.reference), testSequence = isSequence(args.test);
+    if (referenceSequence || testSequence) {
+        if (!(referenceSequence && testSequence))
+            throw Error(
+                "'" + (referenceSequence ? args.reference : args.test) + "' is a sequence and '" +
+                (referenceSequence ? args.test : args.reference) +
+                "' one image: give two sequences (folders or patterns such as f_%04d.png) or two images");
+        if (!args.ssimMap.empty()) throw Error("--ssim-map takes one image pair, not a sequence");
+        runSequenceMetrics(args, mask ? &*mask : nullptr);
+        return;
+    }
+    const ScoredPair scored =
+        scorePair(args.reference, args.test, args, mask ? &*mask : nullptr, !args.ssimMap.empty());
+    const Image& reference = scored.reference;
+    const ImageMetrics& metrics = scored.metrics;
+    const std::string &referenceDescription = scored.referenceDescription,
+                      &testDescription = scored.testDescription, &spaceNote = scored.spaceNote,
+                      &matchedNote = scored.matchedNote;
+    if (!args.ssimMap.empty())
         writeSsimMapPng(args.ssimMap, metrics.ssimMap, reference.width, reference.height);
 
     if (args.json) {
@@ -175,6 +210,109 @@ void runMetrics(const MetricsArguments& args) {
     if (!args.ssimMap.empty()) std::printf("SSIM map   %s\n", args.ssimMap.c_str());
 }
 
+// Two sequences, frame by frame (paired by frame number when both are numbered, else in order): each
+// frame's figures, then the mean, best and worst frame and the flicker (docs/metrics.md).
+void runSequenceMetrics(const MetricsArguments& args, const Image* mask) {
+    const std::vector<SequenceFrame> references = listSequence(args.reference),
+                                     tests = listSequence(args.test);
+    std::vector<std::pair<const SequenceFrame*, const SequenceFrame*>> pairs;
+    const bool numbered =
+        std::all_of(references.begin(), references.end(),
+                    [](const SequenceFrame& f) { return f.number >= 0; }) &&
+        std::all_of(tests.begin(), tests.end(), [](const SequenceFrame& f) { return f.number >= 0; });
+    if (numbered) {
+        for (const SequenceFrame& t : tests) {
+            const auto r = std::find_if(references.begin(), references.end(),
+                                        [&](const SequenceFrame& f) { return f.number == t.number; });
+            if (r == references.end())
+                throw Error("'" + t.path + "' is frame " + std::to_string(t.number) + ", which '" +
+                            args.reference + "' does not hold");
+            pairs.push_back({&*r, &t});
+        }
+    } else {
+        if (references.size() != tests.size())
+            throw Error("'" + args.reference + "' holds " + std::to_string(references.size()) +
+                        " frames and '" + args.test + "' " + std::to_string(tests.size()));
+        for (size_t i = 0; i < tests.size(); ++i) pairs.push_back({&references[i], &tests[i]});
+    }
+    struct Row {
+        std::string reference, test;
+        long number;
+        ImageMetrics metrics;
+        double flicker;  // against the frame before (-1 for the first)
+    };
+    std::vector<Row> rows;
+    std::vector<float> previousReference, previousTest;
+    double flickerSum = 0;
+    for (const auto& [r, t] : pairs) {
+        ScoredPair scored = scorePair(r->path, t->path, args, mask, false);
+        double flicker = -1;
+        if (!previousTest.empty()) {
+            if (previousTest.size() != scored.test.pixels.size())
+                throw Error("'" + t->path + "' is not the size of the frame before it");
+            // (X_t - X_t-1) - (R_t - R_t-1), on the images' value scale, over the scored pixels
+            double sum = 0;
+            size_t count = 0;
+            const size_t C = size_t(scored.test.channels());
+            for (size_t i = 0; i < scored.test.pixels.size(); ++i) {
+                if (mask && mask->pixels[(i / C) * size_t(mask->channels())] <= 0.5f) continue;
+                sum += std::abs(double(scored.test.pixels[i] - previousTest[i]) -
+                                double(scored.reference.pixels[i] - previousReference[i]));
+                ++count;
+            }
+            flicker = count ? sum / double(count) : 0.0;  // on the [0, 1] scale of integer images
+            flickerSum += flicker;
+        }
+        previousTest = std::move(scored.test.pixels), previousReference = std::move(scored.reference.pixels);
+        rows.push_back({r->path, t->path, t->number, scored.metrics, flicker});
+    }
+    double psnrSum = 0, ssimSum = 0, psnrBest = -1e300, psnrWorst = 1e300, ssimWorst = 1e300;
+    for (const Row& row : rows) {
+        const double p = std::isinf(row.metrics.psnr) ? 1e3 : row.metrics.psnr;
+        psnrSum += p, ssimSum += row.metrics.ssim;
+        psnrBest = std::max(psnrBest, p), psnrWorst = std::min(psnrWorst, p);
+        ssimWorst = std::min(ssimWorst, row.metrics.ssim);
+    }
+    const double n = double(rows.size()), flickerMean = rows.size() > 1 ? flickerSum / (n - 1) : 0.0;
+    auto decibels = [](double v) { return std::isinf(v) ? nlohmann::json(nullptr) : nlohmann::json(v); };
+    if (args.json) {
+        for (const Row& row : rows)
+            std::printf("%s\n", nlohmann::json{{"reference", row.reference},
+                                               {"test", row.test},
+                                               {"frame", row.number},
+                                               {"mse", row.metrics.mse},
+                                               {"psnr", decibels(row.metrics.psnr)},
+                                               {"ssim", row.metrics.ssim},
+                                               {"flicker", row.flicker < 0 ? nlohmann::json(nullptr)
+                                                                           : nlohmann::json(row.flicker)}}
+                                    .dump()
+                                    .c_str());
+        std::printf("%s\n", nlohmann::json{{"summary", true},
+                                           {"frames", rows.size()},
+                                           {"psnr_mean", psnrSum / n},
+                                           {"psnr_best", psnrBest},
+                                           {"psnr_worst", psnrWorst},
+                                           {"ssim_mean", ssimSum / n},
+                                           {"ssim_worst", ssimWorst},
+                                           {"flicker", flickerMean}}
+                                .dump()
+                                .c_str());
+        return;
+    }
+    std::printf("%-8s %12s %10s %12s\n", "frame", "PSNR dB", "SSIM", "flicker");
+    for (const Row& row : rows) {
+        std::printf("%-8ld %12s %10.6f ", row.number, formatDecibels(row.metrics.psnr).c_str(),
+                    row.metrics.ssim);
+        if (row.flicker < 0)
+            std::printf("%12s\n", "-");
+        else
+            std::printf("%12.6f\n", row.flicker);
+    }
+    std::printf(
+        "%zu frames: PSNR mean %.4f dB (best %.4f, worst %.4f), SSIM mean %.6f (worst %.6f), flicker %.6f\n",
+        rows.size(), psnrSum / n, psnrBest, psnrWorst, ssimSum / n, ssimWorst, flickerMean);
+}
+
 }  // namespace
 
 void registerMetricsCommand(CLI::App& app) {
@@ -189,9 +327,17 @@ void registerMetricsCommand(CLI::App& app) {
         "true).\n"
         "Images with different channel counts are scored on the channels they share by name when one holds\n"
         "all the other's: a dataset input (R, G, B and its G-buffers) against its truth (R, G, B).\n"
-        "A PNG/JPEG holds sRGB-encoded values, an EXR linear light: mixing them needs --space srgb|linear.");
-    command->add_option("REF", args->reference, "Reference image (the truth)")->required();
-    command->add_option("TEST", args->test, "Image to score")->required();
+        "A PNG/JPEG holds sRGB-encoded values, an EXR linear light: mixing them needs --space srgb|linear.\n"
+        "Two sequences (folders or patterns such as out/f_%04d.png) are scored frame by frame, paired by\n"
+        "frame number: each frame's PSNR and SSIM, the mean, best and worst frame, and the flicker: the "
+        "mean\n"
+        "|(X_t - X_t-1) - (R_t - R_t-1)| over consecutive frames, an 8- or 16-bit image's values taken\n"
+        "as 0-1.");
+    command
+        ->add_option("REF", args->reference, "Reference image (the truth), or a sequence: folder or pattern")
+        ->required();
+    command->add_option("TEST", args->test, "Image to score, or a sequence: folder or pattern (f_%04d.png)")
+        ->required();
     command->add_flag("--json", args->json, "Print one JSON object (keys mse, rmse, psnr, snr, ssim, ...)");
     command->add_option("--ssim-map", args->ssimMap, "Write the per-pixel SSIM map as a colour-mapped PNG");
     command->add_option("--mask", args->mask,

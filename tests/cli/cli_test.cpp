@@ -91,6 +91,50 @@ TEST(Cli, DifferentChannelCountsAreAnError) {
                        "channels");
 }
 
+// Two sequences: every frame's figures and the flicker, computed here from the definition
+// (docs/metrics.md); a test that flickers against a steady truth scores exactly its frame-to-frame change.
+TEST(Cli, MetricsScoresSequencesFrameByFrameWithTheirFlicker) {
+    testing::TempDir dir;
+    namespace fs = std::filesystem;
+    fs::create_directories(dir.file("ref")), fs::create_directories(dir.file("test"));
+    const int W = 20, H = 16;
+    for (int t = 0; t < 4; ++t) {
+        Image truth(W, H, {"R", "G", "B"}, PixelType::Float), test = truth;
+        for (int y = 0; y < H; ++y)
+            for (int x = 0; x < W; ++x)
+                for (int c = 0; c < 3; ++c) {
+                    truth.at(x, y, c) = float((x + y + c) % 5) / 5.0f;
+                    // the test: the truth, with every other frame 0.1 brighter in its left half
+                    test.at(x, y, c) = truth.at(x, y, c) + (t % 2 == 1 && x < W / 2 ? 0.1f : 0.0f);
+                }
+        char name[64];
+        std::snprintf(name, sizeof name, "f_%04d.exr", t + 7);
+        writeImage(dir.file("ref") + "/" + name, truth);
+        writeImage(dir.file("test") + "/" + name, test);
+    }
+    const RunResult r = run("metrics --json " + dir.file("ref/f_%04d.exr") + " " + dir.file("test"), dir);
+    ASSERT_EQ(r.exitCode, 0) << r.err;
+    std::vector<nlohmann::json> lines;
+    std::istringstream in(r.out);
+    for (std::string line; std::getline(in, line);) lines.push_back(nlohmann::json::parse(line));
+    ASSERT_EQ(lines.size(), 5u) << r.out;
+    EXPECT_EQ(lines[0]["frame"].get<int>(), 7);
+    EXPECT_TRUE(lines[0]["psnr"].is_null()) << "frame 7 is the truth itself";
+    EXPECT_TRUE(lines[0]["flicker"].is_null());
+    for (int t = 1; t < 4; ++t) EXPECT_NEAR(lines[size_t(t)]["flicker"].get<double>(), 0.05, 1e-6) << t;
+    EXPECT_TRUE(lines[4]["summary"].get<bool>());
+    EXPECT_NEAR(lines[4]["flicker"].get<double>(), 0.05, 1e-6);
+    EXPECT_EQ(lines[4]["frames"].get<int>(), 4);
+    // One sequence against one image, or frames the reference lacks: one line each.
+    const RunResult mixed = run("metrics " + dir.file("ref") + " " + dir.file("ref/f_0007.exr"), dir);
+    EXPECT_EQ(mixed.exitCode, 2);
+    EXPECT_NE(mixed.err.find("is a sequence and"), std::string::npos) << mixed.err;
+    fs::copy_file(dir.file("test/f_0010.exr"), dir.file("test/f_0011.exr"));
+    const RunResult missing = run("metrics " + dir.file("ref") + " " + dir.file("test"), dir);
+    EXPECT_EQ(missing.exitCode, 2);
+    EXPECT_NE(missing.err.find("does not hold"), std::string::npos) << missing.err;
+}
+
 TEST(Cli, MetricsScoresADatasetInputOnTheColourChannelsItSharesWithTheTruth) {
     testing::TempDir dir;
     Image truth(24, 20, {"R", "G", "B"}, PixelType::Float);
