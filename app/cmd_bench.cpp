@@ -1,6 +1,7 @@
 // dejag bench TARGET: benchmarks that print figures next to the machine's measured peak.
 #include <unistd.h>
 
+#include <algorithm>
 #include <cerrno>
 #include <cstdio>
 #include <cstring>
@@ -19,6 +20,7 @@
 #include "bench/render_bench.h"
 #include "bench/stability.h"
 #include "bench/taa_bench.h"
+#include "infer/filter.h"
 
 namespace dejag::cli {
 namespace {
@@ -164,8 +166,7 @@ void registerBenchCommand(CLI::App& app) {
     };
     auto filterArgs = std::make_shared<FilterBenchArguments>();
     CLI::App* filterBench = bench->add_subcommand(
-        "filter",
-        "post-process filters on a rendered frame (target: FXAA <= 2 ms at 1920x1080 on 2 cores)");
+        "filter", "post-process filters on a rendered frame (target: FXAA <= 2 ms at 1920x1080 on 2 cores)");
     filterBench->add_option("--repeat", filterArgs->repeat, "Timed runs per case (median reported)")
         ->check(CLI::Range(1, 10000))
         ->capture_default_str();
@@ -382,13 +383,21 @@ void registerBenchCommand(CLI::App& app) {
 
     struct TaaBenchArguments {
         std::string size = "800x450", ghostSize = "400x225", out;
-        int truth = 128, ghostFrames = 100, ghostTruth = 32;
+        int truth = 128, frames = 16, ghostFrames = 100, ghostTruth = 32;
         bool noGhosting = false, json = false;
+        std::vector<std::string> settings;
     };
     auto taaArgs = std::make_shared<TaaBenchArguments>();
     CLI::App* taaBench = bench->add_subcommand(
-        "taa", "the thesis' comparison: static test (No AA, FXAA, U-TAA, T-TAA vs truth) and ghosting test");
+        "taa",
+        "the thesis' comparison: static test (No AA, FXAA, U-TAA, T-TAA, taa-hq and the oracle vs truth) and "
+        "ghosting test with flicker");
     taaBench->add_option("--size", taaArgs->size, "static test frame size")->capture_default_str();
+    taaBench
+        ->add_option("--frames", taaArgs->frames,
+                     "static test: jittered frames before the scored one (the oracle averages the last 16)")
+        ->check(CLI::Range(16, 100000))
+        ->capture_default_str();
     taaBench->add_option("--truth", taaArgs->truth, "truth samples (static test)")->capture_default_str();
     taaBench->add_option("--ghost-size", taaArgs->ghostSize, "ghosting test frame size")
         ->capture_default_str();
@@ -397,6 +406,8 @@ void registerBenchCommand(CLI::App& app) {
     taaBench->add_option("--ghost-truth", taaArgs->ghostTruth, "truth samples per ghosting frame")
         ->capture_default_str();
     taaBench->add_flag("--no-ghosting", taaArgs->noGhosting, "static test only");
+    taaBench->add_option("--set", taaArgs->settings,
+                         "a parameter of taa-hq, NAME=VALUE (dejag filter --list-methods)");
     taaBench->add_option("--out", taaArgs->out, "folder for the static test's SSIM-map PNGs");
     taaBench->add_flag("--json", taaArgs->json, "One JSON object per row");
     taaBench->callback([taaArgs] {
@@ -404,6 +415,9 @@ void registerBenchCommand(CLI::App& app) {
         const Size size = parseSize(taaArgs->size, "--size"),
                    ghost = parseSize(taaArgs->ghostSize, "--ghost-size");
         options.width = size.width, options.height = size.height, options.truthSamples = taaArgs->truth;
+        options.historyFrames = taaArgs->frames;
+        for (const std::string& setting : taaArgs->settings) options.taaHq.setAssignment(setting);
+        infer::makeFilter("taa-hq", options.taaHq);  // an unknown or out-of-range setting: one line, now
         options.ghostWidth = ghost.width, options.ghostHeight = ghost.height;
         options.ghostFrames = taaArgs->ghostFrames, options.ghostTruthSamples = taaArgs->ghostTruth;
         options.ghosting = !taaArgs->noGhosting, options.ssimMapFolder = taaArgs->out,
@@ -415,24 +429,34 @@ void registerBenchCommand(CLI::App& app) {
             for (const nlohmann::json& row : rows) std::printf("%s\n", row.dump().c_str());
             return;
         }
-        std::printf("Static test, %s, 8-bit sRGB against the %d-sample truth: PSNR dB (SSIM)\n",
-                    taaArgs->size.c_str(), taaArgs->truth);
-        std::printf("%-14s %16s %16s %16s %16s %16s %16s\n", "scene", "No AA", "FXAA", "U-TAA", "T-TAA",
-                    "U unsharpened", "T unsharpened");
-        for (size_t i = 0; i + 5 < rows.size(); i += 6) {
+        std::printf(
+            "Static test, %s, %d jittered frames, 8-bit sRGB against the %d-sample truth: PSNR dB "
+            "(SSIM)\n",
+            taaArgs->size.c_str(), taaArgs->frames, taaArgs->truth);
+        std::vector<std::string> methods;  // in the rows' order
+        for (const nlohmann::json& row : rows)
+            if (row["test"] == "static" &&
+                std::find(methods.begin(), methods.end(), row["method"].get<std::string>()) == methods.end())
+                methods.push_back(row["method"].get<std::string>());
+        std::printf("%-14s", "scene");
+        for (const std::string& m : methods) std::printf(" %18s", m.c_str());
+        std::printf("\n");
+        for (size_t i = 0; i + methods.size() <= rows.size(); i += methods.size()) {
             if (rows[i]["test"] != "static") break;
             std::printf("%-14s", rows[i]["scene"].get<std::string>().c_str());
-            for (size_t k = 0; k < 6; ++k)
-                std::printf(" %8.2f (%.4f)", rows[i + k]["psnr"].get<double>(),
+            for (size_t k = 0; k < methods.size(); ++k)
+                std::printf("   %6.2f (%.4f)", rows[i + k]["psnr"].get<double>(),
                             rows[i + k]["ssim"].get<double>());
             std::printf("\n");
         }
         for (const nlohmann::json& row : rows) {
             if (row["test"] != "ghosting") continue;
-            std::printf("ghosting %-22s %-18s PSNR best %.2f worst %.2f mean %.2f dB, SSIM mean %.4f\n",
-                        row["scene"].get<std::string>().c_str(), row["method"].get<std::string>().c_str(),
-                        row["psnr"]["best"].get<double>(), row["psnr"]["worst"].get<double>(),
-                        row["psnr"]["mean"].get<double>(), row["ssim"]["mean"].get<double>());
+            std::printf(
+                "ghosting %-22s %-18s PSNR best %.2f worst %.2f mean %.2f dB, SSIM mean %.4f, flicker %.5f\n",
+                row["scene"].get<std::string>().c_str(), row["method"].get<std::string>().c_str(),
+                row["psnr"]["best"].get<double>(), row["psnr"]["worst"].get<double>(),
+                row["psnr"]["mean"].get<double>(), row["ssim"]["mean"].get<double>(),
+                row["flicker"].get<double>());
         }
     });
 
@@ -473,8 +497,7 @@ void registerBenchCommand(CLI::App& app) {
 
     auto args = std::make_shared<BenchArguments>();
     CLI::App* metrics = bench->add_subcommand(
-        "metrics",
-        "SSIM and full metrics of two RGB images (target: SSIM at 1920x1080 <= 30 ms on 2 cores)");
+        "metrics", "SSIM and full metrics of two RGB images (target: SSIM at 1920x1080 <= 30 ms on 2 cores)");
     metrics->add_option("--size", args->size, "Image size WIDTHxHEIGHT")->capture_default_str();
     metrics->add_option("--repeat", args->repeat, "Timed runs per case (median reported)")
         ->check(CLI::Range(1, 10000))

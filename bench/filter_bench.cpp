@@ -23,6 +23,9 @@ namespace {
 constexpr double kFxaaBytesPerPixel = 12 + 4 + 4;
 constexpr double kUTaaBytesPerPixel = 12 + 4 + 8 + 12 + 12 + 12;
 constexpr double kTTaaBytesPerPixel = kUTaaBytesPerPixel + 12 + 4 + 4 + 4 + 4;
+// taa-hq (docs/taa-hq.md) reads colour, motion, depth, the previous depth and its history (RGB and the
+// accumulated weight, 16 bytes, and the moved bit, a byte) and writes the history and the output.
+constexpr double kTaaHqBytesPerPixel = 12 + 8 + 4 + 4 + 17 + 17 + 12;
 
 // Memory bandwidth in GB/s with `threads` threads (median of 5): a[i] = b[i] + s * c[i] over 3 x 64 MB,
 // counted as 3 x 64 MB moved (as STREAM counts its triad).
@@ -112,23 +115,30 @@ std::vector<nlohmann::json> benchFilters(const FilterBenchOptions& options) {
         }
     const std::pair<const char*, const float*> motions[] = {
         {"", motion.data()}, {" zoom", zoom.data()}, {" random motion", random.data()}};
-    for (const bool improved : {false, true}) {
+    struct TaaCase {
+        const char *method, *name;
+        double target, bytesPerPixel;
+    };
+    const TaaCase taas[] = {{"taa", "u-taa", 3.0, kUTaaBytesPerPixel},
+                            {"taa-sobel", "t-taa", 5.0, kTTaaBytesPerPixel},
+                            {"taa-hq", "taa-hq", 5.0, kTaaHqBytesPerPixel}};
+    frameBuffers.hasJitter = true, frameBuffers.jitter[0] = 0.3f, frameBuffers.jitter[1] = -0.2f;
+    for (const TaaCase& c : taas) {
         for (const auto& [label, field] : motions) {
-            const auto taa = infer::makeFilter(improved ? "taa-sobel" : "taa", {});
+            const auto taa = infer::makeFilter(c.method, {});
             frameBuffers.motion = field;
             for (const int threads : options.threads) {
                 setThreadCount(threads);
                 const double ms =
                     medianMilliseconds(options.repeat, [&] { taa->apply(frameBuffers, out.data()); });
-                rows.push_back(
-                    {{"name", std::string(improved ? "t-taa" : "u-taa") + label},
-                     {"threads", threads},
-                     {"width", options.width},
-                     {"height", options.height},
-                     {"ms", ms},
-                     {"target_ms", improved ? 5.0 : 3.0},
-                     {"processed_fraction", 1.0},
-                     {"floor_ms", floorMs(improved ? kTTaaBytesPerPixel : kUTaaBytesPerPixel, threads)}});
+                rows.push_back({{"name", std::string(c.name) + label},
+                                {"threads", threads},
+                                {"width", options.width},
+                                {"height", options.height},
+                                {"ms", ms},
+                                {"target_ms", c.target},
+                                {"processed_fraction", 1.0},
+                                {"floor_ms", floorMs(c.bytesPerPixel, threads)}});
             }
         }
     }

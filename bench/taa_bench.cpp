@@ -1,6 +1,7 @@
 #include "bench/taa_bench.h"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <filesystem>
 #include <memory>
@@ -29,19 +30,27 @@ nlohmann::json metricsJson(const ImageMetrics& m) {
     return {{"mse", m.mse}, {"rmsd", m.rmse}, {"psnr", m.psnr}, {"snr", m.snr}, {"ssim", m.ssim}};
 }
 
-// U-TAA and T-TAA as specified, and both without their final sharpen (which costs several dB on
-// frames dense in edges).
+// U-TAA and T-TAA as specified, both without their final sharpen (which costs several dB on frames
+// dense in edges), and taa-hq.
+constexpr int kTaaCount = 5;
 struct Taas {
-    std::unique_ptr<infer::Filter> filters[4] = {infer::makeFilter("taa", {}),
-                                                 infer::makeFilter("taa-sobel", {}),
-                                                 infer::makeFilter("taa", {{"sharpen", "false"}}),
-                                                 infer::makeFilter("taa-sobel", {{"sharpen", "false"}})};
-    std::vector<float> outputs[4];
+    explicit Taas(const infer::FilterParameters& hq)
+        : filters{infer::makeFilter("taa", {}), infer::makeFilter("taa-sobel", {}),
+                  infer::makeFilter("taa", {{"sharpen", "false"}}),
+                  infer::makeFilter("taa-sobel", {{"sharpen", "false"}}), infer::makeFilter("taa-hq", hq)} {}
+    std::unique_ptr<infer::Filter> filters[kTaaCount];
+    std::vector<float> outputs[kTaaCount];
 };
-const char* const kTaaNames[4] = {"u-taa", "t-taa", "u-taa unsharpened", "t-taa unsharpened"};
+const char* const kTaaNames[kTaaCount] = {"u-taa", "t-taa", "u-taa unsharpened", "t-taa unsharpened",
+                                          "taa-hq"};
+
+// The frame's jitter as the filters take it: the image's shift in pixels, +y down.
+std::array<float, 2> imageShift(const render::Vec2& jitter) {
+    return {float(jitter.x), float(-jitter.y)};
+}
 
 // Runs every TAA on one rendered frame with every buffer.
-void runTaas(Taas& taas, const render::Frame& f, float far) {
+void runTaas(Taas& taas, const render::Frame& f, float far, const render::Vec2& jitter) {
     const std::vector<float> colour = frameChannels(f, 0, 3, true), albedo = frameChannels(f, 3, 3, true);
     const std::vector<float> depth = frameChannels(f, 6, 1, false, 1.0f / far),
                              motion = frameChannels(f, 7, 2, false);
@@ -51,11 +60,62 @@ void runTaas(Taas& taas, const render::Frame& f, float far) {
     frame.width = f.width, frame.height = f.height;
     frame.colour = colour.data(), frame.albedo = albedo.data(), frame.depth = depth.data();
     frame.motion = motion.data(), frame.ids = ids.data(), frame.previousDepth = previousDepth.data();
-    for (int k = 0; k < 4; ++k) {
+    frame.hasJitter = true;
+    const std::array<float, 2> shift = imageShift(jitter);
+    frame.jitter[0] = shift[0], frame.jitter[1] = shift[1];
+    for (int k = 0; k < kTaaCount; ++k) {
         taas.outputs[k].resize(colour.size());
         taas.filters[k]->apply(frame, taas.outputs[k].data());
     }
 }
+
+// The oracle of a static view: per pixel, the mean in linear light of the samples that fell inside it
+// over the frames (every sample of a frame is shifted by its jitter, so one per frame: for spreads up to
+// a pixel, the mean of the jittered frames).
+struct Oracle {
+    int width = 0, height = 0, frames = 0;
+    std::vector<double> sum;
+    void add(const render::Frame& f, const render::Vec2& jitter) {
+        const std::vector<float> linear = frameChannels(f, 0, 3, false);
+        width = f.width, height = f.height;
+        sum.resize(linear.size(), 0.0);
+        const std::array<float, 2> j = imageShift(jitter);
+        const int sx = -int(std::floor(-j[0] + 0.5f)), sy = -int(std::floor(-j[1] + 0.5f));
+        for (int y = 0; y < height; ++y)
+            for (int x = 0; x < width; ++x) {
+                const int qx = std::clamp(x + sx, 0, width - 1), qy = std::clamp(y + sy, 0, height - 1);
+                for (int c = 0; c < 3; ++c)
+                    sum[(size_t(y) * size_t(width) + size_t(x)) * 3 + size_t(c)] +=
+                        linear[(size_t(qy) * size_t(width) + size_t(qx)) * 3 + size_t(c)];
+            }
+        ++frames;
+    }
+    std::vector<float> srgb() const {
+        std::vector<float> out(sum.size());
+        for (size_t i = 0; i < sum.size(); ++i)
+            out[i] = std::clamp(linearToSrgb(float(sum[i] / std::max(frames, 1))), 0.0f, 1.0f);
+        return out;
+    }
+};
+
+// Flicker of a sequence against its truth (docs/metrics.md): the mean over pixels and channels of
+// |(X_t - X_t-1) - (R_t - R_t-1)|, in 8-bit sRGB values scaled to [0, 1], averaged over the frame pairs.
+struct Flicker {
+    std::vector<float> previous, previousTruth;
+    double sum = 0;
+    int pairs = 0;
+    void add(const Image& output, const Image& truth) {
+        if (!previous.empty()) {
+            double s = 0;
+            for (size_t i = 0; i < output.pixels.size(); ++i)
+                s += std::abs(double(output.pixels[i] - previous[i]) -
+                              double(truth.pixels[i] - previousTruth[i]));
+            sum += s / double(output.pixels.size()), ++pairs;
+        }
+        previous = output.pixels, previousTruth = truth.pixels;
+    }
+    double value() const { return pairs ? sum / pairs : 0.0; }
+};
 
 render::FrameRequest jittered(double time, int index) {
     render::FrameRequest r;
@@ -102,16 +162,23 @@ std::vector<nlohmann::json> benchTaa(const TaaBenchOptions& options) {
         infer::Frame stillFrame;
         stillFrame.width = W, stillFrame.height = H, stillFrame.colour = noAa.data();
         infer::makeFilter("fxaa", {})->apply(stillFrame, fxaaOut.data());
-        Taas taas;
-        for (int i = 0; i < options.historyFrames; ++i)
-            runTaas(taas, renderer.render(jittered(0, i)), float(scene.far));
-        const std::pair<const char*, const std::vector<float>*> methods[] = {
-            {"no aa", &noAa},
-            {"fxaa", &fxaaOut},
-            {kTaaNames[0], &taas.outputs[0]},
-            {kTaaNames[1], &taas.outputs[1]},
-            {kTaaNames[2], &taas.outputs[2]},
-            {kTaaNames[3], &taas.outputs[3]}};
+        Taas taas(options.taaHq);
+        Oracle oracle;
+        for (int i = 0; i < options.historyFrames; ++i) {
+            const render::FrameRequest request = jittered(0, i);
+            const render::Frame frame = renderer.render(request);
+            runTaas(taas, frame, float(scene.far), request.jitter);
+            if (i >= options.historyFrames - 16) oracle.add(frame, request.jitter);
+        }
+        const std::vector<float> oracleOut = oracle.srgb();
+        const std::pair<const char*, const std::vector<float>*> methods[] = {{"no aa", &noAa},
+                                                                             {"fxaa", &fxaaOut},
+                                                                             {kTaaNames[0], &taas.outputs[0]},
+                                                                             {kTaaNames[1], &taas.outputs[1]},
+                                                                             {kTaaNames[2], &taas.outputs[2]},
+                                                                             {kTaaNames[3], &taas.outputs[3]},
+                                                                             {kTaaNames[4], &taas.outputs[4]},
+                                                                             {"oracle", &oracleOut}};
         for (const auto& [method, pixels] : methods) {
             MetricOptions metricOptions;
             metricOptions.wantSsimMap = !options.ssimMapFolder.empty();
@@ -136,17 +203,36 @@ std::vector<nlohmann::json> benchTaa(const TaaBenchOptions& options) {
         for (const char* name : {"corridor", "hairball-rotating", "hairball-lit-rotating"}) {
             const render::Scene scene = render::buildScene(name);
             render::Renderer renderer(*context, scene, GW, GH);
-            Taas taas;
-            std::vector<double> psnr[4], ssim[4];
+            Taas taas(options.taaHq);
+            // Every TAA, then no AA and FXAA.
+            constexpr int kMethods = kTaaCount + 2;
+            const char* names[kMethods] = {kTaaNames[0], kTaaNames[1], kTaaNames[2], kTaaNames[3],
+                                           kTaaNames[4], "no aa",      "fxaa"};
+            std::vector<double> psnr[kMethods], ssim[kMethods];
+            Flicker flicker[kMethods];
+            const auto fxaa = infer::makeFilter("fxaa", {});
+            std::vector<float> fxaaOut;
             render::TruthOptions truthOptions;
             truthOptions.samples = options.ghostTruthSamples, truthOptions.adaptive = true;
             for (int t = 0; t < options.ghostFrames; ++t) {
-                runTaas(taas, renderer.render(jittered(t, t)), float(scene.far));
+                const render::FrameRequest request = jittered(t, t);
+                const render::Frame rendered = renderer.render(request);
+                runTaas(taas, rendered, float(scene.far), request.jitter);
+                const std::vector<float> noAa = frameChannels(rendered, 0, 3, true);
+                infer::Frame still;
+                still.width = GW, still.height = GH, still.colour = noAa.data();
+                fxaaOut.resize(noAa.size());
+                fxaa->apply(still, fxaaOut.data());
                 const Image truth =
                     eightBit(frameChannels(renderer.renderTruth(t, truthOptions), 0, 3, true), GW, GH);
-                for (int k = 0; k < 4; ++k) {
-                    const ImageMetrics m = compareImages(truth, eightBit(taas.outputs[k], GW, GH));
+                for (int k = 0; k < kMethods; ++k) {
+                    const Image out = eightBit(k < kTaaCount    ? taas.outputs[k]
+                                               : k == kTaaCount ? noAa
+                                                                : fxaaOut,
+                                               GW, GH);
+                    const ImageMetrics m = compareImages(truth, out);
                     psnr[k].push_back(m.psnr), ssim[k].push_back(m.ssim);
+                    flicker[k].add(out, truth);
                 }
             }
             auto summary = [](const std::vector<double>& v) {
@@ -156,10 +242,11 @@ std::vector<nlohmann::json> benchTaa(const TaaBenchOptions& options) {
                                       {"worst", *std::min_element(v.begin(), v.end())},
                                       {"mean", sum / double(v.size())}};
             };
-            for (int k = 0; k < 4; ++k)
+            for (int k = 0; k < kMethods; ++k)
                 rows.push_back({{"test", "ghosting"},
                                 {"scene", name},
-                                {"method", kTaaNames[k]},
+                                {"method", names[k]},
+                                {"flicker", flicker[k].value()},
                                 {"frames", options.ghostFrames},
                                 {"width", GW},
                                 {"height", GH},

@@ -1,11 +1,14 @@
 // dejag/bench: the thesis' comparison reproduced (dejag bench taa): the static test (16 frames of
-// history on each scene, then No AA, FXAA, U-TAA and T-TAA against the accumulated truth) and the
-// ghosting test (moving objects, every frame against the truth of its pose).
+// history on each scene, then No AA, FXAA, U-TAA, T-TAA, taa-hq and the oracle — the mean of the
+// frames' in-pixel samples — against the accumulated truth) and the ghosting test (moving objects, every
+// frame against the truth of its pose, with flicker).
 #pragma once
 
 #include <nlohmann/json.hpp>
 #include <string>
 #include <vector>
+
+#include "infer/filter.h"
 
 namespace dejag::bench {
 
@@ -18,6 +21,7 @@ struct TaaBenchOptions {
     int ghostWidth = 400, ghostHeight = 225, ghostTruthSamples = 32;
     std::string ssimMapFolder;  // when set, the static test's SSIM maps go there as PNGs
     bool quiet = false;
+    infer::FilterParameters taaHq;  // taa-hq's parameters (dejag bench taa --set NAME=VALUE)
 };
 
 // One JSON object per (test, scene, method): metrics on 8-bit sRGB images like the thesis'.

@@ -14,6 +14,7 @@
 #include "infer/cnn.h"
 #include "infer/fxaa.h"
 #include "infer/taa.h"
+#include "infer/taa_hq.h"
 
 namespace dejag::infer {
 
@@ -204,7 +205,7 @@ MethodSpec noneMethod() {
 // The table of methods: one line each.
 const std::vector<MethodSpec>& filterMethods() {
     static const std::vector<MethodSpec> table = {
-        noneMethod(), fxaaMethod(), cnnMethod(), taaMethod(false), taaMethod(true),
+        noneMethod(), fxaaMethod(), cnnMethod(), taaMethod(false), taaMethod(true), taaHqMethod(),
     };
     return table;
 }

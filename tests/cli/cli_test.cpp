@@ -450,7 +450,7 @@ TEST(Cli, FilterTaaRunsOverARenderedSequence) {
                   dir)
                   .exitCode,
               0);
-    for (const char* method : {"taa", "taa-sobel"}) {
+    for (const char* method : {"taa", "taa-sobel", "taa-hq"}) {
         const RunResult r =
             run(std::string("filter --method ") + method + " '" + frames + "' '" + out + method + "' --json",
                 dir);
@@ -459,6 +459,27 @@ TEST(Cli, FilterTaaRunsOverARenderedSequence) {
         const Image last = readImage(out + method + "/frame_0004.png");
         EXPECT_EQ(last.width, 64);
         EXPECT_EQ(last.storage, PixelType::UInt16) << "a PNG from linear light keeps 16 bits";
+    }
+    // taa-hq reads each frame's jitter from render.json: the same offsets given as a list give the same
+    // frames, and none at all (every frame taken as unjittered) others.
+    {
+        std::ifstream sidecar(frames + "/render.json");
+        const nlohmann::json j = nlohmann::json::parse(sidecar);
+        std::string list;
+        for (const nlohmann::json& f : j["frames"])
+            list += std::to_string(f["jitter_pixels"][0].get<double>()) + "," +
+                    std::to_string(f["jitter_pixels"][1].get<double>()) + " ";
+        ASSERT_EQ(run("filter --method taa-hq --quiet --set 'jitter=" + list + "' '" + frames + "' '" + out +
+                          "list'",
+                      dir)
+                      .exitCode,
+                  0);
+        ASSERT_EQ(
+            run("filter --method taa-hq --quiet --set 'jitter=0,0' '" + frames + "' '" + out + "zero'", dir)
+                .exitCode,
+            0);
+        EXPECT_EQ(slurp(out + "list/frame_0004.png"), slurp(out + "taa-hq/frame_0004.png"));
+        EXPECT_NE(slurp(out + "zero/frame_0004.png"), slurp(out + "taa-hq/frame_0004.png"));
     }
     // A cut restarts the history: with --cuts 3 frame 3 comes out as if the sequence began there, and
     // a gap in the numbering is a cut too.
@@ -614,12 +635,13 @@ TEST(Cli, FilterListsItsMethodsAndRefusesParametersNoMethodReads) {
     testing::TempDir dir;
     RunResult r = run("filter --list-methods", dir);
     ASSERT_EQ(r.exitCode, 0) << r.err;
-    for (const char* text : {"none\n", "fxaa\n", "cnn\n", "taa  (temporal", "taa-sobel  (temporal",
-                             "preset = 39", "gate = auto", "needs: depth, motion", "feedback-max = 0.979"})
+    for (const char* text :
+         {"none\n", "fxaa\n", "cnn\n", "taa  (temporal", "taa-sobel  (temporal", "taa-hq  (temporal",
+          "static-lock = true", "preset = 39", "gate = auto", "needs: depth, motion", "feedback-max = 0.979"})
         EXPECT_NE(r.out.find(text), std::string::npos) << text;
     r = run("filter --list-methods --json", dir);
     ASSERT_EQ(r.exitCode, 0) << r.err;
-    EXPECT_EQ(nlohmann::json::parse(r.out).size(), 5u);  // none, fxaa, cnn, taa, taa-sobel
+    EXPECT_EQ(nlohmann::json::parse(r.out).size(), 6u);  // none, fxaa, cnn, taa, taa-sobel, taa-hq
     Image edge(24, 20, {"R", "G", "B"}, PixelType::UInt8);
     for (int y = 0; y < 20; ++y)
         for (int x = 0; x < 24; ++x)
@@ -657,7 +679,8 @@ TEST(Cli, BenchFilterPrintsEveryMethod) {
     }
     EXPECT_EQ(names, (std::vector<std::string>{"fxaa preset 12", "fxaa preset 23", "fxaa preset 39", "u-taa",
                                                "u-taa zoom", "u-taa random motion", "t-taa", "t-taa zoom",
-                                               "t-taa random motion"}));
+                                               "t-taa random motion", "taa-hq", "taa-hq zoom",
+                                               "taa-hq random motion"}));
 }
 
 TEST(Cli, BenchStabilityChecksEveryKindWithinTolerance) {
@@ -725,19 +748,27 @@ TEST(Cli, BenchTaaReproducesTheThesisProtocolsSmall) {
     std::stringstream lines(r.out);
     std::string line;
     int statics = 0, ghosts = 0;
+    std::set<std::string> staticMethods, ghostMethods;
     while (std::getline(lines, line)) {
         const nlohmann::json j = nlohmann::json::parse(line);
         if (j["test"] == "static") {
             ++statics;
+            staticMethods.insert(j["method"].get<std::string>());
             EXPECT_TRUE(std::filesystem::exists(dir.file("maps") + "/" + j["ssim_map"].get<std::string>()));
             EXPECT_GT(j["ssim"].get<double>(), 0.0);
         } else {
             ++ghosts;
+            ghostMethods.insert(j["method"].get<std::string>());
             EXPECT_LE(j["psnr"]["worst"].get<double>(), j["psnr"]["mean"].get<double>());
+            EXPECT_GE(j["flicker"].get<double>(), 0.0);
         }
     }
-    EXPECT_EQ(statics, 9 * 6);
-    EXPECT_EQ(ghosts, 3 * 4);
+    EXPECT_EQ(statics, 9 * 8);
+    EXPECT_EQ(ghosts, 3 * 7);
+    for (const char* m : {"no aa", "fxaa", "u-taa", "t-taa", "taa-hq", "oracle"})
+        EXPECT_EQ(staticMethods.count(m), 1u) << m;
+    for (const char* m : {"no aa", "fxaa", "u-taa", "t-taa", "taa-hq"})
+        EXPECT_EQ(ghostMethods.count(m), 1u) << m;
 }
 
 TEST(Cli, RenderListsTheScenes) {
