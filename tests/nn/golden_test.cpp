@@ -1,6 +1,7 @@
-// dejag's nn against PyTorch: every layer, loss and optimizer on the committed fixtures of
+// dejag's losses and optimizers against PyTorch on the committed fixtures of
 // tests/golden/make_nn_golden.py. Forward relative error <= 1e-5, backward <= 1e-4, where the relative
-// error is max |dejag - torch| / max |torch| over the tensor (torch computed in float64).
+// error is max |dejag - torch| / max |torch| over the tensor (torch computed in float64). The layers'
+// fixtures are cases of the op harness (tests/nn/ops_test.cpp).
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -8,7 +9,6 @@
 #include <filesystem>
 #include <nlohmann/json.hpp>
 
-#include "nn/layers.h"
 #include "nn/losses.h"
 #include "nn/optim.h"
 #include "nn/safetensors.h"
@@ -58,143 +58,6 @@ void report(const Fixture& fixture, double forward, double backward) {
     std::printf("[golden] %-32s forward %.2e  backward %.2e\n", fixture.name.c_str(), forward, backward);
     EXPECT_LE(forward, kForwardTolerance) << fixture.name << " forward";
     EXPECT_LE(backward, kBackwardTolerance) << fixture.name << " backward";
-}
-
-TEST(NnGolden, Conv2d) {
-    const auto fixtures = loadFixtures("conv2d");
-    ASSERT_GE(fixtures.size(), 8u);
-    for (const Fixture& x : fixtures) {
-        const auto& c = x.config;
-        Conv2dDesc d;
-        d.batch = c["batch"], d.inChannels = c["in_channels"], d.outChannels = c["out_channels"];
-        d.inHeight = c["height"], d.inWidth = c["width"];
-        d.kernelHeight = c["kernel"][0], d.kernelWidth = c["kernel"][1];
-        d.strideH = d.strideW = c["stride"];
-        d.padTop = c["pad"][0], d.padBottom = c["pad"][1], d.padLeft = c["pad"][2], d.padRight = c["pad"][3];
-        d.dilationH = d.dilationW = c["dilation"];
-        d.bias = c["bias"];
-        const auto input = x.f("input"), weight = x.f("weight"), dout = x.f("dout");
-        const auto bias = d.bias ? x.f("bias") : std::vector<float>();
-        std::vector<float> out(size_t(d.batch * d.outChannels * d.outHeight() * d.outWidth()));
-        conv2dForward(out.data(), input.data(), weight.data(), d.bias ? bias.data() : nullptr, d);
-        std::vector<float> dinput(input.size()), dweight(weight.size()), dbias(bias.size());
-        conv2dBackward(dinput.data(), dweight.data(), d.bias ? dbias.data() : nullptr, dout.data(),
-                       input.data(), weight.data(), d);
-        double backward =
-            std::max(relativeError(dinput, x.d("dinput")), relativeError(dweight, x.d("dweight")));
-        if (d.bias) backward = std::max(backward, relativeError(dbias, x.d("dbias")));
-        report(x, relativeError(out, x.d("output")), backward);
-    }
-}
-
-TEST(NnGolden, ConvTranspose2d) {
-    const auto fixtures = loadFixtures("conv_transpose2d");
-    ASSERT_GE(fixtures.size(), 6u);
-    for (const Fixture& x : fixtures) {
-        const auto& c = x.config;
-        ConvTranspose2dDesc d;
-        d.batch = c["batch"], d.inChannels = c["in_channels"], d.outChannels = c["out_channels"];
-        d.inHeight = c["height"], d.inWidth = c["width"];
-        d.kernelHeight = d.kernelWidth = c["kernel"];
-        d.strideH = d.strideW = c["stride"];
-        d.padH = d.padW = c["pad"];
-        d.outputPaddingH = d.outputPaddingW = c["output_padding"];
-        d.dilationH = d.dilationW = c["dilation"];
-        d.bias = c["bias"];
-        const auto input = x.f("input"), weight = x.f("weight"), dout = x.f("dout");
-        const auto bias = d.bias ? x.f("bias") : std::vector<float>();
-        std::vector<float> out(size_t(d.batch * d.outChannels * d.outHeight() * d.outWidth()));
-        convTranspose2dForward(out.data(), input.data(), weight.data(), d.bias ? bias.data() : nullptr, d);
-        std::vector<float> dinput(input.size()), dweight(weight.size()), dbias(bias.size());
-        convTranspose2dBackward(dinput.data(), dweight.data(), d.bias ? dbias.data() : nullptr, dout.data(),
-                                input.data(), weight.data(), d);
-        double backward =
-            std::max(relativeError(dinput, x.d("dinput")), relativeError(dweight, x.d("dweight")));
-        if (d.bias) backward = std::max(backward, relativeError(dbias, x.d("dbias")));
-        report(x, relativeError(out, x.d("output")), backward);
-    }
-}
-
-TEST(NnGolden, MaxPool2d) {
-    const auto fixtures = loadFixtures("maxpool2d");
-    ASSERT_GE(fixtures.size(), 4u);
-    for (const Fixture& x : fixtures) {
-        const auto& c = x.config;
-        MaxPool2dDesc d;
-        d.batch = c["batch"], d.channels = c["channels"], d.inHeight = c["height"], d.inWidth = c["width"];
-        d.kernel = c["kernel"], d.stride = c["stride"], d.padding = c["pad"];
-        const auto input = x.f("input"), dout = x.f("dout");
-        const size_t outCount = size_t(d.batch * d.channels * d.outHeight() * d.outWidth());
-        std::vector<float> out(outCount), dinput(input.size());
-        std::vector<int32_t> argmax(outCount);
-        maxPool2dForward(out.data(), argmax.data(), input.data(), d);
-        maxPool2dBackward(dinput.data(), dout.data(), argmax.data(), d);
-        report(x, relativeError(out, x.d("output")), relativeError(dinput, x.d("dinput")));
-    }
-}
-
-TEST(NnGolden, Activations) {
-    const auto fixtures = loadFixtures("activation");
-    ASSERT_EQ(fixtures.size(), 4u);
-    for (const Fixture& x : fixtures) {
-        const auto& c = x.config;
-        ActivationDesc d;
-        d.kind = parseActivation(c["kind"]);
-        if (c.contains("slope")) d.slope = c["slope"];
-        if (c.contains("low")) d.low = c["low"], d.high = c["high"];
-        const auto input = x.f("input"), dout = x.f("dout");
-        std::vector<float> out(input.size()), dinput(input.size());
-        activationForward(out.data(), input.data(), int64_t(input.size()), d);
-        activationBackward(dinput.data(), dout.data(), input.data(), out.data(), int64_t(input.size()), d);
-        report(x, relativeError(out, x.d("output")), relativeError(dinput, x.d("dinput")));
-    }
-}
-
-TEST(NnGolden, Resampling) {
-    int count = 0;
-    for (const char* layer : {"nearest", "bilinear", "pixel_shuffle"}) {
-        for (const Fixture& x : loadFixtures(layer)) {
-            ++count;
-            const auto& c = x.config;
-            ResampleDesc d;
-            d.batch = c["batch"], d.channels = c["channels"], d.inHeight = c["height"],
-            d.inWidth = c["width"];
-            d.factor = c["factor"];
-            const auto input = x.f("input"), dout = x.f("dout");
-            std::vector<float> out(input.size() *
-                                   (std::string(layer) == "pixel_shuffle" ? 1 : d.factor * d.factor));
-            std::vector<float> dinput(input.size());
-            if (std::string(layer) == "nearest") {
-                upsampleNearestForward(out.data(), input.data(), d);
-                upsampleNearestBackward(dinput.data(), dout.data(), d);
-            } else if (std::string(layer) == "bilinear") {
-                upsampleBilinearForward(out.data(), input.data(), d);
-                upsampleBilinearBackward(dinput.data(), dout.data(), d);
-            } else {
-                pixelShuffleForward(out.data(), input.data(), d);
-                pixelShuffleBackward(dinput.data(), dout.data(), d);
-            }
-            report(x, relativeError(out, x.d("output")), relativeError(dinput, x.d("dinput")));
-        }
-    }
-    EXPECT_EQ(count, 4);
-}
-
-TEST(NnGolden, KernelFilter) {
-    const auto fixtures = loadFixtures("kernel_filter");
-    ASSERT_EQ(fixtures.size(), 4u);
-    for (const Fixture& x : fixtures) {
-        const auto& c = x.config;
-        KernelFilterDesc d;
-        d.batch = c["batch"], d.channels = c["channels"], d.height = c["height"], d.width = c["width"];
-        d.kernel = c["kernel"], d.centreBias = c["centre_bias"];
-        const auto input = x.f("input"), logits = x.f("logits"), dout = x.f("dout");
-        std::vector<float> out(input.size()), dinput(input.size()), dlogits(logits.size());
-        kernelFilterForward(out.data(), input.data(), logits.data(), d);
-        kernelFilterBackward(dinput.data(), dlogits.data(), dout.data(), input.data(), logits.data(), d);
-        report(x, relativeError(out, x.d("output")),
-               std::max(relativeError(dinput, x.d("dinput")), relativeError(dlogits, x.d("dlogits"))));
-    }
 }
 
 TEST(NnGolden, Losses) {

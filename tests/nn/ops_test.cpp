@@ -7,13 +7,17 @@
 //     plan (nn/inference.h), and bf16 activations against float where the CPU has AVX-512 BF16;
 //   - the receptive field (nn/frame_network.h): a pixel changed in the input changes no output pixel
 //     beyond the radius the registry gives.
-// The PyTorch goldens of every layer stay in tests/nn/golden_test.cpp.
+// and, a level down, every function of nn/layers.h with its descriptor (tests/nn/layer_cases.h): in float
+// against its PyTorch golden (tests/golden/make_nn_golden.py; forward within 1e-5 and backward within
+// 1e-4 of torch's float64, relative to the tensor's largest value), and in double against central
+// differences on the seeded random shapes. The losses' and optimizers' goldens are in golden_test.cpp.
 #include "nn/ops.h"
 
 #include <gtest/gtest.h>
 
 #include <algorithm>
 #include <cmath>
+#include <filesystem>
 #include <ostream>
 #include <random>
 #include <string>
@@ -25,6 +29,9 @@
 #include "nn/gradient_check.h"
 #include "nn/inference.h"
 #include "nn/layers.h"
+#include "nn/safetensors.h"
+#include "tests/nn/layer_cases.h"
+#include "tests/test_util.h"
 
 namespace dejag::nn {
 namespace {
@@ -266,6 +273,130 @@ INSTANTIATE_TEST_SUITE_P(Registry, Ops, ::testing::ValuesIn(cases()), [](const a
         if (!std::isalnum(static_cast<unsigned char>(ch))) ch = '_';
     return name;
 });
+
+// ---- The layers of nn/layers.h ---------------------------------------------------------------------
+
+using harness::LayerCase;
+
+std::string testName(const std::string& label) {
+    std::string name = label.substr(0, label.find(':'));
+    for (char& ch : name)
+        if (!std::isalnum(static_cast<unsigned char>(ch))) ch = '_';
+    return name;
+}
+
+// max |got - want| / max |want|.
+double relativeError(const std::vector<float>& got, const std::vector<double>& want) {
+    EXPECT_EQ(got.size(), want.size());
+    double worst = 0.0, scale = 0.0;
+    for (size_t i = 0; i < std::min(got.size(), want.size()); ++i) {
+        worst = std::max(worst, std::abs(double(got[i]) - want[i]));
+        scale = std::max(scale, std::abs(want[i]));
+    }
+    return scale > 0 ? worst / scale : worst;
+}
+
+class LayerGoldens : public ::testing::TestWithParam<LayerCase> {};
+class LayerGradients : public ::testing::TestWithParam<LayerCase> {};
+
+// The float forward and backward on the fixture's values against PyTorch's (float64) results.
+TEST_P(LayerGoldens, MatchPyTorch) {
+    const LayerCase& c = GetParam();
+    SCOPED_TRACE(c.label);
+    const SafetensorsFile file =
+        readSafetensors(::dejag::testing::sourcePath("tests/golden/nn/" + c.golden + ".safetensors"));
+    std::vector<std::vector<float>> args;
+    harness::LayerCall<float> call;
+    for (size_t k = 0; k < c.names.size(); ++k) {
+        args.push_back(file.at(c.names[k]).asFloat());
+        ASSERT_EQ(args.back().size(), c.sizes[k]) << c.names[k];
+    }
+    for (const auto& a : args) call.in.push_back(a.data());
+    std::vector<float> out(c.outputSize);
+    call.out = out.data();
+    c.forwardFloat(call);
+    const double forward = relativeError(out, file.at("output").asDouble());
+    const std::vector<float> dout = file.at("dout").asFloat();
+    ASSERT_EQ(dout.size(), c.outputSize);
+    harness::LayerGradient<float> gradient;
+    gradient.in = call.in, gradient.out = out.data(), gradient.dOut = dout.data();
+    std::vector<std::vector<float>> d;
+    for (size_t k = 0; k < c.names.size(); ++k) d.emplace_back(c.sizes[k], 0.0f);
+    for (auto& v : d) gradient.dIn.push_back(v.data());
+    c.backwardFloat(gradient);
+    double backward = 0;
+    for (size_t k = 0; k < c.names.size(); ++k)
+        backward = std::max(backward, relativeError(d[k], file.at("d" + c.names[k]).asDouble()));
+    std::printf("[golden] %-32s forward %.2e  backward %.2e\n", c.golden.c_str(), forward, backward);
+    EXPECT_LE(forward, 1e-5) << "forward";
+    EXPECT_LE(backward, 1e-4) << "backward";
+}
+
+// In double: L = sum(r * y) for a random r; the backward with dL/dy = r against central differences of L
+// for every argument (inputs, weights, bias).
+void checkLayerGradients(const LayerCase& c) {
+    std::mt19937 rng(std::hash<std::string>{}(c.label) & 0xffffffffu);
+    std::vector<Vec> args;
+    for (size_t k = 0; k < c.sizes.size(); ++k) {
+        const bool input = c.names[k] == "input" || c.names[k] == "logits";
+        args.push_back(randomValues(c.sizes[k], rng, input ? c.inputLow : -1.0, input ? c.inputHigh : 1.0));
+    }
+    const Vec r = randomValues(c.outputSize, rng);
+    Vec y(c.outputSize);
+    auto loss = [&] {
+        harness::LayerCall<double> call;
+        for (const Vec& a : args) call.in.push_back(a.data());
+        call.out = y.data();
+        c.forwardDouble(call);
+        return dot(y, r);
+    };
+    loss();
+    harness::LayerGradient<double> gradient;
+    for (const Vec& a : args) gradient.in.push_back(a.data());
+    gradient.out = y.data(), gradient.dOut = r.data();
+    std::vector<Vec> d;
+    for (const Vec& a : args) d.emplace_back(a.size(), 0.0);
+    for (Vec& v : d) gradient.dIn.push_back(v.data());
+    c.backwardDouble(gradient);
+    GradientCheckOptions options;
+    options.samples = 100, options.step = 1e-5, options.floorOfLargest = 1e-3,
+    options.piecewise = c.piecewise;
+    std::mt19937_64 coordinates(rng());
+    for (size_t k = 0; k < args.size(); ++k)
+        EXPECT_LE(checkGradient(args[k], d[k], loss, coordinates, options).worst, 1e-6) << c.names[k];
+}
+
+TEST_P(LayerGoldens, BackwardMatchesCentralDifferencesInDouble) {
+    SCOPED_TRACE(GetParam().label);
+    checkLayerGradients(GetParam());
+}
+TEST_P(LayerGradients, BackwardMatchesCentralDifferencesInDouble) {
+    SCOPED_TRACE(GetParam().label);
+    checkLayerGradients(GetParam());
+}
+
+INSTANTIATE_TEST_SUITE_P(Fixtures, LayerGoldens, ::testing::ValuesIn(harness::goldenLayerCases()),
+                         [](const auto& p) { return p.param.golden; });
+INSTANTIATE_TEST_SUITE_P(RandomShapes, LayerGradients, ::testing::ValuesIn(harness::randomLayerCases()),
+                         [](const auto& p) {
+                             return testName(p.param.label) + "_" + std::to_string(p.index);
+                         });
+
+// The fixtures of every layer are cases here (those of the losses, the optimizers and a training run are
+// other tests').
+TEST(LayerHarness, EveryLayerFixtureIsACase) {
+    int layers = 0;
+    for (const auto& entry :
+         std::filesystem::directory_iterator(::dejag::testing::sourcePath("tests/golden/nn"))) {
+        const auto layer = json::parse(readSafetensors(entry.path().string()).metadata.at("config"))["layer"]
+                               .get<std::string>();
+        for (const char* name : {"conv2d", "conv_transpose2d", "maxpool2d", "activation", "nearest",
+                                 "bilinear", "pixel_shuffle", "kernel_filter"})
+            layers += layer == name;
+    }
+    EXPECT_EQ(int(harness::goldenLayerCases().size()), layers);
+    EXPECT_GE(layers, 30);
+}
 
 // A pixel changed at the centre of the input changes no output pixel further than the receptive field's
 // radius from it (every case whose graph keeps the input's size).
