@@ -383,15 +383,16 @@ void registerBenchCommand(CLI::App& app) {
 
     struct TaaBenchArguments {
         std::string size = "800x450", ghostSize = "400x225", out;
-        int truth = 128, frames = 16, ghostFrames = 100, ghostTruth = 32;
-        bool noGhosting = false, json = false;
+        int truth = 128, frames = 16, ghostFrames = 100, ghostTruth = 32, movingFrames = 40;
+        bool noGhosting = false, noMoving = false, json = false, unjitter = false;
+        std::string truthSpace = "linear";
         std::vector<std::string> settings;
     };
     auto taaArgs = std::make_shared<TaaBenchArguments>();
     CLI::App* taaBench = bench->add_subcommand(
         "taa",
-        "the thesis' comparison: static test (No AA, FXAA, U-TAA, T-TAA, taa-hq and the oracle vs truth) and "
-        "ghosting test with flicker");
+        "the thesis' comparison: static test (No AA, FXAA, U-TAA, T-TAA, taa-hq and the oracle vs truth), "
+        "ghosting test and moving-camera test with flicker");
     taaBench->add_option("--size", taaArgs->size, "static test frame size")->capture_default_str();
     taaBench
         ->add_option("--frames", taaArgs->frames,
@@ -405,7 +406,22 @@ void registerBenchCommand(CLI::App& app) {
         ->capture_default_str();
     taaBench->add_option("--ghost-truth", taaArgs->ghostTruth, "truth samples per ghosting frame")
         ->capture_default_str();
-    taaBench->add_flag("--no-ghosting", taaArgs->noGhosting, "static test only");
+    taaBench->add_flag("--no-ghosting", taaArgs->noGhosting, "no ghosting test");
+    taaBench->add_flag("--no-moving", taaArgs->noMoving, "no moving-camera test");
+    taaBench
+        ->add_option("--moving-frames", taaArgs->movingFrames,
+                     "frames of each moving-camera sequence (scored from frame 8, or half way if fewer)")
+        ->check(CLI::Range(2, 100000))
+        ->capture_default_str();
+    taaBench->add_flag(
+        "--unjitter", taaArgs->unjitter,
+        "U-TAA and T-TAA read the current frame at its sample positions first (their unjitter)");
+    taaBench
+        ->add_option("--truth-space", taaArgs->truthSpace,
+                     "linear: the truth averaged in linear light; display: as 8-bit sRGB values, like the "
+                     "thesis' accumulation buffer")
+        ->check(CLI::IsMember({"linear", "display"}))
+        ->capture_default_str();
     taaBench->add_option("--set", taaArgs->settings,
                          "a parameter of taa-hq, NAME=VALUE (dejag filter --list-methods)");
     taaBench->add_option("--out", taaArgs->out, "folder for the static test's SSIM-map PNGs");
@@ -416,6 +432,11 @@ void registerBenchCommand(CLI::App& app) {
                    ghost = parseSize(taaArgs->ghostSize, "--ghost-size");
         options.width = size.width, options.height = size.height, options.truthSamples = taaArgs->truth;
         options.historyFrames = taaArgs->frames;
+        options.displayTruth = taaArgs->truthSpace == "display";
+        options.unjitter = taaArgs->unjitter;
+        options.moving = !taaArgs->noMoving;
+        options.movingFrames = taaArgs->movingFrames,
+        options.movingSkip = std::min(8, taaArgs->movingFrames / 2);
         for (const std::string& setting : taaArgs->settings) options.taaHq.setAssignment(setting);
         infer::makeFilter("taa-hq", options.taaHq);  // an unknown or out-of-range setting: one line, now
         options.ghostWidth = ghost.width, options.ghostHeight = ghost.height;

@@ -34,10 +34,14 @@ nlohmann::json metricsJson(const ImageMetrics& m) {
 // dense in edges), and taa-hq.
 constexpr int kTaaCount = 5;
 struct Taas {
-    explicit Taas(const infer::FilterParameters& hq)
-        : filters{infer::makeFilter("taa", {}), infer::makeFilter("taa-sobel", {}),
-                  infer::makeFilter("taa", {{"sharpen", "false"}}),
-                  infer::makeFilter("taa-sobel", {{"sharpen", "false"}}), infer::makeFilter("taa-hq", hq)} {}
+    Taas(const infer::FilterParameters& hq, bool unjitter)
+        : filters{thesis("taa", true, unjitter), thesis("taa-sobel", true, unjitter),
+                  thesis("taa", false, unjitter), thesis("taa-sobel", false, unjitter),
+                  infer::makeFilter("taa-hq", hq)} {}
+    static std::unique_ptr<infer::Filter> thesis(const char* method, bool sharpen, bool unjitter) {
+        return infer::makeFilter(
+            method, {{"sharpen", sharpen ? "true" : "false"}, {"unjitter", unjitter ? "true" : "false"}});
+    }
     std::unique_ptr<infer::Filter> filters[kTaaCount];
     std::vector<float> outputs[kTaaCount];
 };
@@ -117,6 +121,29 @@ struct Flicker {
     double value() const { return pairs ? sum / pairs : 0.0; }
 };
 
+// The thesis' reference (its accumulation buffer): `samples` 8-bit renders of the pose, sample i shifted
+// by Halton point i with spread 1 (a box), averaged as the displayed values they are — the sRGB-encoded
+// colour, with no step through linear light.
+Image displayTruth(render::Renderer& renderer, int samples, double time) {
+    std::vector<double> sum;
+    int W = 0, H = 0;
+    for (int i = 0; i < samples; ++i) {
+        render::FrameRequest r;
+        r.time = r.previousTime = time;
+        r.jitter = render::jitterPixels(unsigned(i), 1.0);
+        r.buffers = render::BufferSet::parse("color");
+        const render::Frame f = renderer.render(r);
+        W = f.width, H = f.height;
+        const std::vector<float> c = frameChannels(f, 0, 3, true);
+        sum.resize(c.size(), 0.0);
+        for (size_t k = 0; k < c.size(); ++k)
+            sum[k] += std::round(std::clamp(c[k], 0.0f, 1.0f) * 255.0f) / 255.0;
+    }
+    std::vector<float> mean(sum.size());
+    for (size_t k = 0; k < sum.size(); ++k) mean[k] = float(sum[k] / samples);
+    return eightBit(mean, W, H);
+}
+
 render::FrameRequest jittered(double time, int index) {
     render::FrameRequest r;
     r.time = time, r.previousTime = std::max(0.0, time - 1);
@@ -125,6 +152,79 @@ render::FrameRequest jittered(double time, int index) {
     r.buffers = render::BufferSet::all();
     return r;
 }
+
+// Every method over `frames` jittered frames of a scene (time 0, 1, ...), each frame against the truth of
+// its own pose (32 samples by default, options.ghostTruthSamples); the first `skip` frames are run but not
+// scored. One row per method: mean, best and worst PSNR and SSIM, and the flicker.
+void runSequence(const render::GlContext& context, const render::Scene& scene, int frames, int skip,
+                 const TaaBenchOptions& options, const nlohmann::json& labels,
+                 std::vector<nlohmann::json>& rows) {
+    const int W = options.ghostWidth, H = options.ghostHeight;
+    render::Renderer renderer(context, scene, W, H);
+    Taas taas(options.taaHq, options.unjitter);
+    // Every TAA, then no AA and FXAA.
+    constexpr int kMethods = kTaaCount + 2;
+    const char* names[kMethods] = {kTaaNames[0], kTaaNames[1], kTaaNames[2], kTaaNames[3],
+                                   kTaaNames[4], "no aa",      "fxaa"};
+    std::vector<double> psnr[kMethods], ssim[kMethods];
+    Flicker flicker[kMethods];
+    const auto fxaa = infer::makeFilter("fxaa", {});
+    std::vector<float> fxaaOut;
+    render::TruthOptions truthOptions;
+    truthOptions.samples = options.ghostTruthSamples, truthOptions.adaptive = true;
+    for (int t = 0; t < frames; ++t) {
+        const render::FrameRequest request = jittered(t, t);
+        const render::Frame rendered = renderer.render(request);
+        runTaas(taas, rendered, float(scene.far), request.jitter);
+        if (t < skip) continue;
+        const std::vector<float> noAa = frameChannels(rendered, 0, 3, true);
+        infer::Frame still;
+        still.width = W, still.height = H, still.colour = noAa.data();
+        fxaaOut.resize(noAa.size());
+        fxaa->apply(still, fxaaOut.data());
+        const Image truth =
+            options.displayTruth
+                ? displayTruth(renderer, options.ghostTruthSamples, t)
+                : eightBit(frameChannels(renderer.renderTruth(t, truthOptions), 0, 3, true), W, H);
+        for (int k = 0; k < kMethods; ++k) {
+            const Image out = eightBit(k < kTaaCount    ? taas.outputs[k]
+                                       : k == kTaaCount ? noAa
+                                                        : fxaaOut,
+                                       W, H);
+            const ImageMetrics m = compareImages(truth, out);
+            psnr[k].push_back(m.psnr), ssim[k].push_back(m.ssim);
+            flicker[k].add(out, truth);
+        }
+    }
+    auto summary = [](const std::vector<double>& v) {
+        double sum = 0;
+        for (double x : v) sum += x;
+        return nlohmann::json{{"best", *std::max_element(v.begin(), v.end())},
+                              {"worst", *std::min_element(v.begin(), v.end())},
+                              {"mean", sum / double(v.size())}};
+    };
+    for (int k = 0; k < kMethods; ++k) {
+        nlohmann::json row = labels;
+        row.update({{"method", names[k]},
+                    {"flicker", flicker[k].value()},
+                    {"frames", frames},
+                    {"scored_from", skip},
+                    {"width", W},
+                    {"height", H},
+                    {"psnr", summary(psnr[k])},
+                    {"ssim", summary(ssim[k])}});
+        rows.push_back(row);
+    }
+}
+
+// The moving protocol's camera motions: pans and an orbit, speeds in pixels per frame.
+struct Motion {
+    const char* label;
+    double speed;
+    bool orbit;
+};
+constexpr Motion kMotions[] = {
+    {"pan 0.25 px", 0.25, false}, {"pan 2 px", 2.0, false}, {"orbit 1 px", 1.0, true}};
 
 }  // namespace
 
@@ -145,7 +245,10 @@ std::vector<nlohmann::json> benchTaa(const TaaBenchOptions& options) {
                                   {"hard edges", "hard-edges", false},
                                   {"hairball", "hairball", false},
                                   {"hairball lit", "hairball-lit", false}};
-    Progress progress("bench taa", int64_t(std::size(scenes)) + (options.ghosting ? 3 : 0), options.quiet);
+    Progress progress("bench taa",
+                      int64_t(std::size(scenes)) + (options.ghosting ? 3 : 0) +
+                          (options.moving ? 4 * int64_t(std::size(kMotions)) : 0),
+                      options.quiet);
     const int W = options.width, H = options.height;
     for (const StaticScene& s : scenes) {
         render::SceneOptions sceneOptions;
@@ -154,7 +257,10 @@ std::vector<nlohmann::json> benchTaa(const TaaBenchOptions& options) {
         render::Renderer renderer(*context, scene, W, H);
         render::TruthOptions truthOptions;
         truthOptions.samples = options.truthSamples, truthOptions.adaptive = true;
-        const Image truth = eightBit(frameChannels(renderer.renderTruth(0, truthOptions), 0, 3, true), W, H);
+        const Image truth =
+            options.displayTruth
+                ? displayTruth(renderer, options.truthSamples, 0)
+                : eightBit(frameChannels(renderer.renderTruth(0, truthOptions), 0, 3, true), W, H);
         render::FrameRequest still;
         still.buffers = render::BufferSet::parse("color");
         const std::vector<float> noAa = frameChannels(renderer.render(still), 0, 3, true);
@@ -162,7 +268,7 @@ std::vector<nlohmann::json> benchTaa(const TaaBenchOptions& options) {
         infer::Frame stillFrame;
         stillFrame.width = W, stillFrame.height = H, stillFrame.colour = noAa.data();
         infer::makeFilter("fxaa", {})->apply(stillFrame, fxaaOut.data());
-        Taas taas(options.taaHq);
+        Taas taas(options.taaHq, options.unjitter);
         Oracle oracle;
         for (int i = 0; i < options.historyFrames; ++i) {
             const render::FrameRequest request = jittered(0, i);
@@ -199,61 +305,41 @@ std::vector<nlohmann::json> benchTaa(const TaaBenchOptions& options) {
         progress.advance(1, s.label);
     }
     if (options.ghosting) {
-        const int GW = options.ghostWidth, GH = options.ghostHeight;
         for (const char* name : {"corridor", "hairball-rotating", "hairball-lit-rotating"}) {
             const render::Scene scene = render::buildScene(name);
-            render::Renderer renderer(*context, scene, GW, GH);
-            Taas taas(options.taaHq);
-            // Every TAA, then no AA and FXAA.
-            constexpr int kMethods = kTaaCount + 2;
-            const char* names[kMethods] = {kTaaNames[0], kTaaNames[1], kTaaNames[2], kTaaNames[3],
-                                           kTaaNames[4], "no aa",      "fxaa"};
-            std::vector<double> psnr[kMethods], ssim[kMethods];
-            Flicker flicker[kMethods];
-            const auto fxaa = infer::makeFilter("fxaa", {});
-            std::vector<float> fxaaOut;
-            render::TruthOptions truthOptions;
-            truthOptions.samples = options.ghostTruthSamples, truthOptions.adaptive = true;
-            for (int t = 0; t < options.ghostFrames; ++t) {
-                const render::FrameRequest request = jittered(t, t);
-                const render::Frame rendered = renderer.render(request);
-                runTaas(taas, rendered, float(scene.far), request.jitter);
-                const std::vector<float> noAa = frameChannels(rendered, 0, 3, true);
-                infer::Frame still;
-                still.width = GW, still.height = GH, still.colour = noAa.data();
-                fxaaOut.resize(noAa.size());
-                fxaa->apply(still, fxaaOut.data());
-                const Image truth =
-                    eightBit(frameChannels(renderer.renderTruth(t, truthOptions), 0, 3, true), GW, GH);
-                for (int k = 0; k < kMethods; ++k) {
-                    const Image out = eightBit(k < kTaaCount    ? taas.outputs[k]
-                                               : k == kTaaCount ? noAa
-                                                                : fxaaOut,
-                                               GW, GH);
-                    const ImageMetrics m = compareImages(truth, out);
-                    psnr[k].push_back(m.psnr), ssim[k].push_back(m.ssim);
-                    flicker[k].add(out, truth);
-                }
-            }
-            auto summary = [](const std::vector<double>& v) {
-                double sum = 0;
-                for (double x : v) sum += x;
-                return nlohmann::json{{"best", *std::max_element(v.begin(), v.end())},
-                                      {"worst", *std::min_element(v.begin(), v.end())},
-                                      {"mean", sum / double(v.size())}};
-            };
-            for (int k = 0; k < kMethods; ++k)
-                rows.push_back({{"test", "ghosting"},
-                                {"scene", name},
-                                {"method", names[k]},
-                                {"flicker", flicker[k].value()},
-                                {"frames", options.ghostFrames},
-                                {"width", GW},
-                                {"height", GH},
-                                {"psnr", summary(psnr[k])},
-                                {"ssim", summary(ssim[k])}});
+            runSequence(*context, scene, options.ghostFrames, 0, options,
+                        {{"test", "ghosting"}, {"scene", name}}, rows);
             progress.advance(1, name);
         }
+    }
+    if (options.moving) {
+        // A still scene seen by a moving camera: pans across the view and an orbit around its target, at
+        // the speeds given in pixels per frame (at the target's distance).
+        for (const char* name : {"pipe", "atrium", "flowers", "hard-edges"})
+            for (const Motion& motion : kMotions) {
+                render::Scene scene = render::buildScene(name);
+                const render::CameraPose start = scene.cameraAt(0);
+                const double distance = render::length(start.target - start.eye);
+                const double pixel = 2 * distance * std::tan(start.fovY / 2) / options.ghostHeight;
+                const render::Vec3 forward = render::normalize(start.target - start.eye);
+                const render::Vec3 right = render::normalize(render::cross(forward, start.up));
+                scene.camera = [start, motion, pixel, distance, forward, right](double t) {
+                    render::CameraPose pose = start;
+                    const double travel = motion.speed * pixel * t;
+                    if (!motion.orbit) {
+                        pose.eye = start.eye + right * travel, pose.target = start.target + right * travel;
+                    } else {  // around the target, in the plane of the view's right and forward vectors
+                        const double angle = travel / distance;
+                        const render::Vec3 back = -forward;
+                        pose.eye =
+                            start.target + (back * std::cos(angle) + right * std::sin(angle)) * distance;
+                    }
+                    return pose;
+                };
+                runSequence(*context, scene, options.movingFrames, options.movingSkip, options,
+                            {{"test", "moving"}, {"scene", name}, {"motion", motion.label}}, rows);
+                progress.advance(1, std::string(name) + " " + motion.label);
+            }
     }
     return rows;
 }

@@ -18,7 +18,15 @@ struct TaaBenchOptions {
     int historyFrames = 16;
     bool ghosting = true;
     int ghostFrames = 100;
-    int ghostWidth = 400, ghostHeight = 225, ghostTruthSamples = 32;
+    int ghostWidth = 400, ghostHeight = 225, ghostTruthSamples = 32;  // the sequences' (ghosting, moving)
+    // The moving protocol: still scenes under camera pans and an orbit, `movingFrames` frames each, scored
+    // from frame `movingSkip` on (the histories fill first).
+    bool moving = true;
+    int movingFrames = 40, movingSkip = 8;
+    // The truth averaged as 8-bit displayed (sRGB-encoded) values, as the thesis' accumulation buffer
+    // did, instead of in linear light.
+    bool displayTruth = false;
+    bool unjitter = false;      // U-TAA and T-TAA un-jitter the current frame first (their `unjitter`)
     std::string ssimMapFolder;  // when set, the static test's SSIM maps go there as PNGs
     bool quiet = false;
     infer::FilterParameters taaHq;  // taa-hq's parameters (dejag bench taa --set NAME=VALUE)

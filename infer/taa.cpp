@@ -17,7 +17,46 @@ Taa::Taa(const TaaOptions& options) : options_(options) {
         throw Error("TAA motion blur: the scale must be in [0, 100] and the samples in 1..256");
 }
 
-void Taa::apply(const TaaFrame& f, float* out) {
+void Taa::shiftBilinear(const float* source, float* target, int W, int H, int C, float shiftX, float shiftY) {
+    const int ix = int(std::floor(shiftX)), iy = int(std::floor(shiftY));
+    const float fx = shiftX - float(ix), fy = shiftY - float(iy);
+    parallelFor(0, H, 8, [&](int64_t first, int64_t last) {
+        for (int y = int(first); y < int(last); ++y) {
+            const float* r0 = source + size_t(std::clamp(y + iy, 0, H - 1)) * size_t(W) * size_t(C);
+            const float* r1 = source + size_t(std::clamp(y + iy + 1, 0, H - 1)) * size_t(W) * size_t(C);
+            float* o = target + size_t(y) * size_t(W) * size_t(C);
+            for (int x = 0; x < W; ++x) {
+                const size_t x0 = size_t(std::clamp(x + ix, 0, W - 1)) * size_t(C);
+                const size_t x1 = size_t(std::clamp(x + ix + 1, 0, W - 1)) * size_t(C);
+                for (int c = 0; c < C; ++c) {
+                    const float top = r0[x0 + size_t(c)] + fx * (r0[x1 + size_t(c)] - r0[x0 + size_t(c)]);
+                    const float bottom = r1[x0 + size_t(c)] + fx * (r1[x1 + size_t(c)] - r1[x0 + size_t(c)]);
+                    o[size_t(x) * size_t(C) + size_t(c)] = top + fy * (bottom - top);
+                }
+            }
+        }
+    });
+}
+
+void Taa::apply(const TaaFrame& frame, float* out) {
+    TaaFrame f = frame;
+    if (options_.unjitter) {
+        if (!frame.hasJitter)
+            throw Error("TAA unjitter needs each frame's jitter (render.json's, or a frame that carries it)");
+        const size_t pixels = size_t(frame.width) * size_t(frame.height);
+        if (frame.colour) {
+            unjittered_.resize(pixels * 3);
+            shiftBilinear(frame.colour, unjittered_.data(), frame.width, frame.height, 3, frame.jitter[0],
+                          frame.jitter[1]);
+            f.colour = unjittered_.data();
+        }
+        if (frame.albedo) {
+            unjitteredAlbedo_.resize(pixels * 3);
+            shiftBilinear(frame.albedo, unjitteredAlbedo_.data(), frame.width, frame.height, 3,
+                          frame.jitter[0], frame.jitter[1]);
+            f.albedo = unjitteredAlbedo_.data();
+        }
+    }
     const int W = f.width, H = f.height;
     if (W < 1 || H < 1 || !f.colour || !f.depth || !f.motion)
         throw Error("TAA needs colour, depth and motion buffers");
@@ -88,6 +127,7 @@ class TaaFilter final : public Filter {
     TaaFilter(const TaaOptions& options, BufferSet needs)
         : Filter(options.improved ? "taa-sobel" : "taa"), taa_(options), needs_(needs) {}
     BufferSet needs() const override { return needs_; }
+    BufferSet uses() const override { return needs_ | Buffer::Jitter; }
     bool temporal() const override { return true; }
     void reset() override { taa_.reset(); }
 
@@ -97,6 +137,7 @@ class TaaFilter final : public Filter {
         f.width = frame.width, f.height = frame.height;
         f.albedo = frame.albedo, f.depth = frame.depth, f.motion = frame.motion, f.ids = frame.ids;
         f.previousDepth = frame.previousDepth;
+        f.hasJitter = frame.hasJitter, f.jitter[0] = frame.jitter[0], f.jitter[1] = frame.jitter[1];
         const size_t pixels = size_t(frame.width) * size_t(frame.height), C = size_t(frame.channels);
         if (C == 3) {
             f.colour = frame.colour;
@@ -135,6 +176,8 @@ MethodSpec taaMethod(bool improved) {
                    "clipped to the 3x3 colour box (the Uncharted 4 / INSIDE baseline)";
     spec.parameters = {
         {"sharpen", "true", "the final sharpen (docs/infer.md)"},
+        {"unjitter", "false",
+         "read the current frame bilinearly at p + jitter first, as the thesis' shaders do"},
         {"motion-blur", "false", "blur the output along the motion vectors (docs/taa.md step 7)"},
         {"motion-blur-scale", "1", "motion blur length: the frame rate over the target frame rate, [0, 100]"},
         {"feedback-min", "0.925", "history weight where current and history lumas differ"},
@@ -144,12 +187,14 @@ MethodSpec taaMethod(bool improved) {
     spec.needs = improved
                      ? Buffer::Depth | Buffer::Motion | Buffer::Albedo | Buffer::Ids | Buffer::PreviousDepth
                      : Buffer::Depth | Buffer::Motion;
+    spec.optional = unsigned(Buffer::Jitter);
     spec.temporal = true;
     const BufferSet needs = spec.needs;
     spec.make = [improved, needs](MethodParameters& p) -> std::unique_ptr<Filter> {
         TaaOptions options;
         options.improved = improved;
         options.sharpen = p.flag("sharpen");
+        options.unjitter = p.flag("unjitter");
         options.motionBlur = p.flag("motion-blur");
         options.motionBlurScale = float(p.number("motion-blur-scale", 0, 100));
         options.feedbackMin = float(p.number("feedback-min", 0, 1));

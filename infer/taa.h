@@ -22,6 +22,10 @@ struct TaaOptions {
     float feedbackMax = 0.979f;     // ... and where they agree (docs/taa.md, from the thesis' code)
     float depthThreshold = 0.002f;  // pseudo-variances vanish below this 3x3 depth spread
     bool sharpen = true;
+    // Un-jitter the current frame before it is used: colour (and albedo) read bilinearly at p + jitter,
+    // where the sample of p's centre lies, as the thesis author's shaders do (docs/infer.md). Needs the
+    // frame's jitter (TaaFrame::hasJitter); off by default.
+    bool unjitter = false;
     // Step 7 of docs/taa.md, off by default: the output (not the history) blurred along each pixel's
     // motion as Chapman's per-object motion blur does, which the thesis used to hide ghosting. The motion
     // is scaled by motionBlurScale (the frame rate over the target frame rate: the shutter), a pixel
@@ -41,6 +45,8 @@ struct TaaFrame {
     const float* motion = nullptr;         // 2 channels, pixels moved since the previous frame, +y down
     const float* ids = nullptr;            // 1 channel, object IDs (T-TAA)
     const float* previousDepth = nullptr;  // 1 channel, the previous frame's depth / far (T-TAA)
+    bool hasJitter = false;                // the frame's jitter: the image's shift, pixels, +y down
+    float jitter[2] = {0, 0};
 };
 
 class Taa {
@@ -55,20 +61,24 @@ class Taa {
 
   private:
     void blurAlongMotion(const TaaFrame& frame, float* out);
+    // source (interleaved, `channels`) read bilinearly at p + shift into target, edges clamped.
+    static void shiftBilinear(const float* source, float* target, int width, int height, int channels,
+                              float shiftX, float shiftY);
 
     TaaOptions options_;
     int width_ = 0, height_ = 0;
-    size_t stride_ = 0;                         // floats per row of the history planes
-    std::vector<float> history_, nextHistory_;  // 3 planes each, unsharpened
-    std::vector<float> sobel_, nextSobel_;      // T-TAA's stabilised Sobel, 1 plane each
-    std::vector<float> scratch_;                // one block of rows per band
-    std::vector<float> unblurred_;              // the output before the motion blur (when on)
+    size_t stride_ = 0;                                 // floats per row of the history planes
+    std::vector<float> history_, nextHistory_;          // 3 planes each, unsharpened
+    std::vector<float> sobel_, nextSobel_;              // T-TAA's stabilised Sobel, 1 plane each
+    std::vector<float> scratch_;                        // one block of rows per band
+    std::vector<float> unblurred_;                      // the output before the motion blur (when on)
+    std::vector<float> unjittered_, unjitteredAlbedo_;  // the current frame un-jittered (when on)
     int bands_ = 0;
 };
 
-// The methods "taa" (U-TAA) and "taa-sobel" (T-TAA) of infer/filter.h: parameters sharpen, motion-blur,
-// motion-blur-scale, feedback-min, feedback-max, depth-threshold (TaaOptions); they need depth and
-// motion, T-TAA albedo, ids and the previous depth as well.
+// The methods "taa" (U-TAA) and "taa-sobel" (T-TAA) of infer/filter.h: parameters sharpen, unjitter,
+// motion-blur, motion-blur-scale, feedback-min, feedback-max, depth-threshold (TaaOptions); they need
+// depth and motion, T-TAA albedo, ids and the previous depth as well; the jitter when unjitter is on.
 MethodSpec taaMethod(bool improved);
 
 }  // namespace dejag::infer

@@ -740,14 +740,16 @@ TEST(Cli, BenchStabilityChecksEveryKindWithinTolerance) {
 TEST(Cli, BenchTaaReproducesTheThesisProtocolsSmall) {
     testing::TempDir dir;
     const RunResult r =
-        run("bench taa --size 64x36 --truth 4 --ghost-frames 2 --ghost-size 32x18 --ghost-truth 2 --json "
+        run("bench taa --size 64x36 --truth 4 --ghost-frames 2 --ghost-size 32x18 --ghost-truth 2 "
+            "--moving-frames 3 "
+            "--json "
             "--out '" +
                 dir.file("maps") + "'",
             dir);
     ASSERT_EQ(r.exitCode, 0) << r.err;
     std::stringstream lines(r.out);
     std::string line;
-    int statics = 0, ghosts = 0;
+    int statics = 0, ghosts = 0, moving = 0;
     std::set<std::string> staticMethods, ghostMethods;
     while (std::getline(lines, line)) {
         const nlohmann::json j = nlohmann::json::parse(line);
@@ -757,7 +759,7 @@ TEST(Cli, BenchTaaReproducesTheThesisProtocolsSmall) {
             EXPECT_TRUE(std::filesystem::exists(dir.file("maps") + "/" + j["ssim_map"].get<std::string>()));
             EXPECT_GT(j["ssim"].get<double>(), 0.0);
         } else {
-            ++ghosts;
+            ++(j["test"] == "moving" ? moving : ghosts);
             ghostMethods.insert(j["method"].get<std::string>());
             EXPECT_LE(j["psnr"]["worst"].get<double>(), j["psnr"]["mean"].get<double>());
             EXPECT_GE(j["flicker"].get<double>(), 0.0);
@@ -765,6 +767,7 @@ TEST(Cli, BenchTaaReproducesTheThesisProtocolsSmall) {
     }
     EXPECT_EQ(statics, 9 * 8);
     EXPECT_EQ(ghosts, 3 * 7);
+    EXPECT_EQ(moving, 4 * 3 * 7);  // 4 scenes, 3 camera motions, 7 methods
     for (const char* m : {"no aa", "fxaa", "u-taa", "t-taa", "taa-hq", "oracle"})
         EXPECT_EQ(staticMethods.count(m), 1u) << m;
     for (const char* m : {"no aa", "fxaa", "u-taa", "t-taa", "taa-hq"})

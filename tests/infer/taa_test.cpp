@@ -236,6 +236,49 @@ TEST(Taa, EverySimdPathMatchesTheScalarReference) {
     setSimdLevel(original);
 }
 
+// Un-jittering (TaaOptions::unjitter) is the TAA of the frame read bilinearly at p + jitter — computed here
+// directly — for colour and albedo; without the frame's jitter it is refused.
+TEST(Taa, UnjitterFiltersTheFrameReadAtItsSamplePositions) {
+    const int W = 37, H = 29;
+    const float jx = 0.6f, jy = -1.3f;  // the image's shift: p's centre was sampled at p + (jx, jy)
+    for (const bool improved : {false, true}) {
+        TaaOptions with, without;
+        with.improved = without.improved = improved;
+        with.unjitter = true;
+        Taa unjittered(with), plain(without);
+        std::vector<float> a(size_t(W * H * 3)), b(a.size());
+        for (int t = 0; t < 3; ++t) {
+            Buffers frame = randomFrame(W, H, 40 + uint64_t(t), Motion::Smooth);
+            Buffers shifted = frame;
+            for (std::vector<float>* plane : {&shifted.colour, &shifted.albedo}) {
+                const std::vector<float>& source = plane == &shifted.colour ? frame.colour : frame.albedo;
+                for (int y = 0; y < H; ++y)
+                    for (int x = 0; x < W; ++x)
+                        for (int c = 0; c < 3; ++c) {
+                            const double sx = x + jx, sy = y + jy;
+                            const int x0 = int(std::floor(sx)), y0 = int(std::floor(sy));
+                            const double fx = sx - x0, fy = sy - y0;
+                            auto at = [&](int xx, int yy) {
+                                xx = std::clamp(xx, 0, W - 1), yy = std::clamp(yy, 0, H - 1);
+                                return double(source[(size_t(yy) * size_t(W) + size_t(xx)) * 3 + size_t(c)]);
+                            };
+                            const double top = at(x0, y0) + fx * (at(x0 + 1, y0) - at(x0, y0));
+                            const double bottom = at(x0, y0 + 1) + fx * (at(x0 + 1, y0 + 1) - at(x0, y0 + 1));
+                            (*plane)[(size_t(y) * size_t(W) + size_t(x)) * 3 + size_t(c)] =
+                                float(top + fy * (bottom - top));
+                        }
+            }
+            TaaFrame f = frame.frame();
+            f.hasJitter = true, f.jitter[0] = jx, f.jitter[1] = jy;
+            unjittered.apply(f, a.data());
+            plain.apply(shifted.frame(), b.data());
+            for (size_t i = 0; i < a.size(); ++i)
+                ASSERT_NEAR(a[i], b[i], 2e-5f) << "frame " << t << " at " << i;
+        }
+        EXPECT_THROW(unjittered.apply(randomFrame(W, H, 1, Motion::Smooth).frame(), a.data()), Error);
+    }
+}
+
 TEST(Taa, SameResultForEveryThreadCount) {
     std::vector<std::vector<float>> results;
     for (const int threads : {1, 2, 3}) {
