@@ -383,8 +383,8 @@ void registerBenchCommand(CLI::App& app) {
 
     struct TaaBenchArguments {
         std::string size = "800x450", ghostSize = "400x225", out;
-        int truth = 128, frames = 16, ghostFrames = 100, ghostTruth = 32, movingFrames = 40;
-        bool noGhosting = false, noMoving = false, json = false, unjitter = false;
+        int truth = 128, frames = 64, ghostFrames = 100, ghostTruth = 32, movingFrames = 40;
+        bool noGhosting = false, noMoving = false, json = false, noUnjitter = false;
         std::string truthSpace = "linear";
         std::vector<std::string> settings;
     };
@@ -413,9 +413,8 @@ void registerBenchCommand(CLI::App& app) {
                      "frames of each moving-camera sequence (scored from frame 8, or half way if fewer)")
         ->check(CLI::Range(2, 100000))
         ->capture_default_str();
-    taaBench->add_flag(
-        "--unjitter", taaArgs->unjitter,
-        "U-TAA and T-TAA read the current frame at its sample positions first (their unjitter)");
+    taaBench->add_flag("--no-unjitter", taaArgs->noUnjitter,
+                       "U-TAA and T-TAA use the jittered frame as it is (no unjitter)");
     taaBench
         ->add_option("--truth-space", taaArgs->truthSpace,
                      "linear: the truth averaged in linear light; display: as 8-bit sRGB values, like the "
@@ -433,7 +432,7 @@ void registerBenchCommand(CLI::App& app) {
         options.width = size.width, options.height = size.height, options.truthSamples = taaArgs->truth;
         options.historyFrames = taaArgs->frames;
         options.displayTruth = taaArgs->truthSpace == "display";
-        options.unjitter = taaArgs->unjitter;
+        options.unjitter = !taaArgs->noUnjitter;
         options.moving = !taaArgs->noMoving;
         options.movingFrames = taaArgs->movingFrames,
         options.movingSkip = std::min(8, taaArgs->movingFrames / 2);

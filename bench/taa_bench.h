@@ -15,7 +15,7 @@ namespace dejag::bench {
 struct TaaBenchOptions {
     int width = 800, height = 450;  // the thesis used 1600x900; half in each direction by default
     int truthSamples = 128;
-    int historyFrames = 16;
+    int historyFrames = 64;  // the thesis' program never reset its history: a settled one is scored
     bool ghosting = true;
     int ghostFrames = 100;
     int ghostWidth = 400, ghostHeight = 225, ghostTruthSamples = 32;  // the sequences' (ghosting, moving)
@@ -26,7 +26,7 @@ struct TaaBenchOptions {
     // The truth averaged as 8-bit displayed (sRGB-encoded) values, as the thesis' accumulation buffer
     // did, instead of in linear light.
     bool displayTruth = false;
-    bool unjitter = false;      // U-TAA and T-TAA un-jitter the current frame first (their `unjitter`)
+    bool unjitter = true;       // U-TAA and T-TAA un-jitter the current frame first (their `unjitter`)
     std::string ssimMapFolder;  // when set, the static test's SSIM maps go there as PNGs
     bool quiet = false;
     infer::FilterParameters taaHq;  // taa-hq's parameters (dejag bench taa --set NAME=VALUE)

@@ -20,29 +20,36 @@ Taa::Taa(const TaaOptions& options) : options_(options) {
 void Taa::shiftBilinear(const float* source, float* target, int W, int H, int C, float shiftX, float shiftY) {
     const int ix = int(std::floor(shiftX)), iy = int(std::floor(shiftY));
     const float fx = shiftX - float(ix), fy = shiftY - float(iy);
-    parallelFor(0, H, 8, [&](int64_t first, int64_t last) {
-        for (int y = int(first); y < int(last); ++y) {
+    const float w00 = (1 - fx) * (1 - fy), w01 = fx * (1 - fy), w10 = (1 - fx) * fy, w11 = fx * fy;
+    // Columns whose two taps x + ix, x + ix + 1 are both inside the row: one flat loop over their floats.
+    const int first = std::clamp(-ix, 0, W), last = std::clamp(W - 1 - ix, first, W);
+    parallelFor(0, H, 8, [&](int64_t firstRow, int64_t lastRow) {
+        for (int y = int(firstRow); y < int(lastRow); ++y) {
             const float* r0 = source + size_t(std::clamp(y + iy, 0, H - 1)) * size_t(W) * size_t(C);
             const float* r1 = source + size_t(std::clamp(y + iy + 1, 0, H - 1)) * size_t(W) * size_t(C);
             float* o = target + size_t(y) * size_t(W) * size_t(C);
-            for (int x = 0; x < W; ++x) {
+            auto edge = [&](int x) {
                 const size_t x0 = size_t(std::clamp(x + ix, 0, W - 1)) * size_t(C);
                 const size_t x1 = size_t(std::clamp(x + ix + 1, 0, W - 1)) * size_t(C);
-                for (int c = 0; c < C; ++c) {
-                    const float top = r0[x0 + size_t(c)] + fx * (r0[x1 + size_t(c)] - r0[x0 + size_t(c)]);
-                    const float bottom = r1[x0 + size_t(c)] + fx * (r1[x1 + size_t(c)] - r1[x0 + size_t(c)]);
-                    o[size_t(x) * size_t(C) + size_t(c)] = top + fy * (bottom - top);
-                }
-            }
+                for (int c = 0; c < C; ++c)
+                    o[size_t(x) * size_t(C) + size_t(c)] =
+                        w00 * r0[x0 + size_t(c)] + w01 * r0[x1 + size_t(c)] + w10 * r1[x0 + size_t(c)] +
+                        w11 * r1[x1 + size_t(c)];
+            };
+            for (int x = 0; x < first; ++x) edge(x);
+            const ptrdiff_t offset = ptrdiff_t(ix) * C;
+            const float* a = r0 + offset;
+            const float* b = r1 + offset;
+            for (size_t k = size_t(first) * size_t(C); k < size_t(last) * size_t(C); ++k)
+                o[k] = w00 * a[k] + w01 * a[k + size_t(C)] + w10 * b[k] + w11 * b[k + size_t(C)];
+            for (int x = last; x < W; ++x) edge(x);
         }
     });
 }
 
 void Taa::apply(const TaaFrame& frame, float* out) {
     TaaFrame f = frame;
-    if (options_.unjitter) {
-        if (!frame.hasJitter)
-            throw Error("TAA unjitter needs each frame's jitter (render.json's, or a frame that carries it)");
+    if (options_.unjitter && frame.hasJitter && (frame.jitter[0] != 0 || frame.jitter[1] != 0)) {
         const size_t pixels = size_t(frame.width) * size_t(frame.height);
         if (frame.colour) {
             unjittered_.resize(pixels * 3);
@@ -50,7 +57,7 @@ void Taa::apply(const TaaFrame& frame, float* out) {
                           frame.jitter[1]);
             f.colour = unjittered_.data();
         }
-        if (frame.albedo) {
+        if (frame.albedo && options_.improved) {  // (U-TAA reads no albedo)
             unjitteredAlbedo_.resize(pixels * 3);
             shiftBilinear(frame.albedo, unjitteredAlbedo_.data(), frame.width, frame.height, 3,
                           frame.jitter[0], frame.jitter[1]);
@@ -176,8 +183,9 @@ MethodSpec taaMethod(bool improved) {
                    "clipped to the 3x3 colour box (the Uncharted 4 / INSIDE baseline)";
     spec.parameters = {
         {"sharpen", "true", "the final sharpen (docs/infer.md)"},
-        {"unjitter", "false",
-         "read the current frame bilinearly at p + jitter first, as the thesis' shaders do"},
+        {"unjitter", "true",
+         "read the current frame bilinearly at p + jitter first, as the thesis' shaders do (frames with a "
+         "jitter)"},
         {"motion-blur", "false", "blur the output along the motion vectors (docs/taa.md step 7)"},
         {"motion-blur-scale", "1", "motion blur length: the frame rate over the target frame rate, [0, 100]"},
         {"feedback-min", "0.925", "history weight where current and history lumas differ"},

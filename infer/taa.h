@@ -23,9 +23,9 @@ struct TaaOptions {
     float depthThreshold = 0.002f;  // pseudo-variances vanish below this 3x3 depth spread
     bool sharpen = true;
     // Un-jitter the current frame before it is used: colour (and albedo) read bilinearly at p + jitter,
-    // where the sample of p's centre lies, as the thesis author's shaders do (docs/infer.md). Needs the
-    // frame's jitter (TaaFrame::hasJitter); off by default.
-    bool unjitter = false;
+    // where the sample of p's centre lies, as the thesis author's shaders do (docs/infer.md). Only for a
+    // frame that carries its jitter (TaaFrame::hasJitter); others are used as they are.
+    bool unjitter = true;
     // Step 7 of docs/taa.md, off by default: the output (not the history) blurred along each pixel's
     // motion as Chapman's per-object motion blur does, which the thesis used to hide ghosting. The motion
     // is scaled by motionBlurScale (the frame rate over the target frame rate: the shutter), a pixel
@@ -78,7 +78,7 @@ class Taa {
 
 // The methods "taa" (U-TAA) and "taa-sobel" (T-TAA) of infer/filter.h: parameters sharpen, unjitter,
 // motion-blur, motion-blur-scale, feedback-min, feedback-max, depth-threshold (TaaOptions); they need
-// depth and motion, T-TAA albedo, ids and the previous depth as well; the jitter when unjitter is on.
+// depth and motion, T-TAA albedo, ids and the previous depth as well, and use each frame's jitter.
 MethodSpec taaMethod(bool improved);
 
 }  // namespace dejag::infer

@@ -100,7 +100,7 @@ void TaaHq::apply(int W, int H, const float* colour, const float* motion, const 
     const bool fresh = W != width_ || H != height_;
     if (fresh) {
         width_ = W, height_ = H, frame_ = 0;
-        linear_.assign(pixels * 3, 0.0f);
+        linear_.assign(pixels * 3, 0.0f), ycocg_.assign(pixels * 3, 0.0f), pixelMoved_.assign(pixels, 0);
         history_.assign(pixels * 4, 0.0f), nextHistory_.assign(pixels * 4, 0.0f);
         moved_.assign(pixels, 0), nextMoved_.assign(pixels, 0);
     }
@@ -111,8 +111,15 @@ void TaaHq::apply(int W, int H, const float* colour, const float* motion, const 
     ++frame_;
     const bool useDepth = depth && previousDepth;
     const SrgbTables& lut = tables();
+    // The current frame in linear light and in YCoCg, and whether each pixel moved.
     parallelFor(0, int64_t(pixels), 1 << 14, [&](int64_t first, int64_t last) {
         for (int64_t i = first * 3; i < last * 3; ++i) linear_[size_t(i)] = lookup(lut.toLinear, colour[i]);
+        for (int64_t i = first; i < last; ++i) {
+            const Ycocg v = toYcocg(linear_.data() + size_t(i) * 3);
+            ycocg_[size_t(i) * 3] = v.y, ycocg_[size_t(i) * 3 + 1] = v.co, ycocg_[size_t(i) * 3 + 2] = v.cg;
+            pixelMoved_[size_t(i)] =
+                !(std::abs(motion[size_t(i) * 2]) < kStill && std::abs(motion[size_t(i) * 2 + 1]) < kStill);
+        }
     });
     // The sample inside pixel p's box is pixel p + shift's: its position from its own centre is -jitter.
     const int shiftX = -int(std::floor(-jitterX + 0.5f)), shiftY = -int(std::floor(-jitterY + 0.5f));
@@ -125,6 +132,8 @@ void TaaHq::apply(int W, int H, const float* colour, const float* motion, const 
     uint8_t* nextMoved = nextMoved_.data();
     float* next = nextHistory_.data();
     const float* cur = linear_.data();
+    const float* yc = ycocg_.data();
+    const uint8_t* movedNow = pixelMoved_.data();
     auto clampX = [W](int x) { return std::clamp(x, 0, W - 1); };
     auto clampY = [H](int y) { return std::clamp(y, 0, H - 1); };
     parallelFor(0, H, 4, [&](int64_t firstRow, int64_t lastRow) {
@@ -137,8 +146,9 @@ void TaaHq::apply(int W, int H, const float* colour, const float* motion, const 
                 Ycocg sum{0, 0, 0}, sum2{0, 0, 0}, lo{1e9f, 1e9f, 1e9f}, hi{-1e9f, -1e9f, -1e9f};
                 for (int dy = -1; dy <= 1; ++dy)
                     for (int dx = -1; dx <= 1; ++dx) {
-                        const Ycocg n = toYcocg(
-                            cur + (size_t(clampY(qy + dy)) * size_t(W) + size_t(clampX(qx + dx))) * 3);
+                        const float* nv =
+                            yc + (size_t(clampY(qy + dy)) * size_t(W) + size_t(clampX(qx + dx))) * 3;
+                        const Ycocg n{nv[0], nv[1], nv[2]};
                         sum.y += n.y, sum.co += n.co, sum.cg += n.cg;
                         sum2.y += n.y * n.y, sum2.co += n.co * n.co, sum2.cg += n.cg * n.cg;
                         lo = {std::min(lo.y, n.y), std::min(lo.co, n.co), std::min(lo.cg, n.cg)};
@@ -156,12 +166,12 @@ void TaaHq::apply(int W, int H, const float* colour, const float* motion, const 
                         }
                 }
                 const size_t mp = size_t(my) * size_t(W) + size_t(mx);
-                bool stillNow = true;  // nothing moved in the 3x3
-                for (int dy = -1; dy <= 1 && stillNow; ++dy)
-                    for (int dx = -1; dx <= 1 && stillNow; ++dx) {
-                        const size_t s = (size_t(clampY(y + dy)) * size_t(W) + size_t(clampX(x + dx))) * 2;
-                        stillNow = std::abs(motion[s]) < kStill && std::abs(motion[s + 1]) < kStill;
-                    }
+                uint8_t anyMoved = 0;  // something moved in the 3x3
+                for (int dy = -1; dy <= 1; ++dy) {
+                    const uint8_t* row = movedNow + size_t(clampY(y + dy)) * size_t(W);
+                    anyMoved = uint8_t(anyMoved | row[clampX(x - 1)] | row[x] | row[clampX(x + 1)]);
+                }
+                const bool stillNow = !anyMoved;
                 nextMoved[p] = !stillNow;
                 const float hx = float(x) + 0.5f - motion[mp * 2], hy = float(y) + 0.5f - motion[mp * 2 + 1];
                 float weight = 0;
@@ -192,27 +202,34 @@ void TaaHq::apply(int W, int H, const float* colour, const float* motion, const 
                         // 2. Catmull-Rom over 4x4 texels, deringed to the 2x2 bilinear footprint.
                         const float u = hx - 0.5f, v = hy - 0.5f;
                         const int ix = int(std::floor(u)), iy = int(std::floor(v));
-                        float wx[4], wy[4];
-                        catmullRom(u - float(ix), wx), catmullRom(v - float(iy), wy);
-                        if (!catmull) {  // bilinear, for comparison
-                            wx[0] = wx[3] = wy[0] = wy[3] = 0;
-                            wx[1] = 1 - (u - float(ix)), wx[2] = u - float(ix);
-                            wy[1] = 1 - (v - float(iy)), wy[2] = v - float(iy);
-                        }
-                        float acc[3] = {0, 0, 0}, fmin[3] = {1e9f, 1e9f, 1e9f},
-                              fmax[3] = {-1e9f, -1e9f, -1e9f};
-                        for (int j = 0; j < 4; ++j) {
-                            const size_t row = size_t(clampY(iy - 1 + j)) * size_t(W);
-                            for (int i = 0; i < 4; ++i) {
-                                const float* t = hist + (row + size_t(clampX(ix - 1 + i))) * 4;
-                                const float w = wx[i] * wy[j];
-                                for (int k = 0; k < 3; ++k) acc[k] += w * t[k];
-                                if ((i == 1 || i == 2) && (j == 1 || j == 2))
-                                    for (int k = 0; k < 3; ++k)
-                                        fmin[k] = std::min(fmin[k], t[k]), fmax[k] = std::max(fmax[k], t[k]);
+                        const float fx = u - float(ix), fy = v - float(iy);
+                        if (fx == 0 && fy == 0) {  // on a texel (a still view): the filter reads just it
+                            const float* t = hist + (size_t(clampY(iy)) * size_t(W) + size_t(clampX(ix))) * 4;
+                            h[0] = t[0], h[1] = t[1], h[2] = t[2];
+                        } else {
+                            float wx[4], wy[4];
+                            catmullRom(fx, wx), catmullRom(fy, wy);
+                            if (!catmull) {  // bilinear, for comparison
+                                wx[0] = wx[3] = wy[0] = wy[3] = 0;
+                                wx[1] = 1 - fx, wx[2] = fx;
+                                wy[1] = 1 - fy, wy[2] = fy;
                             }
+                            float acc[3] = {0, 0, 0}, fmin[3] = {1e9f, 1e9f, 1e9f},
+                                  fmax[3] = {-1e9f, -1e9f, -1e9f};
+                            for (int j = 0; j < 4; ++j) {
+                                const size_t row = size_t(clampY(iy - 1 + j)) * size_t(W);
+                                for (int i = 0; i < 4; ++i) {
+                                    const float* t = hist + (row + size_t(clampX(ix - 1 + i))) * 4;
+                                    const float w = wx[i] * wy[j];
+                                    for (int k = 0; k < 3; ++k) acc[k] += w * t[k];
+                                    if ((i == 1 || i == 2) && (j == 1 || j == 2))
+                                        for (int k = 0; k < 3; ++k)
+                                            fmin[k] = std::min(fmin[k], t[k]),
+                                            fmax[k] = std::max(fmax[k], t[k]);
+                                }
+                            }
+                            for (int k = 0; k < 3; ++k) h[k] = std::clamp(acc[k], fmin[k], fmax[k]);
                         }
-                        for (int k = 0; k < 3; ++k) h[k] = std::clamp(acc[k], fmin[k], fmax[k]);
                         // 4. Variance clipping toward the centre of mean +- gamma sigma within min/max; not
                         // where the view is still (the static lock: nothing moved in the 3x3 now, nor where
                         // the history comes from), whose history is the mean of samples the current 3x3

@@ -63,7 +63,8 @@ class TaaHq {
   private:
     TaaHqOptions options_;
     int width_ = 0, height_ = 0, frame_ = 0;
-    std::vector<float> linear_;                 // the current frame in linear light, RGB
+    std::vector<float> linear_, ycocg_;         // the current frame in linear light, RGB and YCoCg
+    std::vector<uint8_t> pixelMoved_;           // per pixel: its motion is not zero
     std::vector<float> history_, nextHistory_;  // linear RGB + accumulated weight per pixel
     std::vector<uint8_t> moved_, nextMoved_;    // per pixel: something moved in its 3x3 (the static lock)
     std::vector<float> unsharpened_;
