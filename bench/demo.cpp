@@ -73,11 +73,13 @@ std::vector<json> runDemo(const DemoOptions& options) {
         // median per frame after the first two.
         // As docs/taa.md has them (with their sharpen), and T-TAA without its sharpen (docs/infer.md: the
         // sharpen costs several dB on edge-dense frames).
-        const std::unique_ptr<infer::Filter> taas[3] = {
+        // And taa-hq (docs/taa-hq.md), the TAA that converges.
+        constexpr int kTaas = 4;
+        const std::unique_ptr<infer::Filter> taas[kTaas] = {
             infer::makeFilter("taa", {}), infer::makeFilter("taa-sobel", {}),
-            infer::makeFilter("taa-sobel", {{"sharpen", "false"}})};
-        std::vector<float> outputs[3];
-        std::vector<double> times[3];
+            infer::makeFilter("taa-sobel", {{"sharpen", "false"}}), infer::makeFilter("taa-hq", {})};
+        std::vector<float> outputs[kTaas];
+        std::vector<double> times[kTaas];
         for (int i = 0; i < options.historyFrames; ++i) {
             render::FrameRequest r;
             r.time = 0, r.previousTime = 0;
@@ -96,14 +98,16 @@ std::vector<json> runDemo(const DemoOptions& options) {
             frame.width = W, frame.height = H;
             frame.colour = colour.data(), frame.albedo = albedo.data(), frame.depth = depth.data();
             frame.motion = motion.data(), frame.ids = ids.data(), frame.previousDepth = previousDepth.data();
-            for (int k = 0; k < 3; ++k) {
+            frame.hasJitter = true;  // the image's shift, +y down
+            frame.jitter[0] = float(r.jitter.x), frame.jitter[1] = float(-r.jitter.y);
+            for (int k = 0; k < kTaas; ++k) {
                 outputs[k].resize(colour.size());
                 taas[k]->apply(frame, outputs[k].data());
                 if (i >= 2) times[k].push_back(taas[k]->figures().ms);
             }
         }
-        const char* names[3] = {"U-TAA", "T-TAA", "T-TAA unsharpened"};
-        for (int k = 0; k < 3; ++k) {
+        const char* names[kTaas] = {"U-TAA", "T-TAA", "T-TAA unsharpened", "taa-hq"};
+        for (int k = 0; k < kTaas; ++k) {
             MethodResult r;
             r.name = names[k];
             r.ms = times[k].empty() ? 0.0 : median(times[k]);
@@ -124,7 +128,8 @@ std::vector<json> runDemo(const DemoOptions& options) {
         std::to_string(W) + "×" + std::to_string(H) +
         " frames; truth: " + std::to_string(options.truthSamples) +
         " Halton samples per pixel (adaptive). No AA, FXAA and the networks filter one unjittered frame; "
-        "U-TAA and T-TAA (docs/taa.md, with their sharpen; and T-TAA without it) the last of " +
+        "U-TAA and T-TAA (docs/taa.md, with their sharpen; and T-TAA without it) and taa-hq (docs/taa-hq.md) "
+        "the last of " +
         std::to_string(options.historyFrames) +
         " jittered frames. Scores on sRGB values in [0, 1]; edge = within 1 px of a geometric edge, "
         "texture = detailed pixels 3 px or more from one.";

@@ -885,6 +885,7 @@ TEST(Cli, DemoRunsEveryMethodAndWritesTheReport) {
                                    "U-TAA",
                                    "T-TAA",
                                    "T-TAA unsharpened",
+                                   "taa-hq",
                                    first,
                                    first + " (ungated)",
                                    "v2/tiny",
