@@ -286,4 +286,31 @@ double largestFiniteDepth(const Image& image, const ChannelMap& channels) {
     return largest;
 }
 
+const float* RgbScratch::rgb(const Frame& frame) {
+    const size_t pixels = size_t(frame.width) * size_t(frame.height), C = size_t(frame.channels);
+    if (C == 3) return frame.colour;
+    rgb_.resize(pixels * 3);
+    parallelFor(0, int64_t(pixels), 1 << 14, [&](int64_t first, int64_t last) {
+        for (size_t p = size_t(first); p < size_t(last); ++p)
+            for (size_t c = 0; c < 3; ++c) rgb_[p * 3 + c] = frame.colour[p * C + c];
+    });
+    return rgb_.data();
+}
+
+float* RgbScratch::result(const Frame& frame, float* out) {
+    if (frame.channels == 3) return out;
+    result_.resize(size_t(frame.width) * size_t(frame.height) * 3);
+    return result_.data();
+}
+
+void RgbScratch::finish(const Frame& frame, float* out) {
+    const size_t pixels = size_t(frame.width) * size_t(frame.height), C = size_t(frame.channels);
+    if (C == 3) return;
+    parallelFor(0, int64_t(pixels), 1 << 14, [&](int64_t first, int64_t last) {
+        for (size_t p = size_t(first); p < size_t(last); ++p)
+            for (size_t c = 0; c < C; ++c)
+                out[p * C + c] = c < 3 ? result_[p * 3 + c] : frame.colour[p * C + c];
+    });
+}
+
 }  // namespace dejag::infer

@@ -57,6 +57,20 @@ struct Frame {
     bool has(Buffer buffer) const;
 };
 
+// For a method that works on R G B alone: a frame's R G B when its colour has more channels (alpha, other
+// layers), and the method's result written back with those channels passed through. For a 3-channel frame
+// it hands out the frame's own colour and the caller's output, and copies nothing. Allocates only when the
+// frame grows.
+class RgbScratch {
+  public:
+    const float* rgb(const Frame& frame);           // the frame's R G B, interleaved
+    float* result(const Frame& frame, float* out);  // where the method writes its R G B
+    void finish(const Frame& frame, float* out);    // out: the result's R G B, the frame's other channels
+
+  private:
+    std::vector<float> rgb_, result_;
+};
+
 // Which channels of a file hold colour and each buffer. The defaults are dejag render's names; the
 // "blender" preset names the passes of a Blender multilayer EXR of view layer "ViewLayer". A name
 // prefixed with '-' is read negated (a motion convention with y up, or pointing the other way).

@@ -145,29 +145,13 @@ class TaaFilter final : public Filter {
         f.albedo = frame.albedo, f.depth = frame.depth, f.motion = frame.motion, f.ids = frame.ids;
         f.previousDepth = frame.previousDepth;
         f.hasJitter = frame.hasJitter, f.jitter[0] = frame.jitter[0], f.jitter[1] = frame.jitter[1];
-        const size_t pixels = size_t(frame.width) * size_t(frame.height), C = size_t(frame.channels);
-        if (C == 3) {
-            f.colour = frame.colour;
-            taa_.apply(f, out);
-            return;
-        }
-        // TAA works on R G B alone: the other channels pass through.
-        rgb_.resize(pixels * 3), result_.resize(pixels * 3);
-        parallelFor(0, int64_t(pixels), 1 << 14, [&](int64_t first, int64_t last) {
-            for (size_t p = size_t(first); p < size_t(last); ++p)
-                for (size_t c = 0; c < 3; ++c) rgb_[p * 3 + c] = frame.colour[p * C + c];
-        });
-        f.colour = rgb_.data();
-        taa_.apply(f, result_.data());
-        parallelFor(0, int64_t(pixels), 1 << 14, [&](int64_t first, int64_t last) {
-            for (size_t p = size_t(first); p < size_t(last); ++p)
-                for (size_t c = 0; c < C; ++c)
-                    out[p * C + c] = c < 3 ? result_[p * 3 + c] : frame.colour[p * C + c];
-        });
+        f.colour = rgb_.rgb(frame);  // TAA works on R G B alone: the other channels pass through
+        taa_.apply(f, rgb_.result(frame, out));
+        rgb_.finish(frame, out);
     }
     Taa taa_;
     BufferSet needs_;
-    std::vector<float> rgb_, result_;
+    RgbScratch rgb_;
 };
 
 }  // namespace

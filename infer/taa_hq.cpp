@@ -320,30 +320,17 @@ class TaaHqFilter final : public Filter {
 
   private:
     void process(const Frame& frame, float* out) override {
-        const size_t pixels = size_t(frame.width) * size_t(frame.height), C = size_t(frame.channels);
         const float* depth = frame.depth && frame.previousDepth ? frame.depth : nullptr;
         const float* previous = depth ? frame.previousDepth : nullptr;
         const float jx = frame.hasJitter ? frame.jitter[0] : 0.0f,
                     jy = frame.hasJitter ? frame.jitter[1] : 0.0f;
-        if (C == 3) {
-            taa_.apply(frame.width, frame.height, frame.colour, frame.motion, depth, previous, jx, jy, out);
-            return;
-        }
-        rgb_.resize(pixels * 3), result_.resize(pixels * 3);  // R G B alone; the other channels pass through
-        parallelFor(0, int64_t(pixels), 1 << 14, [&](int64_t first, int64_t last) {
-            for (size_t p = size_t(first); p < size_t(last); ++p)
-                for (size_t c = 0; c < 3; ++c) rgb_[p * 3 + c] = frame.colour[p * C + c];
-        });
-        taa_.apply(frame.width, frame.height, rgb_.data(), frame.motion, depth, previous, jx, jy,
-                   result_.data());
-        parallelFor(0, int64_t(pixels), 1 << 14, [&](int64_t first, int64_t last) {
-            for (size_t p = size_t(first); p < size_t(last); ++p)
-                for (size_t c = 0; c < C; ++c)
-                    out[p * C + c] = c < 3 ? result_[p * 3 + c] : frame.colour[p * C + c];
-        });
+        // R G B alone; the other channels pass through.
+        taa_.apply(frame.width, frame.height, rgb_.rgb(frame), frame.motion, depth, previous, jx, jy,
+                   rgb_.result(frame, out));
+        rgb_.finish(frame, out);
     }
     TaaHq taa_;
-    std::vector<float> rgb_, result_;
+    RgbScratch rgb_;
 };
 
 }  // namespace

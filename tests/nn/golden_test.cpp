@@ -12,22 +12,13 @@
 #include "nn/losses.h"
 #include "nn/optim.h"
 #include "nn/safetensors.h"
+#include "tests/nn/relative_error.h"
 #include "tests/test_util.h"
 
 namespace dejag::nn {
 namespace {
 
 constexpr double kForwardTolerance = 1e-5, kBackwardTolerance = 1e-4;
-
-double relativeError(const std::vector<float>& got, const std::vector<double>& want) {
-    EXPECT_EQ(got.size(), want.size());
-    double worst = 0.0, scale = 0.0;
-    for (size_t i = 0; i < std::min(got.size(), want.size()); ++i) {
-        worst = std::max(worst, std::abs(double(got[i]) - want[i]));
-        scale = std::max(scale, std::abs(want[i]));
-    }
-    return scale > 0 ? worst / scale : worst;
-}
 
 struct Fixture {
     std::string name;

@@ -31,6 +31,7 @@
 #include "nn/layers.h"
 #include "nn/safetensors.h"
 #include "tests/nn/layer_cases.h"
+#include "tests/nn/relative_error.h"
 #include "tests/test_util.h"
 
 namespace dejag::nn {
@@ -283,17 +284,6 @@ std::string testName(const std::string& label) {
     for (char& ch : name)
         if (!std::isalnum(static_cast<unsigned char>(ch))) ch = '_';
     return name;
-}
-
-// max |got - want| / max |want|.
-double relativeError(const std::vector<float>& got, const std::vector<double>& want) {
-    EXPECT_EQ(got.size(), want.size());
-    double worst = 0.0, scale = 0.0;
-    for (size_t i = 0; i < std::min(got.size(), want.size()); ++i) {
-        worst = std::max(worst, std::abs(double(got[i]) - want[i]));
-        scale = std::max(scale, std::abs(want[i]));
-    }
-    return scale > 0 ? worst / scale : worst;
 }
 
 class LayerGoldens : public ::testing::TestWithParam<LayerCase> {};
