@@ -470,6 +470,16 @@ void registerBenchCommand(CLI::App& app) {
             std::printf("\n");
         }
         for (const nlohmann::json& row : rows) {
+            if (row["test"] != "moving") continue;
+            std::printf(
+                "moving %-11s %-12s %-18s PSNR best %.2f worst %.2f mean %.2f dB, SSIM mean %.4f, flicker "
+                "%.5f\n",
+                row["scene"].get<std::string>().c_str(), row["motion"].get<std::string>().c_str(),
+                row["method"].get<std::string>().c_str(), row["psnr"]["best"].get<double>(),
+                row["psnr"]["worst"].get<double>(), row["psnr"]["mean"].get<double>(),
+                row["ssim"]["mean"].get<double>(), row["flicker"].get<double>());
+        }
+        for (const nlohmann::json& row : rows) {
             if (row["test"] != "ghosting") continue;
             std::printf(
                 "ghosting %-22s %-18s PSNR best %.2f worst %.2f mean %.2f dB, SSIM mean %.4f, flicker %.5f\n",

@@ -773,6 +773,14 @@ TEST(Cli, BenchTaaReproducesTheThesisProtocolsSmall) {
         EXPECT_EQ(staticMethods.count(m), 1u) << m;
     for (const char* m : {"no aa", "fxaa", "u-taa", "t-taa", "taa-hq"})
         EXPECT_EQ(ghostMethods.count(m), 1u) << m;
+    // The table prints every protocol.
+    const RunResult text =
+        run("bench taa --size 64x36 --truth 2 --ghost-frames 2 --ghost-size 32x18 --ghost-truth 2 "
+            "--moving-frames 2",
+            dir);
+    ASSERT_EQ(text.exitCode, 0) << text.err;
+    for (const char* want : {"oracle", "ghosting corridor", "moving pipe", "orbit 1 px"})
+        EXPECT_NE(text.out.find(want), std::string::npos) << want;
 }
 
 TEST(Cli, RenderListsTheScenes) {
