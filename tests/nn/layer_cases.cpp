@@ -52,36 +52,40 @@ std::string describe(const KernelFilterDesc& d) {
            " centre bias " + std::to_string(d.centreBias);
 }
 
-LayerCase conv2d(const std::string& label, const Conv2dDesc& d) {
+// A convolution's case (conv2d or conv_transpose2d: input, weight and an optional bias), given its layer
+// functions as generic lambdas forward(out, in, weight, bias) and backward(dIn, dWeight, dBias, dOut, in,
+// weight).
+template <class Desc, class F, class B>
+LayerCase convolution(const std::string& label, const Desc& d, F forward, B backward) {
     const size_t out = size_t(d.batch * d.outChannels * d.outHeight() * d.outWidth());
     std::vector<std::string> names{"input", "weight"};
     std::vector<size_t> sizes{size_t(d.batch * d.inChannels * d.inHeight * d.inWidth),
                               size_t(d.weightCount())};
     if (d.bias) names.push_back("bias"), sizes.push_back(size_t(d.outChannels));
     return layerCase(
-        "conv2d " + label + ": " + describe(d), names, sizes, out,
-        [d](const auto& call) {
-            conv2dForward(call.out, call.in[0], call.in[1], d.bias ? call.in[2] : nullptr, d);
+        label + ": " + describe(d), names, sizes, out,
+        [d, forward](const auto& call) {
+            forward(call.out, call.in[0], call.in[1], d.bias ? call.in[2] : nullptr);
         },
-        [d](const auto& g) {
-            conv2dBackward(g.dIn[0], g.dIn[1], d.bias ? g.dIn[2] : nullptr, g.dOut, g.in[0], g.in[1], d);
+        [d, backward](const auto& g) {
+            backward(g.dIn[0], g.dIn[1], d.bias ? g.dIn[2] : nullptr, g.dOut, g.in[0], g.in[1]);
+        });
+}
+
+LayerCase conv2d(const std::string& label, const Conv2dDesc& d) {
+    return convolution(
+        "conv2d " + label, d, [d](auto* out, auto in, auto w, auto b) { conv2dForward(out, in, w, b, d); },
+        [d](auto* di, auto* dw, auto* db, auto dout, auto in, auto w) {
+            conv2dBackward(di, dw, db, dout, in, w, d);
         });
 }
 
 LayerCase convTranspose2d(const std::string& label, const ConvTranspose2dDesc& d) {
-    const size_t out = size_t(d.batch * d.outChannels * d.outHeight() * d.outWidth());
-    std::vector<std::string> names{"input", "weight"};
-    std::vector<size_t> sizes{size_t(d.batch * d.inChannels * d.inHeight * d.inWidth),
-                              size_t(d.weightCount())};
-    if (d.bias) names.push_back("bias"), sizes.push_back(size_t(d.outChannels));
-    return layerCase(
-        "conv_transpose2d " + label + ": " + describe(d), names, sizes, out,
-        [d](const auto& call) {
-            convTranspose2dForward(call.out, call.in[0], call.in[1], d.bias ? call.in[2] : nullptr, d);
-        },
-        [d](const auto& g) {
-            convTranspose2dBackward(g.dIn[0], g.dIn[1], d.bias ? g.dIn[2] : nullptr, g.dOut, g.in[0], g.in[1],
-                                    d);
+    return convolution(
+        "conv_transpose2d " + label, d,
+        [d](auto* out, auto in, auto w, auto b) { convTranspose2dForward(out, in, w, b, d); },
+        [d](auto* di, auto* dw, auto* db, auto dout, auto in, auto w) {
+            convTranspose2dBackward(di, dw, db, dout, in, w, d);
         });
 }
 
