@@ -82,6 +82,12 @@ inline VMask maskNot(VMask m) {
 inline VInt laneIndex() {
     return 0;
 }
+inline int32_t laneMin(VInt m) {
+    return m;
+}
+inline int32_t laneMax(VInt m) {
+    return m;
+}
 inline VFloat gather(const float* base, VInt index) {
     return base[index];
 }
@@ -170,6 +176,19 @@ inline uint32_t maskBits(VMask m) {  // bit i: lane i
 inline VFloat gather(const float* base, VInt index) {
     return VFloat(_mm256_i32gather_ps(base, __m256i(index), 4));
 }
+// The smallest and largest lane, by halving.
+inline int32_t laneMin(VInt m) {
+    m = vmin(m, __builtin_shufflevector(m, m, 4, 5, 6, 7, 0, 1, 2, 3));
+    m = vmin(m, __builtin_shufflevector(m, m, 2, 3, 0, 1, 6, 7, 4, 5));
+    m = vmin(m, __builtin_shufflevector(m, m, 1, 0, 3, 2, 5, 4, 7, 6));
+    return m[0];
+}
+inline int32_t laneMax(VInt m) {
+    m = vmax(m, __builtin_shufflevector(m, m, 4, 5, 6, 7, 0, 1, 2, 3));
+    m = vmax(m, __builtin_shufflevector(m, m, 2, 3, 0, 1, 6, 7, 4, 5));
+    m = vmax(m, __builtin_shufflevector(m, m, 1, 0, 3, 2, 5, 4, 7, 6));
+    return m[0];
+}
 inline void gatherPairs(const float* base, VInt index, VFloat& first, VFloat& second) {
     first = gather(base, index), second = gather(base + 1, index);
 }
@@ -247,6 +266,23 @@ inline void loadRgb(const float* p, VFloat& r, VFloat& g, VFloat& b) {
     r = VFloat(_mm256_shuffle_ps(q0, rg, _MM_SHUFFLE(2, 0, 3, 0)));
     g = VFloat(_mm256_shuffle_ps(gb, rg, _MM_SHUFFLE(3, 1, 2, 0)));
     b = VFloat(_mm256_shuffle_ps(gb, q2, _MM_SHUFFLE(3, 0, 3, 1)));
+#endif
+}
+
+// A store that bypasses the caches (p aligned to the vector's size): for output streams larger than the
+// caches, read back no sooner than the next frame. Call streamFence() before another thread reads them.
+inline void streamStore(float* p, VFloat v) {
+#if defined(DEJAG_SIMD_LEVEL_avx512)
+    _mm512_stream_ps(p, __m512(v));
+#elif defined(DEJAG_SIMD_LEVEL_scalar)
+    *p = v;
+#else
+    _mm256_stream_ps(p, __m256(v));
+#endif
+}
+inline void streamFence() {
+#if !defined(DEJAG_SIMD_LEVEL_scalar)
+    _mm_sfence();
 #endif
 }
 

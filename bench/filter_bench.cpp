@@ -24,8 +24,8 @@ constexpr double kFxaaBytesPerPixel = 12 + 4 + 4;
 constexpr double kUTaaBytesPerPixel = 12 + 4 + 8 + 12 + 12 + 12;
 constexpr double kTTaaBytesPerPixel = kUTaaBytesPerPixel + 12 + 4 + 4 + 4 + 4;
 // taa-hq (docs/taa-hq.md) reads colour, motion, depth, the previous depth and its history (RGB and the
-// accumulated weight, 16 bytes, and the moved bit, a byte) and writes the history and the output.
-constexpr double kTaaHqBytesPerPixel = 12 + 8 + 4 + 4 + 17 + 17 + 12;
+// signed accumulated weight, 16 bytes) and writes the history and the output.
+constexpr double kTaaHqBytesPerPixel = 12 + 8 + 4 + 4 + 16 + 16 + 12;
 
 // Memory bandwidth in GB/s with `threads` threads (median of 5): a[i] = b[i] + s * c[i] over 3 x 64 MB,
 // counted as 3 x 64 MB moved (as STREAM counts its triad).

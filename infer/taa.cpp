@@ -17,53 +17,12 @@ Taa::Taa(const TaaOptions& options) : options_(options) {
         throw Error("TAA motion blur: the scale must be in [0, 100] and the samples in 1..256");
 }
 
-void Taa::shiftBilinear(const float* source, float* target, int W, int H, int C, float shiftX, float shiftY) {
-    const int ix = int(std::floor(shiftX)), iy = int(std::floor(shiftY));
-    const float fx = shiftX - float(ix), fy = shiftY - float(iy);
-    const float w00 = (1 - fx) * (1 - fy), w01 = fx * (1 - fy), w10 = (1 - fx) * fy, w11 = fx * fy;
-    // Columns whose two taps x + ix, x + ix + 1 are both inside the row: one flat loop over their floats.
-    const int first = std::clamp(-ix, 0, W), last = std::clamp(W - 1 - ix, first, W);
-    parallelFor(0, H, 8, [&](int64_t firstRow, int64_t lastRow) {
-        for (int y = int(firstRow); y < int(lastRow); ++y) {
-            const float* r0 = source + size_t(std::clamp(y + iy, 0, H - 1)) * size_t(W) * size_t(C);
-            const float* r1 = source + size_t(std::clamp(y + iy + 1, 0, H - 1)) * size_t(W) * size_t(C);
-            float* o = target + size_t(y) * size_t(W) * size_t(C);
-            auto edge = [&](int x) {
-                const size_t x0 = size_t(std::clamp(x + ix, 0, W - 1)) * size_t(C);
-                const size_t x1 = size_t(std::clamp(x + ix + 1, 0, W - 1)) * size_t(C);
-                for (int c = 0; c < C; ++c)
-                    o[size_t(x) * size_t(C) + size_t(c)] =
-                        w00 * r0[x0 + size_t(c)] + w01 * r0[x1 + size_t(c)] + w10 * r1[x0 + size_t(c)] +
-                        w11 * r1[x1 + size_t(c)];
-            };
-            for (int x = 0; x < first; ++x) edge(x);
-            const ptrdiff_t offset = ptrdiff_t(ix) * C;
-            const float* a = r0 + offset;
-            const float* b = r1 + offset;
-            for (size_t k = size_t(first) * size_t(C); k < size_t(last) * size_t(C); ++k)
-                o[k] = w00 * a[k] + w01 * a[k + size_t(C)] + w10 * b[k] + w11 * b[k + size_t(C)];
-            for (int x = last; x < W; ++x) edge(x);
-        }
-    });
-}
-
 void Taa::apply(const TaaFrame& frame, float* out) {
-    TaaFrame f = frame;
-    if (options_.unjitter && frame.hasJitter && (frame.jitter[0] != 0 || frame.jitter[1] != 0)) {
-        const size_t pixels = size_t(frame.width) * size_t(frame.height);
-        if (frame.colour) {
-            unjittered_.resize(pixels * 3);
-            shiftBilinear(frame.colour, unjittered_.data(), frame.width, frame.height, 3, frame.jitter[0],
-                          frame.jitter[1]);
-            f.colour = unjittered_.data();
-        }
-        if (frame.albedo && options_.improved) {  // (U-TAA reads no albedo)
-            unjitteredAlbedo_.resize(pixels * 3);
-            shiftBilinear(frame.albedo, unjitteredAlbedo_.data(), frame.width, frame.height, 3,
-                          frame.jitter[0], frame.jitter[1]);
-            f.albedo = unjitteredAlbedo_.data();
-        }
-    }
+    const TaaFrame& f = frame;
+    // Un-jittering (the thesis' shaders read the current frame at p + jitter) happens in the kernel.
+    // (A jitter that is not a number is no jitter; one beyond the frame reads its border.)
+    const bool unjitter = options_.unjitter && frame.hasJitter && std::isfinite(frame.jitter[0]) &&
+                          std::isfinite(frame.jitter[1]) && (frame.jitter[0] != 0 || frame.jitter[1] != 0);
     const int W = f.width, H = f.height;
     if (W < 1 || H < 1 || !f.colour || !f.depth || !f.motion)
         throw Error("TAA needs colour, depth and motion buffers");
@@ -98,6 +57,10 @@ void Taa::apply(const TaaFrame& frame, float* out) {
     in.improved = improved, in.sharpen = options_.sharpen, in.fresh = fresh;
     in.feedbackMin = options_.feedbackMin, in.feedbackMax = options_.feedbackMax;
     in.depthThreshold = options_.depthThreshold;
+    in.unjitter = unjitter;
+    if (unjitter)
+        in.jitterX = std::clamp(f.jitter[0], -float(W), float(W)),
+        in.jitterY = std::clamp(f.jitter[1], -float(H), float(H));
     const size_t scratchFloats = taaScratchFloats(W);
     parallelFor(0, bands, 1, [&](int64_t first, int64_t last) {
         for (int64_t b = first; b < last; ++b) {

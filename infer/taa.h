@@ -61,9 +61,6 @@ class Taa {
 
   private:
     void blurAlongMotion(const TaaFrame& frame, float* out);
-    // source (interleaved, `channels`) read bilinearly at p + shift into target, edges clamped.
-    static void shiftBilinear(const float* source, float* target, int width, int height, int channels,
-                              float shiftX, float shiftY);
 
     TaaOptions options_;
     int width_ = 0, height_ = 0;
@@ -72,7 +69,6 @@ class Taa {
     std::vector<float> sobel_, nextSobel_;              // T-TAA's stabilised Sobel, 1 plane each
     std::vector<float> scratch_;                        // one block of rows per band
     std::vector<float> unblurred_;                      // the output before the motion blur (when on)
-    std::vector<float> unjittered_, unjitteredAlbedo_;  // the current frame un-jittered (when on)
     int bands_ = 0;
 };
 

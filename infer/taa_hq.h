@@ -63,11 +63,11 @@ class TaaHq {
   private:
     TaaHqOptions options_;
     int width_ = 0, height_ = 0, frame_ = 0;
-    std::vector<float> linear_, ycocg_;         // the current frame in linear light, RGB and YCoCg
-    std::vector<uint8_t> pixelMoved_;           // per pixel: its motion is not zero
-    std::vector<float> history_, nextHistory_;  // linear RGB + accumulated weight per pixel
-    std::vector<uint8_t> moved_, nextMoved_;    // per pixel: something moved in its 3x3 (the static lock)
-    std::vector<float> unsharpened_;
+    size_t stride_ = 0;  // floats per history row
+    int bands_ = 0;
+    // R, G, B (linear) and the signed weight (negative: something moved in the 3x3) as planes.
+    std::vector<float> history_, nextHistory_;
+    std::vector<float> scratch_;  // the band kernels' rows (infer/taa_hq_kernels.h)
 };
 
 // The method "taa-hq" of infer/filter.h.

@@ -3,9 +3,10 @@
 #include "infer/taa_kernels.h"
 
 #include <algorithm>
-#include <climits>
+#include <cmath>
 
 #include "base/pixel_simd.h"
+#include "infer/row_ring.h"
 
 namespace dejag::infer::DEJAG_SIMD_NAMESPACE {
 
@@ -15,23 +16,8 @@ namespace {
 
 constexpr int L = kFloatLanes;
 
-// The last kTaaRingRows rows made of one kind (each `planes` planes of padded floats), by row index.
-struct Ring {
-    float* base = nullptr;
-    size_t rowFloats = 0;
-    int planes = 1;
-    int tags[kTaaRingRows];
-
-    void carve(float*& cursor, size_t floatsPerRow, int planeCount) {
-        base = cursor, rowFloats = floatsPerRow, planes = planeCount;
-        cursor += size_t(kTaaRingRows) * size_t(planes) * rowFloats;
-        std::fill(tags, tags + kTaaRingRows, INT_MIN);
-    }
-    // Pixel 0 of row y's first plane; plane k is k * rowFloats further.
-    float* slot(int y) {
-        return base + size_t(y & (kTaaRingRows - 1)) * size_t(planes) * rowFloats + kTaaRowPad;
-    }
-};
+using Ring = RowRing;
+static_assert(RowRing::kRows == kTaaRingRows && RowRing::kPad == kTaaRowPad);
 
 // History weight from the luma difference of current and history (docs/taa.md).
 struct Feedback {
@@ -74,6 +60,7 @@ class Band {
         stableSobel_.carve(cursor, rowFloats, 1);
         ids_.carve(cursor, rowFloats, 1);
         blended_.carve(cursor, rowFloats, 3);
+        shifted_ = cursor;
     }
 
     void run() {
@@ -85,34 +72,55 @@ class Band {
     const int W_, H_, y0_, y1_;
     const Feedback feedback_;
     Ring colour_, depth_, motion_, albedoLuma_, colourLuma_, sobel_, stableSobel_, ids_, blended_;
+    float* shifted_ = nullptr;  // one interleaved RGB row
 
     bool inBand(int y) const { return y >= y0_ && y < y1_; }
 
-    // Row y (clamped to the frame) of a ring, made by fill(y, row) unless the ring holds it already;
-    // the pad pixels left and right of each plane repeat the border pixels (clamp-to-edge).
     template <class Fill>
     const float* row(Ring& ring, int y, Fill fill) {
-        y = std::clamp(y, 0, H_ - 1);
-        float* r = ring.slot(y);
-        int& tag = ring.tags[y & (kTaaRingRows - 1)];
-        if (tag != y) {
-            fill(y, r);
-            for (int k = 0; k < ring.planes; ++k) {
-                float* plane = r + size_t(k) * ring.rowFloats;
-                plane[-1] = plane[0], plane[W_] = plane[W_ - 1];
-            }
-            tag = y;
-        }
-        return r;
+        return ring.row(y, W_, H_, fill);
     }
 
     void copyRow(const float* src, int y, float* dst) const {
         std::copy(src + size_t(y) * size_t(W_), src + size_t(y + 1) * size_t(W_), dst);
     }
 
+    // Row y of an interleaved RGB frame, read bilinearly at p + jitter when un-jittering (into the
+    // scratch row), else as it is.
+    const float* rgbRow(const float* frame, int y) {
+        if (!in_.unjitter) return frame + size_t(y) * size_t(W_) * 3;
+        const int ix = int(std::floor(in_.jitterX)), iy = int(std::floor(in_.jitterY));
+        const float fx = in_.jitterX - float(ix), fy = in_.jitterY - float(iy);
+        const float w00 = (1 - fx) * (1 - fy), w01 = fx * (1 - fy), w10 = (1 - fx) * fy, w11 = fx * fy;
+        const float* r0 = frame + size_t(std::clamp(y + iy, 0, H_ - 1)) * size_t(W_) * 3;
+        const float* r1 = frame + size_t(std::clamp(y + iy + 1, 0, H_ - 1)) * size_t(W_) * 3;
+        float* o = shifted_;
+        auto edge = [&](int x) {
+            const size_t x0 = size_t(std::clamp(x + ix, 0, W_ - 1)) * 3,
+                         x1 = size_t(std::clamp(x + ix + 1, 0, W_ - 1)) * 3;
+            for (size_t c = 0; c < 3; ++c)
+                o[size_t(x) * 3 + c] =
+                    w00 * r0[x0 + c] + w01 * r0[x1 + c] + w10 * r1[x0 + c] + w11 * r1[x1 + c];
+        };
+        // Columns whose two taps x + ix, x + ix + 1 both lie in the row: one flat pass over their floats.
+        const int first = std::clamp(-ix, 0, W_), last = std::clamp(W_ - 1 - ix, first, W_);
+        for (int x = 0; x < first; ++x) edge(x);
+        const float* a = r0 + ptrdiff_t(ix) * 3;
+        const float* b = r1 + ptrdiff_t(ix) * 3;
+        const VFloat v00 = splat<VFloat>(w00), v01 = splat<VFloat>(w01), v10 = splat<VFloat>(w10),
+                     v11 = splat<VFloat>(w11);
+        size_t k = size_t(first) * 3;
+        for (; k + L <= size_t(last) * 3; k += L)
+            storeu(o + k, v00 * loadu<VFloat>(a + k) + v01 * loadu<VFloat>(a + k + 3) +
+                              v10 * loadu<VFloat>(b + k) + v11 * loadu<VFloat>(b + k + 3));
+        for (; k < size_t(last) * 3; ++k) o[k] = w00 * a[k] + w01 * a[k + 3] + w10 * b[k] + w11 * b[k + 3];
+        for (int x = last; x < W_; ++x) edge(x);
+        return o;
+    }
+
     const float* colourRow(int y) {
         return row(colour_, y, [&](int yy, float* r) {
-            const float* src = in_.colour + size_t(yy) * size_t(W_) * 3;
+            const float* src = rgbRow(in_.colour, yy);
             float *g = r + colour_.rowFloats, *b = g + colour_.rowFloats;
             int x = 0;
             for (; x + L <= W_; x += L) {
@@ -153,8 +161,7 @@ class Band {
         for (; x < W_; ++x) r[x] = 0.299f * src[3 * x] + 0.587f * src[3 * x + 1] + 0.114f * src[3 * x + 2];
     }
     const float* albedoLumaRow(int y) {
-        return row(albedoLuma_, y,
-                   [&](int yy, float* r) { lumaRow(in_.albedo + size_t(yy) * size_t(W_) * 3, r); });
+        return row(albedoLuma_, y, [&](int yy, float* r) { lumaRow(rgbRow(in_.albedo, yy), r); });
     }
     // From the colour ring's planes (no second deinterleaving of the frame's row).
     const float* colourLumaRow(int y) {

@@ -29,6 +29,10 @@ struct TaaBandInputs {
     size_t stride = 0, planeFloats = 0;
     float* out = nullptr;  // interleaved RGB, sharpened and clamped to [0, 1]
     bool improved = false, sharpen = true, fresh = false;
+    // Read the colour (and T-TAA's albedo) bilinearly at p + (jitterX, jitterY), edges clamped: the
+    // thesis' un-jittering, made row by row as the rings need the rows.
+    bool unjitter = false;
+    float jitterX = 0, jitterY = 0;
     float feedbackMin = 0, feedbackMax = 0, depthThreshold = 0;
 };
 
@@ -41,8 +45,9 @@ inline size_t taaRowFloats(int width) {
 // blended 3 planes; 8 rows each.
 inline constexpr int kTaaRingRows = 8;
 inline constexpr int kTaaScratchPlanes = 3 + 1 + 2 + 1 + 1 + 1 + 1 + 1 + 3;
+// (and one interleaved RGB row: the un-jittered frame's row before it is split into planes)
 inline size_t taaScratchFloats(int width) {
-    return size_t(kTaaRingRows) * kTaaScratchPlanes * taaRowFloats(width);
+    return size_t(kTaaRingRows) * kTaaScratchPlanes * taaRowFloats(width) + 3 * taaRowFloats(width);
 }
 
 // The optional motion blur of TAA's output (infer/taa.h, TaaOptions::motionBlur): rows [y0, y1) of out
