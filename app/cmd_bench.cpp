@@ -21,6 +21,7 @@
 #include "bench/stability.h"
 #include "bench/taa_bench.h"
 #include "infer/filter.h"
+#include "render/scene.h"
 
 namespace dejag::cli {
 namespace {
@@ -386,7 +387,7 @@ void registerBenchCommand(CLI::App& app) {
         int truth = 128, frames = 64, ghostFrames = 100, ghostTruth = 32, movingFrames = 40;
         bool noGhosting = false, noMoving = false, json = false, noUnjitter = false;
         std::string truthSpace = "linear";
-        std::vector<std::string> settings;
+        std::vector<std::string> settings, scenes, movingScenes;
     };
     auto taaArgs = std::make_shared<TaaBenchArguments>();
     CLI::App* taaBench = bench->add_subcommand(
@@ -413,6 +414,10 @@ void registerBenchCommand(CLI::App& app) {
                      "frames of each moving-camera sequence (scored from frame 8, or half way if fewer)")
         ->check(CLI::Range(2, 100000))
         ->capture_default_str();
+    taaBench
+        ->add_option("--moving-scenes", taaArgs->movingScenes,
+                     "the moving-camera test's scenes (dejag render --list; default pipe,atrium,flowers,hard-edges)")
+        ->delimiter(',');
     taaBench->add_flag("--no-unjitter", taaArgs->noUnjitter,
                        "U-TAA and T-TAA use the jittered frame as it is (no unjitter)");
     taaBench
@@ -423,6 +428,9 @@ void registerBenchCommand(CLI::App& app) {
         ->capture_default_str();
     taaBench->add_option("--set", taaArgs->settings,
                          "a parameter of taa-hq, NAME=VALUE (dejag filter --list-methods)");
+    taaBench->add_option("--scenes", taaArgs->scenes,
+                         "only these scenes (e.g. flowers, or 'pipe tilted'), in every test that has them")
+        ->delimiter(',');
     taaBench->add_option("--out", taaArgs->out, "folder for the static test's SSIM-map PNGs");
     taaBench->add_flag("--json", taaArgs->json, "One JSON object per row");
     taaBench->callback([taaArgs] {
@@ -437,6 +445,11 @@ void registerBenchCommand(CLI::App& app) {
         options.movingFrames = taaArgs->movingFrames,
         options.movingSkip = std::min(8, taaArgs->movingFrames / 2);
         for (const std::string& setting : taaArgs->settings) options.taaHq.setAssignment(setting);
+        options.scenes = taaArgs->scenes;
+        if (!taaArgs->movingScenes.empty()) {
+            for (const std::string& name : taaArgs->movingScenes) render::buildScene(name);  // unknown: one line
+            options.movingScenes = taaArgs->movingScenes;
+        }
         infer::makeFilter("taa-hq", options.taaHq);  // an unknown or out-of-range setting: one line, now
         options.ghostWidth = ghost.width, options.ghostHeight = ghost.height;
         options.ghostFrames = taaArgs->ghostFrames, options.ghostTruthSamples = taaArgs->ghostTruth;

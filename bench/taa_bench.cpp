@@ -6,6 +6,7 @@
 #include <filesystem>
 #include <memory>
 
+#include "base/error.h"
 #include "base/progress.h"
 #include "data/frame_image.h"
 #include "data/image.h"
@@ -245,12 +246,23 @@ std::vector<nlohmann::json> benchTaa(const TaaBenchOptions& options) {
                                   {"hard edges", "hard-edges", false},
                                   {"hairball", "hairball", false},
                                   {"hairball lit", "hairball-lit", false}};
-    Progress progress("bench taa",
-                      int64_t(std::size(scenes)) + (options.ghosting ? 3 : 0) +
-                          (options.moving ? 4 * int64_t(std::size(kMotions)) : 0),
-                      options.quiet);
+    auto wanted = [&](const std::string& label, const std::string& scene) {
+        return options.scenes.empty() ||
+               std::any_of(options.scenes.begin(), options.scenes.end(),
+                           [&](const std::string& name) { return name == label || name == scene; });
+    };
+    const char* ghostScenes[] = {"corridor", "hairball-rotating", "hairball-lit-rotating"};
+    const std::vector<std::string>& movingScenes = options.movingScenes;
+    int64_t steps = 0;
+    for (const StaticScene& s : scenes) steps += wanted(s.label, s.scene);
+    for (const char* name : ghostScenes) steps += options.ghosting && wanted(name, name);
+    for (const std::string& name : movingScenes)
+        steps += options.moving && wanted(name, name) ? int64_t(std::size(kMotions)) : 0;
+    if (steps == 0) throw Error("bench taa: no scene of the protocols is named in --scenes");
+    Progress progress("bench taa", steps, options.quiet);
     const int W = options.width, H = options.height;
     for (const StaticScene& s : scenes) {
+        if (!wanted(s.label, s.scene)) continue;
         render::SceneOptions sceneOptions;
         sceneOptions.tiltedCamera = s.tilted;
         const render::Scene scene = render::buildScene(s.scene, sceneOptions);
@@ -305,7 +317,8 @@ std::vector<nlohmann::json> benchTaa(const TaaBenchOptions& options) {
         progress.advance(1, s.label);
     }
     if (options.ghosting) {
-        for (const char* name : {"corridor", "hairball-rotating", "hairball-lit-rotating"}) {
+        for (const char* name : ghostScenes) {
+            if (!wanted(name, name)) continue;
             const render::Scene scene = render::buildScene(name);
             runSequence(*context, scene, options.ghostFrames, 0, options,
                         {{"test", "ghosting"}, {"scene", name}}, rows);
@@ -315,8 +328,9 @@ std::vector<nlohmann::json> benchTaa(const TaaBenchOptions& options) {
     if (options.moving) {
         // A still scene seen by a moving camera: pans across the view and an orbit around its target, at
         // the speeds given in pixels per frame (at the target's distance).
-        for (const char* name : {"pipe", "atrium", "flowers", "hard-edges"})
+        for (const std::string& name : movingScenes)
             for (const Motion& motion : kMotions) {
+                if (!wanted(name, name)) continue;
                 render::Scene scene = render::buildScene(name);
                 const render::CameraPose start = scene.cameraAt(0);
                 const double distance = render::length(start.target - start.eye);

@@ -23,6 +23,7 @@ struct TaaBenchOptions {
     // from frame `movingSkip` on (the histories fill first).
     bool moving = true;
     int movingFrames = 40, movingSkip = 8;
+    std::vector<std::string> movingScenes = {"pipe", "atrium", "flowers", "hard-edges"};
     // The truth averaged as 8-bit displayed (sRGB-encoded) values, as the thesis' accumulation buffer
     // did, instead of in linear light.
     bool displayTruth = false;
@@ -30,6 +31,9 @@ struct TaaBenchOptions {
     std::string ssimMapFolder;  // when set, the static test's SSIM maps go there as PNGs
     bool quiet = false;
     infer::FilterParameters taaHq;  // taa-hq's parameters (dejag bench taa --set NAME=VALUE)
+    // Only these scenes (a static label such as "pipe tilted", or a scene such as "flowers", which
+    // names it in every test); empty: all.
+    std::vector<std::string> scenes;
 };
 
 // One JSON object per (test, scene, method): metrics on 8-bit sRGB images like the thesis'.
