@@ -415,8 +415,9 @@ void registerBenchCommand(CLI::App& app) {
         ->check(CLI::Range(2, 100000))
         ->capture_default_str();
     taaBench
-        ->add_option("--moving-scenes", taaArgs->movingScenes,
-                     "the moving-camera test's scenes (dejag render --list; default pipe,atrium,flowers,hard-edges)")
+        ->add_option(
+            "--moving-scenes", taaArgs->movingScenes,
+            "the moving-camera test's scenes (dejag render --list; default pipe,atrium,flowers,hard-edges)")
         ->delimiter(',');
     taaBench->add_flag("--no-unjitter", taaArgs->noUnjitter,
                        "U-TAA and T-TAA use the jittered frame as it is (no unjitter)");
@@ -428,8 +429,9 @@ void registerBenchCommand(CLI::App& app) {
         ->capture_default_str();
     taaBench->add_option("--set", taaArgs->settings,
                          "a parameter of taa-hq, NAME=VALUE (dejag filter --list-methods)");
-    taaBench->add_option("--scenes", taaArgs->scenes,
-                         "only these scenes (e.g. flowers, or 'pipe tilted'), in every test that has them")
+    taaBench
+        ->add_option("--scenes", taaArgs->scenes,
+                     "only these scenes (e.g. flowers, or 'pipe tilted'), in every test that has them")
         ->delimiter(',');
     taaBench->add_option("--out", taaArgs->out, "folder for the static test's SSIM-map PNGs");
     taaBench->add_flag("--json", taaArgs->json, "One JSON object per row");
@@ -447,7 +449,8 @@ void registerBenchCommand(CLI::App& app) {
         for (const std::string& setting : taaArgs->settings) options.taaHq.setAssignment(setting);
         options.scenes = taaArgs->scenes;
         if (!taaArgs->movingScenes.empty()) {
-            for (const std::string& name : taaArgs->movingScenes) render::buildScene(name);  // unknown: one line
+            for (const std::string& name : taaArgs->movingScenes)
+                render::buildScene(name);  // unknown: one line
             options.movingScenes = taaArgs->movingScenes;
         }
         infer::makeFilter("taa-hq", options.taaHq);  // an unknown or out-of-range setting: one line, now

@@ -783,6 +783,28 @@ TEST(Cli, BenchTaaReproducesTheThesisProtocolsSmall) {
         EXPECT_NE(text.out.find(want), std::string::npos) << want;
 }
 
+// --scenes keeps only the named scenes in every test; --moving-scenes puts other scenes under the moving
+// camera; a name that is no scene, or that names none of the tests' scenes, is one line.
+TEST(Cli, BenchTaaRunsTheScenesItIsGiven) {
+    testing::TempDir dir;
+    const RunResult r =
+        run("bench taa --size 64x36 --truth 2 --frames 16 --ghost-size 32x18 --ghost-truth 2 "
+            "--moving-frames 2 --scenes flowers,blinds --moving-scenes flowers,blinds --json",
+            dir);
+    ASSERT_EQ(r.exitCode, 0) << r.err;
+    std::stringstream lines(r.out);
+    std::string line;
+    std::set<std::string> seen;
+    while (std::getline(lines, line)) {
+        const nlohmann::json j = nlohmann::json::parse(line);
+        seen.insert(j["test"].get<std::string>() + " " + j["scene"].get<std::string>());
+    }
+    EXPECT_EQ(seen,
+              (std::set<std::string>{"static flowers", "static blinds", "moving flowers", "moving blinds"}));
+    expectOneLineError(run("bench taa --moving-scenes nope --no-ghosting", dir), "unknown scene 'nope'");
+    expectOneLineError(run("bench taa --scenes nope", dir), "no scene of the protocols");
+}
+
 TEST(Cli, RenderListsTheScenes) {
     testing::TempDir dir;
     const RunResult r = run("render --list", dir);
