@@ -38,7 +38,8 @@ std::vector<std::pair<float, float>> parseJitterList(const std::string& text) {
 
 TaaHq::TaaHq(const TaaHqOptions& o) : options_(o) {
     if (!(o.clipGamma > 0 && o.clipGamma <= 8) || o.maxSamples < 1 || o.maxSamples > 4096 ||
-        !(o.clippedSamples >= 0) || !(o.depthTolerance > 0) || !(o.sharpen >= 0 && o.sharpen <= 1))
+        o.movingSamples < 1 || !(o.clippedSamples >= 0) || !(o.depthTolerance > 0) ||
+        !(o.sharpen >= 0 && o.sharpen <= 1))
         throw Error("taa-hq: a parameter is out of range");
 }
 
@@ -94,6 +95,7 @@ void TaaHq::apply(int W, int H, const float* colour, const float* motion, const 
     in.shiftY = std::clamp(-int(std::floor(-jitterY + 0.5f)), -H, H);
     in.fresh = fresh, in.catmullRom = options_.catmullRom, in.staticLock = options_.staticLock;
     in.clipGamma = options_.clipGamma, in.maxWeight = float(options_.maxSamples);
+    in.movingMaxWeight = float(std::min(options_.movingSamples, options_.maxSamples));
     in.clippedWeight = options_.clippedSamples, in.depthTolerance = options_.depthTolerance;
     in.sharpen = options_.sharpen;
     const size_t scratchFloats = taaHqScratchFloats(W);
@@ -146,6 +148,8 @@ MethodSpec taaHqMethod() {
         {"clip-gamma", "1.25", "variance clipping: mean +- gamma sigma of the 3x3 neighbourhood, (0, 8]"},
         {"max-samples", "32",
          "the accumulated weight's cap (the current frame's share is at least its inverse)"},
+        {"moving-samples", "6",
+         "the accumulated weight's cap where something moved in the pixel's 3x3 (at most max-samples)"},
         {"clipped-samples", "4", "the weight a history that was clipped keeps at most"},
         {"depth-tolerance", "0.05", "relative depth change that rejects the history (a disocclusion)"},
         {"sharpen", "0", "sharpen of the output only, 0 (off) to 1; the history stays unsharpened"},
@@ -164,6 +168,7 @@ MethodSpec taaHqMethod() {
         TaaHqOptions o;
         o.clipGamma = float(p.number("clip-gamma", 1e-3, 8));
         o.maxSamples = p.integer("max-samples", 1, 4096);
+        o.movingSamples = p.integer("moving-samples", 1, 4096);
         o.clippedSamples = float(p.number("clipped-samples", 0, 4096));
         o.depthTolerance = float(p.number("depth-tolerance", 1e-4, 10));
         o.sharpen = float(p.number("sharpen", 0, 1));

@@ -16,9 +16,10 @@
 //      to be clipped keeps at most `clippedSamples` of its weight. Where nothing moved in the 3x3, now
 //      and in the previous frame where the history comes from (the static lock), it is not clipped:
 //      its mean holds samples the current 3x3 need not show (a surface thinner than a pixel);
-//   5. the weight grows by one sample up to maxSamples and the history moves toward the current sample by
-//      1 / weight: a static view averages its jittered frames (the supersampled mean), a fresh or
-//      disoccluded pixel takes the current sample at once;
+//   5. the weight grows by one sample up to maxSamples (movingSamples where something moved in the 3x3)
+//      and the history moves toward the current sample by 1 / weight: a static view averages its
+//      jittered frames (the supersampled mean), a fresh or disoccluded pixel takes the current sample at
+//      once;
 //   6. the output is the history encoded to sRGB, sharpened (when asked) on the output only.
 #pragma once
 
@@ -34,6 +35,7 @@ namespace dejag::infer {
 struct TaaHqOptions {
     float clipGamma = 1.25f;       // variance clipping: mean +- gamma sigma (YCoCg), within min/max
     int maxSamples = 32;           // the accumulated weight's cap: the current share never falls below 1/32
+    int movingSamples = 6;         // the cap where something moved in the pixel's 3x3 (at most maxSamples)
     float clippedSamples = 4.0f;   // the weight a clipped history keeps at most
     float depthTolerance = 0.05f;  // relative depth change beyond which the history is disoccluded
     float sharpen = 0.0f;          // output-only sharpen, 0 (off) to 1

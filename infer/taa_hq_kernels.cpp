@@ -456,7 +456,8 @@ class Band {
         const float* historyWeight = in_.history + 3 * planeFloats;
         const VFloat rowCentre = splat<VFloat>(float(y) + 0.5f);
         const VInt zero = splatInt(0), lastX = splatInt(W_ - 1), lastY = splatInt(H_ - 1);
-        const VFloat gamma = splat<VFloat>(in_.clipGamma), maxWeight = splat<VFloat>(in_.maxWeight);
+        const VFloat gamma = splat<VFloat>(in_.clipGamma), maxWeight = splat<VFloat>(in_.maxWeight),
+                     movingMaxWeight = splat<VFloat>(in_.movingMaxWeight);
         const VFloat clippedWeight = splat<VFloat>(in_.clippedWeight);
         float* dst = in_.out + size_t(y) * size_t(W_) * 3;
         // (Prefetched a little ahead: the history where a still or slow pixel reads it, the previous depth's
@@ -589,7 +590,7 @@ class Band {
                 }
             }
             // 5. One more sample; the history moves toward it by 1 / weight.
-            weight = vmin(weight + 1.0f, maxWeight);
+            weight = vmin(weight + 1.0f, select(movedNow, movingMaxWeight, maxWeight));
             const VFloat share = 1.0f / weight;
             VFloat next[3], encoded[3];
             for (int k = 0; k < 3; ++k) {

@@ -32,6 +32,7 @@ struct TaaHqBandInputs {
     int shiftX = 0, shiftY = 0;  // the in-pixel sample of pixel p is the frame's pixel p + shift
     bool fresh = false, catmullRom = true, staticLock = true;
     float clipGamma = 1.25f, maxWeight = 32, clippedWeight = 4, depthTolerance = 0.05f, sharpen = 0;
+    float movingMaxWeight = 32;  // the cap where something moved in the pixel's 3x3
 };
 
 inline constexpr int kTaaHqHistoryTail = 64;

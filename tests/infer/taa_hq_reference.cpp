@@ -173,7 +173,9 @@ void ReferenceTaaHq::apply(int W, int H, const float* colour, const float* motio
                     }
                 }
             }
-            weight = std::min(weight + 1.0f, maxWeight);
+            weight =
+                std::min(weight + 1.0f,
+                         anyMoved ? float(std::min(options_.movingSamples, options_.maxSamples)) : maxWeight);
             float* n = nextHistory_.data() + p * 4;
             for (int k = 0; k < 3; ++k) n[k] = h[k] + (c[k] - h[k]) / weight;
             n[3] = weight;

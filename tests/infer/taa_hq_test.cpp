@@ -298,7 +298,7 @@ TEST(TaaHq, EverySimdPathMatchesTheScalarReference) {
             TaaHqOptions options;
             if (variant == 1) options.sharpen = 0.5f;
             if (variant == 2) options.catmullRom = false;
-            if (variant == 3) options.staticLock = false;
+            if (variant == 3) options.staticLock = false, options.movingSamples = 5;
             const bool withDepth = variant != 4;
             for (const auto& [W, H] : {std::pair{37, 23}, std::pair{16, 5}, std::pair{1, 3}, std::pair{70, 1},
                                        std::pair{100, 41}}) {
