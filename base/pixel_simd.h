@@ -316,6 +316,15 @@ inline void storeRgb(float* p, VFloat r, VFloat g, VFloat b) {
 #endif
 }
 
+// The first `count` pixels of storeRgb (all of them when count >= kFloatLanes): a row's last, partial
+// vector.
+inline void storeRgbFirst(float* p, VFloat r, VFloat g, VFloat b, int count) {
+    if (count >= kFloatLanes) return storeRgb(p, r, g, b);
+    float tail[3 * kFloatLanes];
+    storeRgb(tail, r, g, b);
+    std::memcpy(p, tail, sizeof(float) * 3 * size_t(count));
+}
+
 // Pixels x .. x + kFloatLanes - 1 of an interleaved 2-channel row (motion vectors), split into planes.
 inline void loadPairs(const float* p, VFloat& a, VFloat& b) {
 #if defined(DEJAG_SIMD_LEVEL_avx512)

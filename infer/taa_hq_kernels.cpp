@@ -189,7 +189,6 @@ class Band {
     const float* row(RowRing& ring, int y, Fill fill) {
         return ring.row(y, W_, H_, fill);
     }
-    int vectorEnd() const { return (W_ + L - 1) / L * L; }
 
     // The current frame's in-pixel samples in linear light: row y holds the frame's pixels
     // (clamp(x + shiftX), clamp(y + shiftY)).
@@ -610,12 +609,8 @@ class Band {
             // 6. The output in sRGB.
             if (ring) {
                 for (int k = 0; k < 3; ++k) storeu(ring + size_t(k) * output_.rowFloats + x, encoded[k]);
-            } else if (x + L <= W_) {
-                storeRgb(dst + 3 * x, encoded[0], encoded[1], encoded[2]);
             } else {
-                float tail[3 * L];
-                storeRgb(tail, encoded[0], encoded[1], encoded[2]);
-                std::copy(tail, tail + 3 * (W_ - x), dst + 3 * x);
+                storeRgbFirst(dst + 3 * x, encoded[0], encoded[1], encoded[2], W_ - x);
             }
         }
     }
@@ -641,13 +636,7 @@ class Band {
                     lo = vmin(lo, q), hi = vmax(hi, q), around = around + q;
                 result[k] = vclamp(c + s * (c - 0.25f * around), lo, hi);
             }
-            if (x + L <= W_) {
-                storeRgb(dst + 3 * x, result[0], result[1], result[2]);
-            } else {
-                float tail[3 * L];
-                storeRgb(tail, result[0], result[1], result[2]);
-                std::copy(tail, tail + 3 * (W_ - x), dst + 3 * x);
-            }
+            storeRgbFirst(dst + 3 * x, result[0], result[1], result[2], W_ - x);
         }
     }
 };

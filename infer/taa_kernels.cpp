@@ -444,13 +444,7 @@ class Band {
                             sideWeight;
                 result[ch] = clamp01(s);
             }
-            if (x + L <= W_) {
-                storeRgb(dst + 3 * x, result[0], result[1], result[2]);
-            } else {
-                float tail[3 * L];
-                storeRgb(tail, result[0], result[1], result[2]);
-                std::copy(tail, tail + 3 * (W_ - x), dst + 3 * x);
-            }
+            storeRgbFirst(dst + 3 * x, result[0], result[1], result[2], W_ - x);
         }
     }
 };
