@@ -269,23 +269,6 @@ inline void loadRgb(const float* p, VFloat& r, VFloat& g, VFloat& b) {
 #endif
 }
 
-// A store that bypasses the caches (p aligned to the vector's size): for output streams larger than the
-// caches, read back no sooner than the next frame. Call streamFence() before another thread reads them.
-inline void streamStore(float* p, VFloat v) {
-#if defined(DEJAG_SIMD_LEVEL_avx512)
-    _mm512_stream_ps(p, __m512(v));
-#elif defined(DEJAG_SIMD_LEVEL_scalar)
-    *p = v;
-#else
-    _mm256_stream_ps(p, __m256(v));
-#endif
-}
-inline void streamFence() {
-#if !defined(DEJAG_SIMD_LEVEL_scalar)
-    _mm_sfence();
-#endif
-}
-
 inline void storeRgb(float* p, VFloat r, VFloat g, VFloat b) {
 #if defined(DEJAG_SIMD_LEVEL_avx512)
     // Output vector k holds stream positions 16k .. 16k + 15: pixel s / 3, channel s % 3.

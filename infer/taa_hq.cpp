@@ -43,19 +43,6 @@ TaaHq::TaaHq(const TaaHqOptions& o) : options_(o) {
         throw Error("taa-hq: a parameter is out of range");
 }
 
-namespace {
-
-// Frames from this size on write their history with stores that bypass the caches.
-constexpr size_t kStreamingPixels = size_t(1) << 19;
-
-// The first 64-byte boundary in a buffer of floats.
-float* aligned(std::vector<float>& buffer) {
-    const uintptr_t address = reinterpret_cast<uintptr_t>(buffer.data());
-    return buffer.data() + ((64 - address % 64) % 64) / sizeof(float);
-}
-
-}  // namespace
-
 void TaaHq::apply(int W, int H, const float* colour, const float* motion, const float* depth,
                   const float* previousDepth, float jitterX, float jitterY, float* out) {
     if (W < 1 || H < 1 || !colour || !motion) throw Error("taa-hq needs colour and motion");
@@ -67,8 +54,7 @@ void TaaHq::apply(int W, int H, const float* colour, const float* motion, const 
     if (fresh) {
         width_ = W, height_ = H, frame_ = 0;
         stride_ = (size_t(W) + 15) / 16 * 16 + 16;  // full vectors at the end of a row stay inside it
-        // (+16: room to start the planes on a 64-byte boundary)
-        const size_t floats = 4 * stride_ * size_t(H) + kTaaHqHistoryTail + 16;
+        const size_t floats = 4 * stride_ * size_t(H) + kTaaHqHistoryTail;
         history_.assign(floats, 0.0f), nextHistory_.assign(floats, 0.0f);
     }
     if (fresh || bands != bands_) {
@@ -84,9 +70,7 @@ void TaaHq::apply(int W, int H, const float* colour, const float* motion, const 
     in.width = W, in.height = H;
     in.colour = colour, in.motion = motion;
     in.depth = depth, in.previousDepth = depth ? previousDepth : nullptr;
-    in.history = aligned(history_), in.nextHistory = aligned(nextHistory_);
-    // Streaming stores once the history (16 bytes a pixel each way) outgrows the caches.
-    in.streaming = size_t(W) * size_t(H) >= kStreamingPixels;
+    in.history = history_.data(), in.nextHistory = nextHistory_.data();
     in.stride = stride_, in.planeFloats = stride_ * size_t(H);
     in.out = out;
     // The sample inside pixel p's box is pixel p + shift's: its position from its own centre is -jitter

@@ -598,13 +598,8 @@ class Band {
             }
             if (history) {
                 const VFloat signedWeight = select(movedNow, -weight, weight);
-                if (in_.streaming) {
-                    for (int k = 0; k < 3; ++k) streamStore(history + size_t(k) * planeFloats + x, next[k]);
-                    streamStore(history + 3 * planeFloats + x, signedWeight);
-                } else {
-                    for (int k = 0; k < 3; ++k) storeu(history + size_t(k) * planeFloats + x, next[k]);
-                    storeu(history + 3 * planeFloats + x, signedWeight);
-                }
+                for (int k = 0; k < 3; ++k) storeu(history + size_t(k) * planeFloats + x, next[k]);
+                storeu(history + 3 * planeFloats + x, signedWeight);
             }
             // 6. The output in sRGB.
             if (ring) {
@@ -646,7 +641,6 @@ class Band {
 void taaHqBand(const TaaHqBandInputs& in, int y0, int y1, float* scratch) {
     Band band(in, y0, y1, scratch);
     band.run();
-    if (in.streaming) streamFence();
 }
 
 void srgbToLinearRow(const float* in, float* out, int n) {

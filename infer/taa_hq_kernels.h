@@ -25,9 +25,6 @@ struct TaaHqBandInputs {
     const float* history = nullptr;
     float* nextHistory = nullptr;
     size_t stride = 0, planeFloats = 0;
-    // Write the next history with stores that bypass the caches (a frame larger than they are); the
-    // history planes then start 64-byte aligned and `stride` is a multiple of 16.
-    bool streaming = false;
     float* out = nullptr;        // interleaved sRGB RGB
     int shiftX = 0, shiftY = 0;  // the in-pixel sample of pixel p is the frame's pixel p + shift
     bool fresh = false, catmullRom = true, staticLock = true;
