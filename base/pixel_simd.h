@@ -329,6 +329,17 @@ inline void loadPairs(const float* p, VFloat& a, VFloat& b) {
 #endif
 }
 
+// `count` pixels of an interleaved 2-channel row (motion vectors) split into two planes.
+inline void splitPairs(const float* p, float* a, float* b, int count) {
+    int x = 0;
+    for (; x + kFloatLanes <= count; x += kFloatLanes) {
+        VFloat va, vb;
+        loadPairs(p + 2 * x, va, vb);
+        storeu(a + x, va), storeu(b + x, vb);
+    }
+    for (; x < count; ++x) a[x] = p[2 * x], b[x] = p[2 * x + 1];
+}
+
 // R, G, B of an interleaved frame (`channels` floats per pixel, rows `width` pixels) read bilinearly at
 // pixel coordinates (x, y) of the lanes (pixel (i, j)'s centre at (i + 0.5, j + 0.5)), clamp to edge as a
 // texture unit does; x and y must be within the int range.

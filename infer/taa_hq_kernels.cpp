@@ -248,13 +248,8 @@ class Band {
             const float* src = in_.motion + size_t(yy) * size_t(W_) * 2;
             float *v = r + motion_.rowFloats, *moved = v + motion_.rowFloats,
                   *moved3 = moved + motion_.rowFloats;
+            splitPairs(src, r, v, W_);
             int x = 0;
-            for (; x + L <= W_; x += L) {
-                VFloat vx, vy;
-                loadPairs(src + 2 * x, vx, vy);
-                storeu(r + x, vx), storeu(v + x, vy);
-            }
-            for (; x < W_; ++x) r[x] = src[2 * x], v[x] = src[2 * x + 1];
             const VFloat still = splat<VFloat>(kStill), zero = splat<VFloat>(0.0f);
             for (x = 0; x < W_; x += L) {
                 const VFloat vx = loadu<VFloat>(r + x), vy = loadu<VFloat>(v + x);
@@ -281,7 +276,7 @@ class Band {
         VInt index;   // Windowed: the lane's float in the window; Gathered: in the plane
         VMask upper;  // Windowed with two rows: lanes on the second
 
-        Taps(VInt x, VInt y, size_t rowStride, int width) : stride(rowStride) {
+        Taps(VInt x, VInt y, size_t rowStride) : stride(rowStride) {
 #if !defined(DEJAG_SIMD_LEVEL_scalar)
             const int row = laneMin(y), first = laneMin(x);
             if (all((x == splatInt(first) + laneIndex()) & (y == splatInt(row)))) {
@@ -295,10 +290,8 @@ class Band {
                 return;
             }
             index = y * splatInt(int32_t(stride)) + x;
-            (void)width;
 #else
             kind = Contiguous, offset = size_t(y) * stride + size_t(x);
-            (void)width;
 #endif
         }
         VFloat read(const float* plane) const {
@@ -511,7 +504,7 @@ class Band {
                 hx = select(valid, hx, centreX), hy = select(valid, hy, rowCentre);
                 const VInt nx = vclamp(truncateToInt(hx), zero, lastX),
                            ny = vclamp(truncateToInt(hy), zero, lastY);
-                const Taps at(nx, ny, in_.stride, W_);
+                const Taps at(nx, ny, in_.stride);
                 const VFloat stored = at.read(historyWeight);
                 weight = select(valid, vabs(stored), weight);
                 const VMask movedThen = stored < splat<VFloat>(0.0f);

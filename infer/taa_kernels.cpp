@@ -141,13 +141,7 @@ class Band {
         return row(motion_, y, [&](int yy, float* r) {
             const float* src = in_.motion + size_t(yy) * size_t(W_) * 2;
             float* v = r + motion_.rowFloats;
-            int x = 0;
-            for (; x + L <= W_; x += L) {
-                VFloat vx, vy;
-                loadPairs(src + 2 * x, vx, vy);
-                storeu(r + x, vx), storeu(v + x, vy);
-            }
-            for (; x < W_; ++x) r[x] = src[2 * x], v[x] = src[2 * x + 1];
+            splitPairs(src, r, v, W_);
         });
     }
     // Rec. 601 luma of an interleaved RGB row, for the Sobel of colours.
