@@ -73,6 +73,11 @@ class Band {
     const Feedback feedback_;
     Ring colour_, depth_, motion_, albedoLuma_, colourLuma_, sobel_, stableSobel_, ids_, blended_;
     float* shifted_ = nullptr;  // one interleaved RGB row
+    // Where a segment of the row reads its history (pixel coordinates), and what it read there.
+    static constexpr int kSegment = 256;  // pixels, a multiple of every level's lanes
+    struct Segment {
+        alignas(64) float px[kSegment], py[kSegment], previous[3][kSegment];
+    } segment_;
 
     bool inBand(int y) const { return y >= y0_ && y < y1_; }
 
@@ -318,103 +323,125 @@ class Band {
         const VFloat rowCentre = splat<VFloat>(float(y) + 0.5f);
         const VInt lastX = splatInt(W_ - 1), lastY = splatInt(H_ - 1), zero = splatInt(0);
 
-        for (int x = 0; x < W_; x += L) {
-            // The colour box of the cross (centre and its 4 neighbours), then of all 9 taps: the 4 corners
-            // extend the cross's.
-            VFloat current[3], min9[3], max9[3], minCross[3], maxCross[3];
-            for (int ch = 0; ch < 3; ++ch) {
-                current[ch] = loadu<VFloat>(c[1][ch] + x);
-                VFloat lo = current[ch], hi = current[ch];
-                for (const VFloat v : {loadu<VFloat>(c[0][ch] + x), loadu<VFloat>(c[1][ch] + x - 1),
-                                       loadu<VFloat>(c[1][ch] + x + 1), loadu<VFloat>(c[2][ch] + x)})
-                    lo = vmin(lo, v), hi = vmax(hi, v);
-                minCross[ch] = lo, maxCross[ch] = hi;
-                for (const VFloat v : {loadu<VFloat>(c[0][ch] + x - 1), loadu<VFloat>(c[0][ch] + x + 1),
-                                       loadu<VFloat>(c[2][ch] + x - 1), loadu<VFloat>(c[2][ch] + x + 1)})
-                    lo = vmin(lo, v), hi = vmax(hi, v);
-                min9[ch] = lo, max9[ch] = hi;
-            }
-            VFloat closest = splat<VFloat>(1e30f);
-            VFloat vx = loadu<VFloat>(m[1][0] + x), vy = loadu<VFloat>(m[1][1] + x);
-            for (int dy = 0; dy < 3; ++dy)
-                for (int dx = -1; dx <= 1; ++dx) {
-                    const VFloat depth = loadu<VFloat>(d[dy] + x + dx);
-                    const VMask nearer = depth < closest;
-                    closest = select(nearer, depth, closest);
-                    vx = select(nearer, loadu<VFloat>(m[dy][0] + x + dx), vx);
-                    vy = select(nearer, loadu<VFloat>(m[dy][1] + x + dx), vy);
-                }
-            const VFloat xs = toFloat(splatInt(x) + laneIndex());
-            const VFloat px = xs + 0.5f - vx, py = rowCentre - vy;
-            VFloat previous[3] = {current[0], current[1], current[2]};
-            if (!in_.fresh) historyBilinear<3>(in_.history, px, py, previous);
-            VFloat lo[3], hi[3];
-            if (!improved) {
-                for (int ch = 0; ch < 3; ++ch)
-                    lo[ch] = (min9[ch] + minCross[ch]) * 0.5f, hi[ch] = (max9[ch] + maxCross[ch]) * 0.5f;
-            } else {
-                // How aliased this pixel is: Sobel, model index, depth pseudo-variances.
-                const VFloat sobelCentre = loadu<VFloat>(t[1] + x), idCentre = loadu<VFloat>(id[1] + x);
-                VFloat sobel3x3 = splat<VFloat>(0.0f), sobelCross = splat<VFloat>(0.0f),
-                       different = splat<VFloat>(0.0f), dmin = splat<VFloat>(1e30f),
-                       dmax = splat<VFloat>(-1e30f), dsum = splat<VFloat>(0.0f);
+        // In three loops over a segment of the row, so that each loop's body is short enough for the
+        // core to overlap its iterations (one loop doing all of it waited on each vector's history read):
+        // 1. the motion of the nearest of the 3x3 (steps 2-3: where the pixel was), 2. the history there,
+        // 3. the boxes, the clip and the blend.
+        for (int x0 = 0; x0 < W_; x0 += kSegment) {
+            const int x1 = std::min(W_, x0 + kSegment);
+            for (int x = x0; x < x1; x += L) {
+                VFloat closest = splat<VFloat>(1e30f);
+                VFloat vx = loadu<VFloat>(m[1][0] + x), vy = loadu<VFloat>(m[1][1] + x);
                 for (int dy = 0; dy < 3; ++dy)
                     for (int dx = -1; dx <= 1; ++dx) {
-                        const VFloat s = loadu<VFloat>(t[dy] + x + dx);
-                        sobel3x3 += s;
-                        if (dx == 0 || dy == 1) sobelCross += s;
-                        different += select(loadu<VFloat>(id[dy] + x + dx) != idCentre, splat<VFloat>(1.0f),
-                                            splat<VFloat>(0.0f));
                         const VFloat depth = loadu<VFloat>(d[dy] + x + dx);
-                        dmin = vmin(dmin, depth), dmax = vmax(dmax, depth), dsum += depth;
+                        const VMask nearer = depth < closest;
+                        closest = select(nearer, depth, closest);
+                        vx = select(nearer, loadu<VFloat>(m[dy][0] + x + dx), vx);
+                        vy = select(nearer, loadu<VFloat>(m[dy][1] + x + dx), vy);
                     }
-                sobel3x3 /= 9.0f, sobelCross /= 5.0f;
-                const VFloat modelAverage = different / 9.0f;
-                const VFloat davg = dsum / 9.0f;
-                const VFloat maxDepthDistance = vmin(vabs(dmin - davg), vabs(dmax - davg));
-                VFloat depthPV = splat<VFloat>(0.0f), depthTPV = splat<VFloat>(0.0f);
-                const VMask varies = maxDepthDistance >= splat<VFloat>(in_.depthThreshold);
-                if (any(varies)) {
-                    const VFloat pv = vabs(loadu<VFloat>(d[1] + x) - davg) / maxDepthDistance;
-                    const VInt priorX = vclamp(floorToInt(px), zero, lastX);
-                    const VInt priorY = vclamp(floorToInt(py), zero, lastY);
-                    const VFloat prior = previousDepthAt(priorX, priorY);
-                    const VFloat tpv = vabs(prior - davg) / maxDepthDistance;
-                    depthPV = select(varies, pv * pv, depthPV);
-                    depthTPV = select(varies, tpv * tpv * tpv * tpv, depthTPV);
-                }
-                const VFloat sobelAvgMixVal = clamp01(modelAverage + sobelCentre);
-                const VFloat sobelAvg = sobelCross + (sobel3x3 - sobelCross) * sobelAvgMixVal;
-                const VFloat aliased = clamp01(sobelAvg + depthPV + depthTPV + modelAverage);
-                for (int ch = 0; ch < 3; ++ch) {
-                    const VFloat colorMin = mix(minCross[ch], min9[ch], aliased),
-                                 colorMax = mix(maxCross[ch], max9[ch], aliased);
-                    lo[ch] = mix(current[ch], colorMin, aliased),
-                    hi[ch] = mix(current[ch], colorMax, aliased);
-                }
+                const VFloat xs = toFloat(splatInt(x) + laneIndex());
+                storeu(segment_.px + (x - x0), xs + 0.5f - vx),
+                    storeu(segment_.py + (x - x0), rowCentre - vy);
             }
-            // 4. Clip towards the box centre (INSIDE's clip_aabb), 5. blend with the luminance feedback.
-            VFloat centre[3], offset[3];
-            VFloat unit = splat<VFloat>(0.0f);
-            for (int ch = 0; ch < 3; ++ch) {
-                centre[ch] = (lo[ch] + hi[ch]) * 0.5f;
-                const VFloat extent = (hi[ch] - lo[ch]) * 0.5f + 1e-6f;
-                offset[ch] = previous[ch] - centre[ch];
-                unit = vmax(unit, vabs(offset[ch] / extent));
-            }
-            const VMask outside = unit > splat<VFloat>(1.0f);
-            const VFloat shrink = 1.0f / unit;
-            VFloat clipped[3];
-            for (int ch = 0; ch < 3; ++ch)
-                clipped[ch] = select(outside, centre[ch] + offset[ch] * shrink, previous[ch]);
-            VFloat k = splat<VFloat>(0.0f);
             if (!in_.fresh)
-                k = feedback_(0.25f * current[0] + 0.5f * current[1] + 0.25f * current[2],
-                              0.25f * clipped[0] + 0.5f * clipped[1] + 0.25f * clipped[2]);
-            for (int ch = 0; ch < 3; ++ch) {
-                const VFloat blended = mix(current[ch], clipped[ch], k);
-                storeu(out + size_t(ch) * rowFloats + x, blended);
-                if (history) storeu(history + size_t(ch) * in_.planeFloats + x, blended);
+                for (int x = x0; x < x1; x += L) {
+                    VFloat previous[3];
+                    historyBilinear<3>(in_.history, loadu<VFloat>(segment_.px + (x - x0)),
+                                       loadu<VFloat>(segment_.py + (x - x0)), previous);
+                    for (int ch = 0; ch < 3; ++ch) storeu(segment_.previous[ch] + (x - x0), previous[ch]);
+                }
+            for (int x = x0; x < x1; x += L) {
+                // The colour box of the cross (centre and its 4 neighbours), then of all 9 taps: the 4
+                // corners extend the cross's.
+                VFloat current[3], min9[3], max9[3], minCross[3], maxCross[3];
+                for (int ch = 0; ch < 3; ++ch) {
+                    current[ch] = loadu<VFloat>(c[1][ch] + x);
+                    VFloat lo = current[ch], hi = current[ch];
+                    for (const VFloat v : {loadu<VFloat>(c[0][ch] + x), loadu<VFloat>(c[1][ch] + x - 1),
+                                           loadu<VFloat>(c[1][ch] + x + 1), loadu<VFloat>(c[2][ch] + x)})
+                        lo = vmin(lo, v), hi = vmax(hi, v);
+                    minCross[ch] = lo, maxCross[ch] = hi;
+                    for (const VFloat v : {loadu<VFloat>(c[0][ch] + x - 1), loadu<VFloat>(c[0][ch] + x + 1),
+                                           loadu<VFloat>(c[2][ch] + x - 1), loadu<VFloat>(c[2][ch] + x + 1)})
+                        lo = vmin(lo, v), hi = vmax(hi, v);
+                    min9[ch] = lo, max9[ch] = hi;
+                }
+                const VFloat px = loadu<VFloat>(segment_.px + (x - x0)),
+                             py = loadu<VFloat>(segment_.py + (x - x0));
+                VFloat previous[3] = {current[0], current[1], current[2]};
+                if (!in_.fresh)
+                    for (int ch = 0; ch < 3; ++ch)
+                        previous[ch] = loadu<VFloat>(segment_.previous[ch] + (x - x0));
+                VFloat lo[3], hi[3];
+                if (!improved) {
+                    for (int ch = 0; ch < 3; ++ch)
+                        lo[ch] = (min9[ch] + minCross[ch]) * 0.5f, hi[ch] = (max9[ch] + maxCross[ch]) * 0.5f;
+                } else {
+                    // How aliased this pixel is: Sobel, model index, depth pseudo-variances.
+                    const VFloat sobelCentre = loadu<VFloat>(t[1] + x), idCentre = loadu<VFloat>(id[1] + x);
+                    VFloat sobel3x3 = splat<VFloat>(0.0f), sobelCross = splat<VFloat>(0.0f),
+                           different = splat<VFloat>(0.0f), dmin = splat<VFloat>(1e30f),
+                           dmax = splat<VFloat>(-1e30f), dsum = splat<VFloat>(0.0f);
+                    for (int dy = 0; dy < 3; ++dy)
+                        for (int dx = -1; dx <= 1; ++dx) {
+                            const VFloat s = loadu<VFloat>(t[dy] + x + dx);
+                            sobel3x3 += s;
+                            if (dx == 0 || dy == 1) sobelCross += s;
+                            different += select(loadu<VFloat>(id[dy] + x + dx) != idCentre,
+                                                splat<VFloat>(1.0f), splat<VFloat>(0.0f));
+                            const VFloat depth = loadu<VFloat>(d[dy] + x + dx);
+                            dmin = vmin(dmin, depth), dmax = vmax(dmax, depth), dsum += depth;
+                        }
+                    sobel3x3 /= 9.0f, sobelCross /= 5.0f;
+                    const VFloat modelAverage = different / 9.0f;
+                    const VFloat davg = dsum / 9.0f;
+                    const VFloat maxDepthDistance = vmin(vabs(dmin - davg), vabs(dmax - davg));
+                    VFloat depthPV = splat<VFloat>(0.0f), depthTPV = splat<VFloat>(0.0f);
+                    const VMask varies = maxDepthDistance >= splat<VFloat>(in_.depthThreshold);
+                    if (any(varies)) {
+                        const VFloat pv = vabs(loadu<VFloat>(d[1] + x) - davg) / maxDepthDistance;
+                        const VInt priorX = vclamp(floorToInt(px), zero, lastX);
+                        const VInt priorY = vclamp(floorToInt(py), zero, lastY);
+                        const VFloat prior = previousDepthAt(priorX, priorY);
+                        const VFloat tpv = vabs(prior - davg) / maxDepthDistance;
+                        depthPV = select(varies, pv * pv, depthPV);
+                        depthTPV = select(varies, tpv * tpv * tpv * tpv, depthTPV);
+                    }
+                    const VFloat sobelAvgMixVal = clamp01(modelAverage + sobelCentre);
+                    const VFloat sobelAvg = sobelCross + (sobel3x3 - sobelCross) * sobelAvgMixVal;
+                    const VFloat aliased = clamp01(sobelAvg + depthPV + depthTPV + modelAverage);
+                    for (int ch = 0; ch < 3; ++ch) {
+                        const VFloat colorMin = mix(minCross[ch], min9[ch], aliased),
+                                     colorMax = mix(maxCross[ch], max9[ch], aliased);
+                        lo[ch] = mix(current[ch], colorMin, aliased),
+                        hi[ch] = mix(current[ch], colorMax, aliased);
+                    }
+                }
+                // 4. Clip towards the box centre (INSIDE's clip_aabb), 5. blend with the luminance feedback.
+                VFloat centre[3], offset[3];
+                VFloat unit = splat<VFloat>(0.0f);
+                for (int ch = 0; ch < 3; ++ch) {
+                    centre[ch] = (lo[ch] + hi[ch]) * 0.5f;
+                    // (the reciprocal does not wait for the history read)
+                    const VFloat inverseExtent = 1.0f / ((hi[ch] - lo[ch]) * 0.5f + 1e-6f);
+                    offset[ch] = previous[ch] - centre[ch];
+                    unit = vmax(unit, vabs(offset[ch] * inverseExtent));
+                }
+                const VMask outside = unit > splat<VFloat>(1.0f);
+                const VFloat shrink = 1.0f / unit;
+                VFloat clipped[3];
+                for (int ch = 0; ch < 3; ++ch)
+                    clipped[ch] = select(outside, centre[ch] + offset[ch] * shrink, previous[ch]);
+                VFloat k = splat<VFloat>(0.0f);
+                if (!in_.fresh)
+                    k = feedback_(0.25f * current[0] + 0.5f * current[1] + 0.25f * current[2],
+                                  0.25f * clipped[0] + 0.5f * clipped[1] + 0.25f * clipped[2]);
+                for (int ch = 0; ch < 3; ++ch) {
+                    const VFloat blended = mix(current[ch], clipped[ch], k);
+                    storeu(out + size_t(ch) * rowFloats + x, blended);
+                    if (history) storeu(history + size_t(ch) * in_.planeFloats + x, blended);
+                }
             }
         }
     }
