@@ -22,66 +22,54 @@ static_assert(RowRing::kRows == kTaaHqRingRows && RowRing::kPad == kTaaHqRowPad)
 // Motion below this (pixels) is none: the static lock's test.
 constexpr float kStill = 1e-3f;
 
-// ---- sRGB by piecewise cubics ------------------------------------------------------------------------
-// 32 segments, each a cubic in a local coordinate s in [-1/2, 1/2] interpolating the formula at the
-// segment's 4 Chebyshev nodes. Decoding splits [0, 1] evenly (x^2.4 is smooth there); encoding splits
-// [2^-8, 1) into 4 segments per octave (x^(1/2.4) is smooth in ratio), read from the float's exponent and
-// its mantissa's top two bits; the first segment reaches down to the linear part.
-struct CubicTable {
-    alignas(64) float c[4][32];
-};
-
-// Coefficients of the cubic through f at 4 Chebyshev nodes of [s0, s1] (monomials in s, double).
-template <class F>
-void fitCubic(F f, double s0, double s1, CubicTable& table, int segment) {
-    double s[4], m[4][5];
-    for (int i = 0; i < 4; ++i) {
-        s[i] = 0.5 * (s0 + s1) + 0.5 * (s1 - s0) * std::cos(M_PI * (2 * i + 1) / 8);
-        for (int j = 0; j < 4; ++j) m[i][j] = std::pow(s[i], j);
-        m[i][4] = f(s[i]);
-    }
-    for (int col = 0; col < 4; ++col) {  // Gauss-Jordan with partial pivoting
-        int pivot = col;
-        for (int r = col + 1; r < 4; ++r)
-            if (std::abs(m[r][col]) > std::abs(m[pivot][col])) pivot = r;
-        std::swap(m[col], m[pivot]);
-        for (int r = 0; r < 4; ++r)
-            if (r != col) {
-                const double k = m[r][col] / m[col][col];
-                for (int j = col; j < 5; ++j) m[r][j] -= k * m[col][j];
-            }
-    }
-    for (int j = 0; j < 4; ++j) table.c[j][segment] = float(m[j][4] / m[j][j]);
-}
-
+// ---- sRGB by exponent and mantissa ----------------------------------------------------------------
+// Both curves are powers past their knee: x^p with x = 2^e m, m in [1, 2), is 2^(e p) m^p. m^p is one
+// polynomial in m - 1.5 (interpolating it at Chebyshev nodes of [1, 2], fitted in double at start-up:
+// degree 5 for p = 2.4, 6 for p = 1/2.4), and 2^(e p) one of 16 factors read by the low 4 bits of the
+// float's biased exponent (decoding sees e in [-5, 0], encoding e in [-9, -1]: 16 apart at most). No
+// gathers: the factor is one permute (AVX-512) or two and a blend (AVX2).
 constexpr float kDecodeKnee = 0.04045f, kEncodeKnee = 0.0031308f;
 
-const CubicTable& decodeTable() {
-    static const CubicTable table = [] {
-        CubicTable t{};
-        for (int k = 0; k < 32; ++k)
-            fitCubic([k](double s) { return std::pow(((k + 0.5 + s) / 32 + 0.055) / 1.055, 2.4); }, -0.5, 0.5,
-                     t, k);
-        return t;
-    }();
-    return table;
+struct PowerCurve {
+    alignas(64) float factor[16];  // 2^(e p) (times `gain`), by biased exponent mod 16
+    float c[7] = {};               // the polynomial's coefficients in m - 1.5, lowest first
+    int degree = 0;
+};
+
+PowerCurve fitPower(double p, int degree, double gain) {
+    PowerCurve curve{};
+    curve.degree = degree;
+    const int n = degree + 1;
+    double m[8][9] = {};
+    for (int i = 0; i < n; ++i) {
+        const double s = 0.5 * std::cos(M_PI * (2 * i + 1) / (2 * n));  // node: m = 1.5 + s
+        for (int j = 0; j < n; ++j) m[i][j] = std::pow(s, j);
+        m[i][n] = std::pow(1.5 + s, p);
+    }
+    for (int col = 0; col < n; ++col) {  // Gauss-Jordan with partial pivoting
+        int pivot = col;
+        for (int r = col + 1; r < n; ++r)
+            if (std::abs(m[r][col]) > std::abs(m[pivot][col])) pivot = r;
+        std::swap(m[col], m[pivot]);
+        for (int r = 0; r < n; ++r)
+            if (r != col) {
+                const double k = m[r][col] / m[col][col];
+                for (int j = col; j <= n; ++j) m[r][j] -= k * m[col][j];
+            }
+    }
+    for (int j = 0; j < n; ++j) curve.c[j] = float(m[j][n] / m[j][j]);
+    for (int biased = 112; biased < 128; ++biased)  // e = biased - 127 in [-15, 0]
+        curve.factor[biased & 15] = float(gain * std::pow(2.0, p * (biased - 127)));
+    return curve;
 }
 
-const CubicTable& encodeTable() {
-    static const CubicTable table = [] {
-        CubicTable t{};
-        for (int k = 0; k < 32; ++k) {
-            const double octave = std::ldexp(1.0, k / 4 - 8);
-            auto f = [k, octave](double s) {
-                const double x = octave * (1 + (k % 4 + 0.5 + s) / 4);
-                return 1.055 * std::pow(x, 1 / 2.4) - 0.055;
-            };
-            // (segment 0 also covers the knee .. 2^-8: s down to where x is the knee)
-            fitCubic(f, k == 0 ? double(kEncodeKnee) * 1024 - 4.5 : -0.5, 0.5, t, k);
-        }
-        return t;
-    }();
-    return table;
+const PowerCurve& decodeCurve() {  // ((v + 0.055) / 1.055)^2.4
+    static const PowerCurve curve = fitPower(2.4, 5, 1.0);
+    return curve;
+}
+const PowerCurve& encodeCurve() {  // 1.055 x^(1/2.4) (- 0.055)
+    static const PowerCurve curve = fitPower(1 / 2.4, 6, 1.055);
+    return curve;
 }
 
 inline VInt asInt(VFloat v) {
@@ -103,41 +91,43 @@ inline VFloat asFloat(VInt v) {
 #endif
 }
 
-// The segment's cubic at s.
-inline VFloat cubicAt(const CubicTable& t, VInt segment, VFloat s) {
-    VFloat c[4];
-    for (int j = 0; j < 4; ++j) {
+// table[index & 15] for each lane.
+inline VFloat lookup16(const float* table, VInt index) {
 #if defined(DEJAG_SIMD_LEVEL_avx512)
-        c[j] = VFloat(
-            _mm512_permutex2var_ps(_mm512_load_ps(t.c[j]), __m512i(segment), _mm512_load_ps(t.c[j] + 16)));
+    const __m512 t = _mm512_load_ps(table);  // (both sources: bit 4 of the index picks either)
+    return VFloat(_mm512_permutex2var_ps(t, __m512i(index), t));
 #elif defined(DEJAG_SIMD_LEVEL_scalar)
-        c[j] = t.c[j][segment];
+    return table[index & 15];
 #else
-        c[j] = gather(t.c[j], segment);
+    const __m256 low = _mm256_permutevar8x32_ps(_mm256_load_ps(table), __m256i(index));
+    const __m256 high = _mm256_permutevar8x32_ps(_mm256_load_ps(table + 8), __m256i(index));
+    // (vpermps reads the low 3 bits; bit 3 picks the second half, moved to the sign bit)
+    return VFloat(_mm256_blendv_ps(low, high, _mm256_castsi256_ps(_mm256_slli_epi32(__m256i(index), 28))));
 #endif
-    }
-    return c[0] + s * (c[1] + s * (c[2] + s * c[3]));
+}
+
+// The curve at x > 0 (a normal float): factor(e) m^p.
+inline VFloat powerAt(const PowerCurve& curve, VFloat x) {
+    const VInt bits = asInt(x);
+    const VFloat s = asFloat((bits & 0x7fffff) | 0x3f800000) - 1.5f;  // m - 1.5
+    VFloat poly = splat<VFloat>(curve.c[curve.degree]);
+    for (int j = curve.degree - 1; j >= 0; --j) poly = poly * s + curve.c[j];
+    return lookup16(curve.factor, bits >> 23) * poly;
 }
 
 // sRGB-encoded [0, 1] (clamped; NaN reads 0) to linear light.
 inline VFloat decodeSrgb(VFloat v) {
     v = vmin(vmax(splat<VFloat>(0.0f), v), splat<VFloat>(1.0f));  // (0 first: a NaN becomes 0)
-    const VFloat scaled = v * 32.0f;
-    const VInt segment = vmin(truncateToInt(scaled), splatInt(31));
-    const VFloat curve = cubicAt(decodeTable(), segment, scaled - toFloat(segment) - 0.5f);
+    const VFloat curve = powerAt(decodeCurve(), v * (1.0f / 1.055f) + (0.055f / 1.055f));
     return select(v <= splat<VFloat>(kDecodeKnee), v * (1.0f / 12.92f), curve);
 }
 
 // Linear light [0, 1] (clamped; NaN reads 0) to sRGB-encoded.
 inline VFloat encodeSrgb(VFloat x) {
-    x = vmin(vmax(splat<VFloat>(0.0f), x), splat<VFloat>(0.99999994f));  // (below 1: one octave less)
-    const VInt bits = asInt(x);
-    const VInt quarter = (bits >> 21) & 3;
-    const VFloat mantissa = asFloat((bits & 0x7fffff) | 0x3f800000);  // [1, 2)
-    const VMask low = x < splat<VFloat>(1.0f / 256);
-    const VInt segment = select(low, splatInt(0), ((bits >> 23) - 119) * 4 + quarter);
-    const VFloat s = select(low, x * 1024.0f - 4.5f, mantissa * 4.0f - (toFloat(quarter) + 4.5f));
-    return select(x <= splat<VFloat>(kEncodeKnee), x * 12.92f, cubicAt(encodeTable(), segment, s));
+    x = vmin(vmax(splat<VFloat>(0.0f), x), splat<VFloat>(0.99999994f));  // (below 1: e at most -1)
+    // (the linear part's lanes, 0 and subnormals too, read some factor of the table and are replaced)
+    const VFloat curve = powerAt(encodeCurve(), x) - 0.055f;
+    return select(x <= splat<VFloat>(kEncodeKnee), x * 12.92f, curve);
 }
 
 // ---- the band ----------------------------------------------------------------------------------------

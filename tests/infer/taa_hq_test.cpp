@@ -324,9 +324,9 @@ TEST(TaaHq, EverySimdPathMatchesTheScalarReference) {
                 const std::string what = std::string(simdLevelName(SimdLevel(level))) + " variant " +
                                          std::to_string(variant) + " " + std::to_string(W) + "x" +
                                          std::to_string(H);
-                // Rounding differs (multiply-adds, a reciprocal for a division, cubics for the sRGB curves),
-                // so a history exactly at the clipping box's edge may be clipped on one side and not the
-                // other: a rare pixel apart, the rest within rounding.
+                // Rounding differs (multiply-adds, a reciprocal for a division, polynomials for the sRGB
+                // curves), so a history exactly at the clipping box's edge may be clipped on one side and not
+                // the other: a rare pixel apart, the rest within rounding.
                 EXPECT_LE(sum / double(count), 1e-6) << what;
                 EXPECT_LE(double(apart), 1e-3 * double(count)) << what;
             }
@@ -335,8 +335,8 @@ TEST(TaaHq, EverySimdPathMatchesTheScalarReference) {
     setSimdLevel(original);
 }
 
-// The kernel's sRGB curves (piecewise cubics) against the formulas, on every SIMD path: within 3e-6 over
-// [0, 1], clamped outside it, and a NaN reads 0.
+// The kernel's sRGB curves (a polynomial in the mantissa, a factor per exponent) against the formulas, on
+// every SIMD path: within 3e-6 over [0, 1], clamped outside it, and a NaN reads 0.
 TEST(TaaHq, TheSrgbCurvesMatchTheFormulas) {
     const SimdLevel original = activeSimdLevel();
     std::vector<float> in;
