@@ -227,6 +227,51 @@ inline bool withinWindow(VInt lo, VInt hi, int32_t first) {
 }
 #endif
 
+// The 4 consecutive floats at base + index of each lane, as 4 vectors: quad[i] lane l = base[index[l] + i].
+// One 128-bit load a lane and a 4x4 transpose instead of 4 gathers (about 3x cheaper a float on Zen 4,
+// where a gather costs about 1.9 cycles an element).
+inline void loadQuads(const float* base, VInt index, VFloat quad[4]) {
+#if defined(DEJAG_SIMD_LEVEL_scalar)
+    for (int i = 0; i < 4; ++i) quad[i] = base[index + i];
+#else
+    alignas(64) int32_t at[kFloatLanes];
+    std::memcpy(at, &index, sizeof(at));
+    auto q = [&](int lane) { return _mm_loadu_ps(base + at[lane]); };
+    // Vector b holds lanes b, 4 + b, ... in its 128-bit blocks, so the transpose inside the blocks leaves
+    // lane 4p + b of each result in block p, element b: lane order.
+#if defined(DEJAG_SIMD_LEVEL_avx512)
+    __m512 z[4];
+    for (int b = 0; b < 4; ++b)
+        z[b] = _mm512_insertf32x4(
+            _mm512_insertf32x4(_mm512_insertf32x4(_mm512_castps128_ps512(q(b)), q(4 + b), 1), q(8 + b), 2),
+            q(12 + b), 3);
+    // (shuffles written as such: GCC 12 warns on the unpack intrinsics' undefined operand)
+    const VFloat z0 = VFloat(z[0]), z1 = VFloat(z[1]), z2 = VFloat(z[2]), z3 = VFloat(z[3]);
+    const VFloat lo01 =
+        __builtin_shufflevector(z0, z1, 0, 16, 1, 17, 4, 20, 5, 21, 8, 24, 9, 25, 12, 28, 13, 29);
+    const VFloat hi01 =
+        __builtin_shufflevector(z0, z1, 2, 18, 3, 19, 6, 22, 7, 23, 10, 26, 11, 27, 14, 30, 15, 31);
+    const VFloat lo23 =
+        __builtin_shufflevector(z2, z3, 0, 16, 1, 17, 4, 20, 5, 21, 8, 24, 9, 25, 12, 28, 13, 29);
+    const VFloat hi23 =
+        __builtin_shufflevector(z2, z3, 2, 18, 3, 19, 6, 22, 7, 23, 10, 26, 11, 27, 14, 30, 15, 31);
+    quad[0] = __builtin_shufflevector(lo01, lo23, 0, 1, 16, 17, 4, 5, 20, 21, 8, 9, 24, 25, 12, 13, 28, 29);
+    quad[1] = __builtin_shufflevector(lo01, lo23, 2, 3, 18, 19, 6, 7, 22, 23, 10, 11, 26, 27, 14, 15, 30, 31);
+    quad[2] = __builtin_shufflevector(hi01, hi23, 0, 1, 16, 17, 4, 5, 20, 21, 8, 9, 24, 25, 12, 13, 28, 29);
+    quad[3] = __builtin_shufflevector(hi01, hi23, 2, 3, 18, 19, 6, 7, 22, 23, 10, 11, 26, 27, 14, 15, 30, 31);
+#else
+    __m256 z[4];
+    for (int b = 0; b < 4; ++b) z[b] = _mm256_insertf128_ps(_mm256_castps128_ps256(q(b)), q(4 + b), 1);
+    const __m256 lo01 = _mm256_unpacklo_ps(z[0], z[1]), hi01 = _mm256_unpackhi_ps(z[0], z[1]);
+    const __m256 lo23 = _mm256_unpacklo_ps(z[2], z[3]), hi23 = _mm256_unpackhi_ps(z[2], z[3]);
+    quad[0] = VFloat(_mm256_shuffle_ps(lo01, lo23, _MM_SHUFFLE(1, 0, 1, 0)));
+    quad[1] = VFloat(_mm256_shuffle_ps(lo01, lo23, _MM_SHUFFLE(3, 2, 3, 2)));
+    quad[2] = VFloat(_mm256_shuffle_ps(hi01, hi23, _MM_SHUFFLE(1, 0, 1, 0)));
+    quad[3] = VFloat(_mm256_shuffle_ps(hi01, hi23, _MM_SHUFFLE(3, 2, 3, 2)));
+#endif
+#endif
+}
+
 // floor(v) as an int (v within the int range).
 inline VInt floorToInt(VFloat v) {
     const VInt t = truncateToInt(v);

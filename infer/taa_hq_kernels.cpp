@@ -342,12 +342,17 @@ class Band {
         }
 #endif
         (void)floats;
+        // Lanes whose 3 taps and one more lie inside the row read them as 4 consecutive floats.
+        const bool inside = all((x >= splatInt(1)) & (x <= splatInt(W_ - 3)));
         for (int dy = -1; dy <= 1; ++dy) {
             const VInt rowStart = vclamp(y + dy, zero, lastY) * splatInt(int32_t(stride));
-            for (int k = 0; k < 3; ++k) {
-                const VFloat v = gather(plane, rowStart + xs[k]);
-                lo = vmin(lo, v), hi = vmax(hi, v);
+            VFloat v[4];
+            if (inside) {
+                loadQuads(plane, rowStart + xs[0], v);
+            } else {
+                for (int k = 0; k < 3; ++k) v[k] = gather(plane, rowStart + xs[k]);
             }
+            for (int k = 0; k < 3; ++k) lo = vmin(lo, v[k]), hi = vmax(hi, v[k]);
         }
     }
 
@@ -405,12 +410,18 @@ class Band {
             return;
         }
 #endif
+        // Lanes whose 4 taps lie inside the row read them as 4 consecutive floats.
+        const bool inside = all((ix >= splatInt(1)) & (ix <= splatInt(W_ - 3)));
         for (int j = 0; j < 4; ++j) {
             const VInt rowStart = vclamp(iy - 1 + j, zero, lastY) * splatInt(int32_t(stride));
             for (int k = 0; k < 3; ++k) {
                 const float* plane = in_.history + size_t(k) * planeFloats;
                 VFloat t[4];
-                for (int i = 0; i < 4; ++i) t[i] = gather(plane, rowStart + xs[i]);
+                if (inside) {
+                    loadQuads(plane, rowStart + xs[0], t);
+                } else {
+                    for (int i = 0; i < 4; ++i) t[i] = gather(plane, rowStart + xs[i]);
+                }
                 acc[k] = acc[k] + wy[j] * horizontal(t);
                 if (j == 1 || j == 2) {
                     lo[k] = vmin(lo[k], vmin(t[1], t[2]));

@@ -234,10 +234,19 @@ class Band {
                     result[k] = gather(plane + size_t(k) * in_.planeFloats, ra + xa);
                 return;
             }
+            // Lanes whose two taps lie inside the row read them as consecutive floats (the planes' rows
+            // are padded, so the 4 floats read from the tap on are always inside them).
+            const bool inside = all((x0 >= zero) & (x0 < lastX));
             for (int k = 0; k < planes; ++k) {
                 const float* p = plane + size_t(k) * in_.planeFloats;
-                a[k] = gather(p, ra + xa), b[k] = gather(p, ra + xb);
-                c[k] = gather(p, rb + xa), d[k] = gather(p, rb + xb);
+                if (inside) {
+                    VFloat top[4], bottom[4];
+                    loadQuads(p, ra + xa, top), loadQuads(p, rb + xa, bottom);
+                    a[k] = top[0], b[k] = top[1], c[k] = bottom[0], d[k] = bottom[1];
+                } else {
+                    a[k] = gather(p, ra + xa), b[k] = gather(p, ra + xb);
+                    c[k] = gather(p, rb + xa), d[k] = gather(p, rb + xb);
+                }
             }
         }
         for (int k = 0; k < planes; ++k) {
