@@ -458,10 +458,25 @@ class Band {
         const float* historyRow = in_.history + size_t(y) * in_.stride;
         const float* previousDepthRow =
             useDepth_ ? in_.previousDepth + size_t(std::min(y + 1, H_ - 1)) * size_t(W_) : nullptr;
+        // (And the frame's rows the next row will make into ring rows, and the next history's row after
+        // this one: made in bursts between rows, they otherwise waited for memory.)
+        const size_t input = size_t(std::clamp(y + 2, 0, H_ - 1)) * size_t(W_);
+        const float* colourAhead =
+            in_.colour + 3 * (size_t(std::clamp(y + 2 + in_.shiftY, 0, H_ - 1)) * size_t(W_));
+        const float* motionAhead = in_.motion + 2 * input;
+        const float* depthAhead = in_.depth ? in_.depth + input : nullptr;
+        float* nextHistoryAhead = in_.nextHistory + size_t(std::min(y + 1, H_ - 1)) * in_.stride;
+        constexpr int kLine = 16;  // floats
         for (int x = 0; x < W_; x += L) {
             const int ahead = std::min(x + 8 * L, W_ - 1);
+            // (written out here: through a helper, GCC 12 dropped every prefetch once there were six)
             for (int k = 0; k < 4; ++k) __builtin_prefetch(historyRow + size_t(k) * planeFloats + ahead);
             if (previousDepthRow) __builtin_prefetch(previousDepthRow + ahead);
+            for (int k = 0; k < 3 * L; k += kLine) __builtin_prefetch(colourAhead + 3 * x + k, 0, 2);
+            for (int k = 0; k < 2 * L; k += kLine) __builtin_prefetch(motionAhead + 2 * x + k, 0, 2);
+            if (depthAhead) __builtin_prefetch(depthAhead + x, 0, 2);
+            for (int k = 0; k < 4; ++k)
+                __builtin_prefetch(nextHistoryAhead + size_t(k) * planeFloats + x, 1, 2);
             // 1. The current sample.
             const VFloat c[3] = {loadu<VFloat>(lin + x), loadu<VFloat>(lin + lp + x),
                                  loadu<VFloat>(lin + 2 * lp + x)};
