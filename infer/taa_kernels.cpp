@@ -72,7 +72,8 @@ class Band {
     const int W_, H_, y0_, y1_;
     const Feedback feedback_;
     Ring colour_, depth_, motion_, albedoLuma_, colourLuma_, sobel_, stableSobel_, ids_, blended_;
-    float* shifted_ = nullptr;  // one interleaved RGB row
+    float* shifted_ = nullptr;            // one interleaved RGB row
+    bool motionStill_[Ring::kRows] = {};  // by the motion ring's slot: whether that row's motion is all 0
     // Where a segment of the row reads its history (pixel coordinates), and what it read there.
     static constexpr int kSegment = 256;  // pixels, a multiple of every level's lanes
     struct Segment {
@@ -147,7 +148,20 @@ class Band {
             const float* src = in_.motion + size_t(yy) * size_t(W_) * 2;
             float* v = r + motion_.rowFloats;
             splitPairs(src, r, v, W_);
+            // Whether every motion of the row is 0 (or -0): its pixels read the history where they are.
+            VMask moving = splat<VFloat>(0.0f) != splat<VFloat>(0.0f);
+            int x = 0;
+            for (; x + L <= W_; x += L)
+                moving = moving | (loadu<VFloat>(r + x) != splat<VFloat>(0.0f)) |
+                         (loadu<VFloat>(v + x) != splat<VFloat>(0.0f));
+            bool still = !any(moving);
+            for (; x < W_; ++x) still = still && r[x] == 0.0f && v[x] == 0.0f;
+            motionStill_[yy & (Ring::kRows - 1)] = still;
         });
+    }
+    bool motionStill(int y) {
+        motionRow(y);
+        return motionStill_[std::clamp(y, 0, H_ - 1) & (Ring::kRows - 1)];
     }
     // Rec. 601 luma of an interleaved RGB row, for the Sobel of colours.
     void lumaRow(const float* src, float* r) const {
@@ -282,6 +296,7 @@ class Band {
             }
             const float* m = motionRow(yy);
             const float* mv = m + motion_.rowFloats;
+            const bool still = motionStill(yy);  // (the history read where the pixel is)
             const VFloat rowCentre = splat<VFloat>(float(yy) + 0.5f);
             for (int x = 0; x < W_; x += L) {
                 VFloat lo = splat<VFloat>(1e30f), hi = splat<VFloat>(-1e30f);
@@ -292,8 +307,12 @@ class Band {
                     }
                 const VFloat xs = toFloat(splatInt(x) + laneIndex());
                 VFloat previous;
-                historyBilinear<1>(in_.sobelHistory, xs + 0.5f - loadu<VFloat>(m + x),
-                                   rowCentre - loadu<VFloat>(mv + x), &previous);
+                if (still && x + L <= W_) {
+                    previous = loadu<VFloat>(in_.sobelHistory + size_t(yy) * in_.stride + size_t(x));
+                } else {
+                    historyBilinear<1>(in_.sobelHistory, xs + 0.5f - loadu<VFloat>(m + x),
+                                       rowCentre - loadu<VFloat>(mv + x), &previous);
+                }
                 previous = vclamp(previous, lo, hi);
                 const VFloat current = loadu<VFloat>(s[1] + x);
                 const VFloat k = feedback_(current, previous);
@@ -360,6 +379,9 @@ class Band {
         float* history = inBand(y) ? in_.nextHistory + size_t(y) * in_.stride : nullptr;
         const VFloat rowCentre = splat<VFloat>(float(y) + 0.5f);
         const VInt lastX = splatInt(W_ - 1), lastY = splatInt(H_ - 1), zero = splatInt(0);
+        // No motion in the three rows (a still camera over a still scene): every pixel reads the history
+        // where it is, which is what the steps below give, without the search for the nearest motion.
+        const bool still = motionStill(y - 1) && motionStill(y) && motionStill(y + 1);
 
         // In three loops over a segment of the row, so that each loop's body is short enough for the
         // core to overlap its iterations (one loop doing all of it waited on each vector's history read):
@@ -387,7 +409,7 @@ class Band {
                 }
                 VFloat closest = splat<VFloat>(1e30f);
                 VFloat vx = loadu<VFloat>(m[1][0] + x), vy = loadu<VFloat>(m[1][1] + x);
-                for (int dy = 0; dy < 3; ++dy)
+                for (int dy = 0; dy < 3 && !still; ++dy)  // (still: every motion around is 0)
                     for (int dx = -1; dx <= 1; ++dx) {
                         const VFloat depth = loadu<VFloat>(d[dy] + x + dx);
                         const VMask nearer = depth < closest;
@@ -402,6 +424,13 @@ class Band {
             if (!in_.fresh)
                 for (int x = x0; x < x1; x += L) {
                     VFloat previous[3];
+                    if (still && x + L <= W_) {  // the history where the pixel is
+                        for (int ch = 0; ch < 3; ++ch)
+                            storeu(segment_.previous[ch] + (x - x0),
+                                   loadu<VFloat>(in_.history + size_t(ch) * in_.planeFloats +
+                                                 size_t(y) * in_.stride + size_t(x)));
+                        continue;
+                    }
                     historyBilinear<3>(in_.history, loadu<VFloat>(segment_.px + (x - x0)),
                                        loadu<VFloat>(segment_.py + (x - x0)), previous);
                     for (int ch = 0; ch < 3; ++ch) storeu(segment_.previous[ch] + (x - x0), previous[ch]);
