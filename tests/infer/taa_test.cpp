@@ -143,9 +143,10 @@ TEST(Taa, StaticSceneConvergesTowardsTheTruth) {
 }
 
 // How the pixels of a test frame move: random per pixel (sub-pixel, some of it pointing outside the
-// frame: the kernel's gathers), smooth like a camera's (its windowed reads), or by whole pixels (a still
-// camera and objects moving a pixel or two: the reads of single taps).
-enum class Motion { Random, Smooth, WholePixels };
+// frame: the kernel's gathers), smooth like a camera's (its windowed reads), by whole pixels (a still
+// camera and objects moving a pixel or two: the reads of single taps), or not at all (rows without
+// motion read the history where they are).
+enum class Motion { Random, Smooth, WholePixels, None };
 
 // A frame of blocks (objects with their own IDs, depths and colours) over fine noise, with a depth step
 // per block and the given motion.
@@ -170,6 +171,8 @@ Buffers randomFrame(int W, int H, uint64_t seed, Motion motion) {
             b.ids[i] = float(block);
             if (motion == Motion::Smooth) {
                 b.motion[2 * i] = 0.7f + 0.043f * float(x), b.motion[2 * i + 1] = -0.4f + 0.021f * float(y);
+            } else if (motion == Motion::None) {
+                b.motion[2 * i] = 0.0f, b.motion[2 * i + 1] = (x + y) % 2 ? -0.0f : 0.0f;
             } else if (motion == Motion::WholePixels) {
                 b.motion[2 * i] = block == 3 ? 2.0f : 0.0f, b.motion[2 * i + 1] = block == 2 ? -1.0f : 0.0f;
             } else {
@@ -218,9 +221,10 @@ TEST(Taa, EverySimdPathMatchesTheScalarReference) {
                 std::vector<float> out(size_t(W * H * 3)), expected(out.size());
                 float worst = 0;
                 for (int t = 0; t < 12; ++t) {
-                    const Motion motion = t % 3 == 0   ? Motion::Random
-                                          : t % 3 == 1 ? Motion::Smooth
-                                                       : Motion::WholePixels;
+                    const Motion motion = t % 4 == 0   ? Motion::Random
+                                          : t % 4 == 1 ? Motion::Smooth
+                                          : t % 4 == 2 ? Motion::WholePixels
+                                                       : Motion::None;
                     const Buffers frame = t < 9 ? randomFrame(W, H, uint64_t(100 * W + t), motion)
                                                 : rampFrame(W, H, uint64_t(100 * W + t), motion);
                     taa.apply(frame.frame(), out.data());
