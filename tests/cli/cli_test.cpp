@@ -23,6 +23,14 @@ std::string golden(const std::string& name) {
     return testing::sourcePath("tests/golden/metrics/" + name);
 }
 
+// The objects of a --json output, one a line.
+std::vector<nlohmann::json> jsonLines(const std::string& out) {
+    std::vector<nlohmann::json> objects;
+    std::istringstream in(out);
+    for (std::string line; std::getline(in, line);) objects.push_back(nlohmann::json::parse(line));
+    return objects;
+}
+
 TEST(Cli, MetricsJsonHasTheDocumentedKeys) {
     testing::TempDir dir;
     const RunResult r =
@@ -114,9 +122,7 @@ TEST(Cli, MetricsScoresSequencesFrameByFrameWithTheirFlicker) {
     }
     const RunResult r = run("metrics --json " + dir.file("ref/f_%04d.exr") + " " + dir.file("test"), dir);
     ASSERT_EQ(r.exitCode, 0) << r.err;
-    std::vector<nlohmann::json> lines;
-    std::istringstream in(r.out);
-    for (std::string line; std::getline(in, line);) lines.push_back(nlohmann::json::parse(line));
+    const std::vector<nlohmann::json> lines = jsonLines(r.out);
     ASSERT_EQ(lines.size(), 5u) << r.out;
     EXPECT_EQ(lines[0]["frame"].get<int>(), 7);
     EXPECT_TRUE(lines[0]["psnr"].is_null()) << "frame 7 is the truth itself";
@@ -244,11 +250,8 @@ TEST(Cli, BenchMetricsRunsSmallAndPrintsJson) {
     testing::TempDir dir;
     const RunResult r = run("bench metrics --size 64x48 --repeat 1 --threads 1 --json", dir);
     ASSERT_EQ(r.exitCode, 0) << r.err;
-    std::stringstream lines(r.out);
-    std::string line;
     int rows = 0;
-    while (std::getline(lines, line)) {
-        const nlohmann::json j = nlohmann::json::parse(line);
+    for (const nlohmann::json& j : jsonLines(r.out)) {
         EXPECT_GT(j["ms"].get<double>(), 0.0);
         EXPECT_GT(j["peak_gmacs"].get<double>(), 0.0);
         ++rows;
@@ -321,11 +324,8 @@ TEST(Cli, BenchRenderQuickPrintsFramesAndTruth) {
     testing::TempDir dir;
     const RunResult r = run("bench render --quick --repeat 1 --json", dir);
     ASSERT_EQ(r.exitCode, 0) << r.err;
-    std::stringstream lines(r.out);
-    std::string line;
     int frames = 0, truths = 0;
-    while (std::getline(lines, line)) {
-        const nlohmann::json j = nlohmann::json::parse(line);
+    for (const nlohmann::json& j : jsonLines(r.out)) {
         EXPECT_GT(j["ms"].get<double>(), 0.0);
         if (j.contains("tile_samples_saving")) {
             ++truths;
@@ -669,11 +669,8 @@ TEST(Cli, BenchFilterPrintsEveryMethod) {
     testing::TempDir dir;
     const RunResult r = run("bench filter --size 96x64 --repeat 1 --threads 1 --json", dir);
     ASSERT_EQ(r.exitCode, 0) << r.err;
-    std::stringstream lines(r.out);
-    std::string line;
     std::vector<std::string> names;
-    while (std::getline(lines, line)) {
-        const nlohmann::json j = nlohmann::json::parse(line);
+    for (const nlohmann::json& j : jsonLines(r.out)) {
         EXPECT_GT(j["ms"].get<double>(), 0.0);
         EXPECT_GT(j["floor_ms"].get<double>(), 0.0);
         names.push_back(j["name"].get<std::string>());
@@ -691,45 +688,42 @@ TEST(Cli, BenchStabilityChecksEveryKindWithinTolerance) {
             "--repeat 1 --training-steps 3 --model '" DEJAG_SOURCE_DIR "/models/dejag-fast.safetensors'",
             dir);
     ASSERT_EQ(r.exitCode, 0) << r.err;
-    std::stringstream lines(r.out);
-    std::string line;
     int kinds = 0;
     bool accumulation = false, denormals = false, determinism = false;
     int degenerate = 0;
-    while (std::getline(lines, line)) {
-        const nlohmann::json j = nlohmann::json::parse(line);
+    for (const nlohmann::json& j : jsonLines(r.out)) {
         if (j["kind"] == "accumulation") {
             accumulation = true;
             EXPECT_EQ(j["model"], "dejag-fast");
-            EXPECT_LE(j["normwise_relative_error"].get<double>(), 1e-5) << line;
+            EXPECT_LE(j["normwise_relative_error"].get<double>(), 1e-5) << j.dump();
             EXPECT_GT(j["normwise_relative_error"].get<double>(), 0.0)
-                << "float32 cannot equal double" << line;
+                << "float32 cannot equal double" << j.dump();
             continue;
         }
         if (j["kind"].get<std::string>().rfind("ssim degenerate: ", 0) == 0) {
             ++degenerate;
-            EXPECT_TRUE(j["passed"].get<bool>()) << line;
+            EXPECT_TRUE(j["passed"].get<bool>()) << j.dump();
             continue;
         }
         if (j["kind"] == "determinism") {
             determinism = true;
-            EXPECT_TRUE(j["training_repeatable"].get<bool>()) << line;
-            EXPECT_TRUE(j["inference_repeatable"].get<bool>()) << line;
-            EXPECT_LE(j["inference_across_threads"].get<double>(), 1e-5) << line;
-            EXPECT_LE(j["training_across_threads"].get<double>(), 1e-3) << line;
+            EXPECT_TRUE(j["training_repeatable"].get<bool>()) << j.dump();
+            EXPECT_TRUE(j["inference_repeatable"].get<bool>()) << j.dump();
+            EXPECT_LE(j["inference_across_threads"].get<double>(), 1e-5) << j.dump();
+            EXPECT_LE(j["training_across_threads"].get<double>(), 1e-3) << j.dump();
             continue;
         }
         if (j["kind"] == "denormals") {
             denormals = true;
-            EXPECT_GT(j["normal_ms"].get<double>(), 0.0) << line;
-            EXPECT_GT(j["denormal_ms"].get<double>(), 0.0) << line;
+            EXPECT_GT(j["normal_ms"].get<double>(), 0.0) << j.dump();
+            EXPECT_GT(j["denormal_ms"].get<double>(), 0.0) << j.dump();
             continue;
         }
         ++kinds;
-        EXPECT_EQ(j["configurations"], 10) << line;
-        EXPECT_GT(j["coordinates"].get<int>(), 0) << line;
-        EXPECT_LE(j["worst_gradient_error"].get<double>(), 1e-6) << line;
-        EXPECT_EQ(j["over_tolerance"], 0) << line;
+        EXPECT_EQ(j["configurations"], 10) << j.dump();
+        EXPECT_GT(j["coordinates"].get<int>(), 0) << j.dump();
+        EXPECT_LE(j["worst_gradient_error"].get<double>(), 1e-6) << j.dump();
+        EXPECT_EQ(j["over_tolerance"], 0) << j.dump();
     }
     EXPECT_EQ(kinds, 9);
     EXPECT_TRUE(accumulation);
@@ -748,12 +742,9 @@ TEST(Cli, BenchTaaReproducesTheThesisProtocolsSmall) {
                 dir.file("maps") + "'",
             dir);
     ASSERT_EQ(r.exitCode, 0) << r.err;
-    std::stringstream lines(r.out);
-    std::string line;
     int statics = 0, ghosts = 0, moving = 0;
     std::set<std::string> staticMethods, ghostMethods;
-    while (std::getline(lines, line)) {
-        const nlohmann::json j = nlohmann::json::parse(line);
+    for (const nlohmann::json& j : jsonLines(r.out)) {
         if (j["test"] == "static") {
             ++statics;
             staticMethods.insert(j["method"].get<std::string>());
@@ -792,11 +783,8 @@ TEST(Cli, BenchTaaRunsTheScenesItIsGiven) {
             "--moving-frames 2 --scenes flowers,blinds --moving-scenes flowers,blinds --json",
             dir);
     ASSERT_EQ(r.exitCode, 0) << r.err;
-    std::stringstream lines(r.out);
-    std::string line;
     std::set<std::string> seen;
-    while (std::getline(lines, line)) {
-        const nlohmann::json j = nlohmann::json::parse(line);
+    for (const nlohmann::json& j : jsonLines(r.out)) {
         seen.insert(j["test"].get<std::string>() + " " + j["scene"].get<std::string>());
     }
     EXPECT_EQ(seen,
@@ -829,15 +817,13 @@ TEST(Cli, TrainLogsJsonResumesAndExportsAModelCard) {
         "--val-images 2 --quiet --json";
     RunResult r = run(train, dir);
     ASSERT_EQ(r.exitCode, 0) << r.err;
-    std::stringstream lines(r.out);
-    std::string line;
     int evaluations = 0;
     nlohmann::json last;
-    while (std::getline(lines, line)) {
-        last = nlohmann::json::parse(line);
+    for (const nlohmann::json& j : jsonLines(r.out)) {
+        last = j;
         if (last["event"] == "evaluation") {
             ++evaluations;
-            EXPECT_TRUE(last.contains("psnr_whole") && last.contains("baseline_psnr_FXAA")) << line;
+            EXPECT_TRUE(last.contains("psnr_whole") && last.contains("baseline_psnr_FXAA")) << last.dump();
         }
     }
     EXPECT_EQ(evaluations, 2);
@@ -899,11 +885,8 @@ TEST(Cli, DemoRunsEveryMethodAndWritesTheReport) {
     ASSERT_EQ(r.exitCode, 0) << r.err;
     EXPECT_NE(r.err.find("missing.safetensors not found"), std::string::npos) << r.err;
     std::set<std::string> methods;
-    std::stringstream lines(r.out);
-    std::string line;
     int rows = 0;
-    while (std::getline(lines, line)) {
-        const nlohmann::json j = nlohmann::json::parse(line);
+    for (const nlohmann::json& j : jsonLines(r.out)) {
         methods.insert(j["method"].get<std::string>());
         ++rows;
         if (j["method"] == "no AA" && j["scene"] != "mean") {
