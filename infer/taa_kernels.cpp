@@ -334,7 +334,6 @@ class Band {
         const float *colour, *motion, *depth, *albedo, *ids, *previousDepth, *history, *sobelHistory;
         float *nextHistory, *nextSobelHistory, *out;
         size_t planeFloats;
-        bool improved;
     };
     Ahead ahead(int y) const {
         const int input = std::min(y + 2, H_ - 1), history = std::min(y + 1, H_ - 1);
@@ -342,7 +341,7 @@ class Band {
         Ahead a;
         a.colour = in_.colour + 3 * i, a.motion = in_.motion + 2 * i, a.depth = in_.depth + i;
         a.history = in_.history + h, a.nextHistory = in_.nextHistory + h;
-        a.planeFloats = in_.planeFloats, a.improved = in_.improved;
+        a.planeFloats = in_.planeFloats;
         a.out = in_.out + 3 * size_t(std::max(y - 1, 0)) * size_t(W_);  // the row the sharpen writes next
         a.albedo = a.ids = a.previousDepth = a.sobelHistory = nullptr, a.nextSobelHistory = nullptr;
         if (in_.improved) {
