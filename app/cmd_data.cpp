@@ -13,9 +13,10 @@ namespace {
 
 struct GenerateArguments {
     std::string families = "all", testFamilies = "default", size = "256x256", out;
-    int count = 0, truth = 128, workers = 2;
+    int count = 0, truth = 128, workers = 2, sequenceLength = 1;
+    double jitterSpread = 1.0;
     uint64_t seed = 1;
-    bool adaptive = false, listFamilies = false, json = false, quiet = false;
+    bool adaptive = false, listFamilies = false, json = false, quiet = false, jitterSpreadGiven = false;
     RuntimeOptions runtime;
 };
 
@@ -48,6 +49,10 @@ void runGenerate(const GenerateArguments& args) {
     spec.truthSamples = args.truth;
     spec.adaptive = args.adaptive;
     spec.seed = args.seed;
+    spec.sequenceLength = args.sequenceLength;
+    spec.jitterSpread = args.jitterSpread;
+    if (args.jitterSpreadGiven && !spec.sequences())
+        throw Error("--jitter-spread jitters sequences only (give --sequence-length 2 or more)");
     data::GenerateOptions options;
     options.workers = args.workers;
     options.quiet = args.quiet || args.json;
@@ -92,6 +97,15 @@ void registerDataCommand(CLI::App& app) {
     generate->add_option("--workers", args->workers, "worker processes, one OpenGL context each")
         ->capture_default_str();
     generate->add_option("--seed", args->seed, "dataset seed")->capture_default_str();
+    generate
+        ->add_option("--sequence-length", args->sequenceLength,
+                     "frames per item: 2 or more makes sequences of a moving camera, jittered, each frame "
+                     "with its own truth")
+        ->capture_default_str();
+    generate->add_option_function<double>(
+        "--jitter-spread",
+        [args](double spread) { args->jitterSpread = spread, args->jitterSpreadGiven = true; },
+        "sequences: Halton jitter spread in pixels (1: within the pixel, the truth's box) [1]");
     generate->add_flag("--list-families", args->listFamilies, "print the families and exit");
     generate->add_flag("--json", args->json, "print a JSON summary");
     generate->add_flag("--quiet", args->quiet, "no progress bar or summary");
@@ -101,7 +115,9 @@ void registerDataCommand(CLI::App& app) {
         "seed, split, camera, sample counts, size, checksums) and DIR/items/FAMILY/ID_input.exr (R G B,\n"
         "albedo, depth, motion, id of the aliased frame) + ID_truth.exr. Test split: whole families held "
         "out;\n"
-        "validation: a tenth of the other items by seed. Interrupted? Run the same command again.");
+        "validation: a tenth of the other items by seed. Interrupted? Run the same command again.\n"
+        "With --sequence-length K: DIR/items/FAMILY/ID/frame_NNNN.exr (+ prevdepth), truth_NNNN.exr and\n"
+        "render.json (jitter, cuts, cameras), a folder dejag filter reads as a sequence (docs/data.md).");
     generate->callback([args] { runGenerate(*args); });
 
     auto folder = std::make_shared<std::string>();
@@ -187,6 +203,23 @@ void registerDataCommand(CLI::App& app) {
         }
         std::printf("%d items; aliased PSNR median %.2f dB\n", s["items"].get<int>(),
                     s["aliased_psnr"]["median"].get<double>());
+        if (s.contains("motion")) {
+            std::printf("\n%-13s %9s %10s %10s %9s %11s %5s\n", "sequences", "count", "px/frame", "max px",
+                        "moving", "disoccluded", "cuts");
+            auto line = [](const std::string& name, const nlohmann::json& m) {
+                std::printf("%-13s %9d %10.2f %10.2f %8.1f%% %10.1f%% %5d\n", name.c_str(),
+                            m["sequences"].get<int>(), m["mean_speed"].get<double>(),
+                            m["max_speed"].get<double>(), 100 * m["moving_fraction"].get<double>(),
+                            100 * m["disoccluded_fraction"].get<double>(), m["cuts"].get<int>());
+            };
+            for (const auto& [family, f] : s["families"].items())
+                if (f.contains("motion")) line(family, f["motion"]);
+            line("all", s["motion"]);
+            std::string moves;
+            for (const auto& [kind, n] : s["motion"]["moves"].items())
+                moves += (moves.empty() ? "" : ", ") + kind + " " + std::to_string(n.get<int>());
+            std::printf("camera moves: %s\n", moves.c_str());
+        }
         if (const nlohmann::json& flat = s["flat_items"]; !flat.empty()) {
             std::string list;
             for (size_t i = 0; i < flat.size() && i < 10; ++i)

@@ -206,6 +206,10 @@ void runFilter(FilterArguments& args, const std::string& methods) {
                 f["jitter_pixels"][0].is_number() && f["jitter_pixels"][1].is_number())
                 jitters[f["file"].get<std::string>()] = {f["jitter_pixels"][0].get<float>(),
                                                          f["jitter_pixels"][1].get<float>()};
+    // A sequence of a dataset (dejag data generate --sequence-length) lists its cuts beside its frames.
+    if (temporal && sidecar.is_object() && sidecar.contains("cuts") && sidecar["cuts"].is_array())
+        for (const nlohmann::json& cut : sidecar["cuts"])
+            if (cut.is_number_integer() && cut.get<long>() >= 0) cuts.insert(cut.get<long>());
     const bool usesDepth = (filter->uses() & (infer::Buffer::Depth | infer::Buffer::PreviousDepth)) != 0;
     double far = args.depthFar;
     std::string farSource = "--depth-far";

@@ -25,6 +25,7 @@
 #include "data/frame_image.h"
 #include "data/image.h"
 #include "render/gl.h"
+#include "render/halton.h"
 #include "render/renderer.h"
 #include "render/scene.h"
 
@@ -97,18 +98,25 @@ void DatasetSpec::validate() const {
         throw Error("--truth must be 1..4096 samples, not " + std::to_string(truthSamples));
     if (!(validationFraction >= 0 && validationFraction < 1))
         throw Error("the validation fraction must be in [0, 1)");
+    if (sequenceLength < 1 || sequenceLength > 1000)
+        throw Error("--sequence-length must be 1..1000 frames, not " + std::to_string(sequenceLength));
+    if (!(jitterSpread >= 0 && jitterSpread <= 4))
+        throw Error("--jitter-spread must be 0..4 pixels, not " + std::to_string(jitterSpread));
 }
 
 json DatasetSpec::toJson() const {
-    return {{"format", "dejag-dataset-1"},
-            {"families", families},
-            {"test_families", testFamilies},
-            {"count", count},
-            {"size", {width, height}},
-            {"truth_samples", truthSamples},
-            {"adaptive", adaptive},
-            {"seed", seed},
-            {"validation_fraction", validationFraction}};
+    json j = {{"format", "dejag-dataset-1"},
+              {"families", families},
+              {"test_families", testFamilies},
+              {"count", count},
+              {"size", {width, height}},
+              {"truth_samples", truthSamples},
+              {"adaptive", adaptive},
+              {"seed", seed},
+              {"validation_fraction", validationFraction}};
+    if (sequences())
+        j["sequence"] = {{"length", sequenceLength}, {"jitter", "halton16"}, {"jitter_spread", jitterSpread}};
+    return j;
 }
 
 DatasetSpec DatasetSpec::fromJson(const json& j) {
@@ -124,6 +132,13 @@ DatasetSpec DatasetSpec::fromJson(const json& j) {
         s.adaptive = j.at("adaptive").get<bool>();
         s.seed = j.at("seed").get<uint64_t>();
         s.validationFraction = j.at("validation_fraction").get<double>();
+        if (j.contains("sequence")) {
+            const json& q = j.at("sequence");
+            s.sequenceLength = q.at("length").get<int>();
+            s.jitterSpread = q.at("jitter_spread").get<double>();
+            if (q.at("jitter") != "halton16") throw Error("unknown jitter " + q.at("jitter").dump());
+            if (s.sequenceLength < 2) throw Error("a sequence needs at least 2 frames");
+        }
     } catch (const json::exception& e) {
         throw Error(std::string("dataset.json is not a dejag dataset description: ") + e.what());
     }
@@ -165,7 +180,28 @@ ItemPlan planItem(const DatasetSpec& spec, int index) {
         std::find(spec.testFamilies.begin(), spec.testFamilies.end(), p.family) != spec.testFamilies.end();
     const double draw = double(mix(p.seed ^ 0x5EEDull) >> 11) * 0x1.0p-53;
     p.split = test ? Split::Test : draw < spec.validationFraction ? Split::Validation : Split::Train;
+    if (spec.sequences()) {
+        // From a state of its own, so that the draws above are those of a single-frame dataset.
+        uint64_t moves = p.seed ^ 0x5E9ull;
+        const double kind = uniform(moves, 0, 1);
+        p.move.kind = kind < 0.15 ? "still" : kind < 0.5 ? "pan" : kind < 0.8 ? "orbit" : "dolly";
+        // Log-uniform from a tenth of a pixel to 8 pixels a frame.
+        const double speed = std::exp(uniform(moves, std::log(0.1), std::log(8.0)));
+        p.move.speed = p.move.kind == "still" ? 0.0 : speed;
+        p.move.direction = uniform(moves, 0, 2 * 3.14159265358979323846);
+        p.move.timeStep = uniform(moves, 0, 1) < 0.6 ? 1.0 : 0.0;
+        const bool cut = uniform(moves, 0, 1) < 0.15 && spec.sequenceLength >= 4;
+        const int at = int(uniform(moves, spec.sequenceLength / 4.0, 3.0 * spec.sequenceLength / 4.0));
+        p.move.cut = cut ? std::clamp(at, 1, spec.sequenceLength - 1) : -1;
+        p.move.jitterStart = int(uniform(moves, 0, 16));
+    }
     return p;
+}
+
+std::string ItemPlan::sequenceFile(const char* stem, int frame) const {
+    char name[64];
+    std::snprintf(name, sizeof name, "/%s_%04d.exr", stem, frame);
+    return sequenceFolder() + name;
 }
 
 std::string fileChecksum(const std::string& path) {
@@ -229,6 +265,238 @@ json fileRecord(const std::string& folder, const std::string& relative) {
     return {{"path", relative}, {"bytes", fs::file_size(path)}, {"checksum", fileChecksum(path)}};
 }
 
+// Edge pixels of an aliased frame (an ID or a depth jump of > 5 % to the right or below) and its squared
+// error against the truth, summed over pixels and channels.
+struct FrameMeasures {
+    int64_t edges = 0;
+    double squared = 0;
+};
+FrameMeasures measureFrame(const Image& input, const Image& truth) {
+    FrameMeasures m;
+    const int id = input.findChannel("id.ID"), depth = input.findChannel("depth.Z"),
+              r = input.findChannel("R");
+    for (int y = 0; y < input.height; ++y)
+        for (int x = 0; x < input.width; ++x) {
+            bool edge = false;
+            for (const auto& [dx, dy] : {std::pair{1, 0}, std::pair{0, 1}}) {
+                if (x + dx >= input.width || y + dy >= input.height) continue;
+                const float d0 = input.at(x, y, depth), d1 = input.at(x + dx, y + dy, depth);
+                edge = edge || input.at(x, y, id) != input.at(x + dx, y + dy, id) ||
+                       std::abs(d0 - d1) > 0.05f * std::min(d0, d1);
+            }
+            m.edges += edge;
+            for (int c = 0; c < 3; ++c) {
+                const double d = double(input.at(x, y, r + c)) - double(truth.at(x, y, c));
+                m.squared += d * d;
+            }
+        }
+    return m;
+}
+
+// What a frame's motion vectors say (docs/data.md): the speeds, the pixels that move, and the pixels
+// whose history is disoccluded — its place in the previous frame (p - motion, nearest pixel) is off
+// screen, or its depth lies more than 10 % outside the previous depths of the 3x3 there.
+struct MotionMeasures {
+    double speedSum = 0, speedMax = 0;
+    int64_t moving = 0, disoccluded = 0, pixels = 0;
+    void add(const Image& frame) {
+        const int mx = frame.findChannel("motion.X"), my = frame.findChannel("motion.Y"),
+                  depth = frame.findChannel("depth.Z"), previous = frame.findChannel("prevdepth.Z");
+        const int W = frame.width, H = frame.height;
+        for (int y = 0; y < H; ++y)
+            for (int x = 0; x < W; ++x) {
+                const double vx = frame.at(x, y, mx), vy = frame.at(x, y, my);
+                const double speed = std::sqrt(vx * vx + vy * vy);
+                speedSum += speed, speedMax = std::max(speedMax, speed);
+                moving += speed > 0.01;
+                ++pixels;
+                const double px = std::floor(x + 0.5 - vx), py = std::floor(y + 0.5 - vy);
+                bool rejected = !(px >= 0 && px < W && py >= 0 && py < H);
+                if (!rejected) {
+                    float lo = 1e30f, hi = 0;
+                    for (int dy = -1; dy <= 1; ++dy)
+                        for (int dx = -1; dx <= 1; ++dx) {
+                            const float d = frame.at(std::clamp(int(px) + dx, 0, W - 1),
+                                                     std::clamp(int(py) + dy, 0, H - 1), previous);
+                            lo = std::min(lo, d), hi = std::max(hi, d);
+                        }
+                    const float d = frame.at(x, y, depth);
+                    rejected = d < 0.9f * lo || d > 1.1f * hi;
+                }
+                disoccluded += rejected;
+            }
+    }
+};
+
+// The camera of frame `frame` of a sequence: the item's own view (`base`, at the scene time of that
+// frame) moved as `move` says for the frames since its shot began. The second shot of a cut looks from
+// another side, at another scene time.
+render::CameraPose movedCamera(const std::function<render::CameraPose(double)>& base, const ItemPlan& plan,
+                               int height, double frame) {
+    const ItemPlan::Move& move = plan.move;
+    const bool second = move.cut >= 0 && frame >= move.cut;
+    const double since = second ? frame - move.cut : frame;
+    const double sceneTime = plan.time + move.timeStep * frame + (second ? 37.0 : 0.0);
+    render::CameraPose pose = base ? base(sceneTime) : render::CameraPose();
+    if (second) {
+        const render::Vec3 offset = pose.eye - pose.target;
+        const double turn = std::cos(move.direction) >= 0 ? 0.6 : -0.6;
+        pose.eye = pose.target + render::Mat4::rotation(pose.up, turn).transformDirection(offset);
+    }
+    const render::Vec3 offset = pose.eye - pose.target;
+    const double distance = render::length(offset);
+    const double pixel = 2 * distance * std::tan(pose.fovY / 2) / height;  // at the target's distance
+    const render::Vec3 forward = render::normalize(pose.target - pose.eye);
+    const render::Vec3 right = render::normalize(render::cross(forward, pose.up));
+    const render::Vec3 up = render::cross(right, forward);
+    const double travel = move.speed * pixel * since;
+    const double way = std::cos(move.direction) >= 0 ? 1.0 : -1.0;
+    if (move.kind == "pan") {
+        const render::Vec3 shift =
+            (right * std::cos(move.direction) + up * std::sin(move.direction)) * travel;
+        pose.eye = pose.eye + shift, pose.target = pose.target + shift;
+    } else if (move.kind == "orbit") {
+        const double angle = way * travel / distance;
+        pose.eye = pose.target + (-forward * std::cos(angle) + right * std::sin(angle)) * distance;
+    } else if (move.kind == "dolly") {
+        // `speed` pixels a frame at the top and bottom edges: the distance changes by speed / (H / 2)
+        // of itself a frame, towards the target or away, never nearer than 0.3 of it.
+        const double scale = std::max(0.3, 1.0 - way * move.speed / (height / 2.0) * since);
+        pose.eye = pose.target + offset * scale;
+    }
+    return pose;
+}
+
+// A sequence item (spec.sequences()): its K frames, their truths and render.json; its manifest record.
+json renderSequence(const render::GlContext& context, const DatasetSpec& spec, const ItemPlan& plan,
+                    const std::string& folder, render::Scene scene, const render::SceneOptions& options) {
+    const ItemPlan::Move& move = plan.move;
+    const int K = spec.sequenceLength;
+    // The renderer's time is the frame number; the scene's own animation and the camera follow from it.
+    auto sceneTime = [plan](double frame) {
+        const bool second = plan.move.cut >= 0 && frame >= plan.move.cut;
+        return plan.time + plan.move.timeStep * frame + (second ? 37.0 : 0.0);
+    };
+    for (render::SceneObject& o : scene.objects)
+        if (o.transform)
+            o.transform = [f = o.transform, sceneTime](double frame) { return f(sceneTime(frame)); };
+    scene.camera = [base = scene.camera, plan, H = spec.height](double frame) {
+        return movedCamera(base, plan, H, frame);
+    };
+
+    render::Renderer renderer(context, scene, spec.width, spec.height);
+    render::TruthOptions truthOptions;
+    truthOptions.samples = spec.truthSamples;
+    truthOptions.adaptive = spec.adaptive;
+    fs::create_directories(fs::path(folder) / plan.sequenceFolder());
+    auto vec = [](const render::Vec3& v) { return json{v.x, v.y, v.z}; };
+    json frames = json::array(), files = json::object();
+    FrameMeasures measures;
+    MotionMeasures motion;
+    int truthSamples = 0;
+    int64_t truthTileSamples = 0;
+    for (int k = 0; k < K; ++k) {
+        const bool cut = k == move.cut;
+        const unsigned point = unsigned(move.jitterStart + k);
+        render::FrameRequest request;
+        request.time = k;
+        request.previousTime = cut ? k : k - 1;  // a cut: no previous frame of this view
+        request.jitter = render::jitterPixels(point % 16, spec.jitterSpread);
+        request.previousJitter = render::jitterPixels((point + 15) % 16, spec.jitterSpread);
+        request.buffers = render::BufferSet::parse("color,albedo,depth,motion,id,prevdepth");
+        const Image input = imageFromFrame(renderer.render(request));
+        render::TruthStats stats;
+        const Image truth = imageFromFrame(renderer.renderTruth(k, truthOptions, &stats));
+        truthSamples = std::max(truthSamples, stats.samples);
+        truthTileSamples += stats.tileSamples;
+        const FrameMeasures m = measureFrame(input, truth);
+        measures.edges += m.edges, measures.squared += m.squared;
+        if (!cut) motion.add(input);
+        const std::string frameFile = plan.sequenceFile("frame", k),
+                          truthFile = plan.sequenceFile("truth", k);
+        writeImage((fs::path(folder) / frameFile).string(), input);
+        writeImage((fs::path(folder) / truthFile).string(), truth);
+        char key[32];
+        std::snprintf(key, sizeof key, "frame_%04d", k);
+        files[key] = fileRecord(folder, frameFile);
+        std::snprintf(key, sizeof key, "truth_%04d", k);
+        files[key] = fileRecord(folder, truthFile);
+        const render::CameraPose pose = scene.cameraAt(k);
+        frames.push_back(
+            {{"index", k},
+             {"time", k},
+             {"scene_time", sceneTime(k)},
+             {"file", fs::path(frameFile).filename().string()},
+             {"truth", {{"file", fs::path(truthFile).filename().string()}, {"samples", stats.samples}}},
+             {"jitter_pixels", {request.jitter.x, -request.jitter.y}},
+             {"cut", cut},
+             {"camera",
+              {{"eye", vec(pose.eye)},
+               {"target", vec(pose.target)},
+               {"up", vec(pose.up)},
+               {"fov_y_degrees", pose.fovY * 180.0 / render::kPi}}}});
+    }
+    const json moveJson = {
+        {"kind", move.kind},          {"speed", move.speed}, {"direction", move.direction},
+        {"time_step", move.timeStep}, {"cut", move.cut},     {"jitter_start", move.jitterStart}};
+    // Beside the frames, what dejag filter reads of a dejag render folder (the jitter of each frame, the
+    // far plane, the cuts) and what the frames are.
+    json sidecar = {
+        {"scene", plan.scene},
+        {"family", plan.family},
+        {"size", {spec.width, spec.height}},
+        {"seed", plan.seed},
+        {"jitter",
+         {{"mode", "halton16"},
+          {"spread", spec.jitterSpread},
+          {"start", move.jitterStart},
+          {"sequence", "Halton(2,3), base-3 digits 1<->2 scrambled"}}},
+        {"move", moveJson},
+        {"channels", render::BufferSet::all().channelNames()},
+        {"depth_far", scene.far},
+        {"cuts", move.cut >= 0 ? json::array({move.cut}) : json::array()},
+        {"truth", {{"samples", spec.truthSamples}, {"adaptive", spec.adaptive}, {"filter", "box"}}},
+        {"frames", frames}};
+    const std::string renderFile = plan.sequenceFolder() + "/render.json";
+    writeTextFileAtomically((fs::path(folder) / renderFile).string(), sidecar.dump(2) + "\n");
+    files["render"] = fileRecord(folder, renderFile);
+
+    const double pixels = double(spec.width) * double(spec.height) * K;
+    const double mse = measures.squared / (3.0 * pixels);
+    const render::CameraPose pose = scene.cameraAt(0);
+    const double counted = std::max<int64_t>(motion.pixels, 1);
+    return {{"index", plan.index},
+            {"id", plan.id},
+            {"family", plan.family},
+            {"scene", plan.scene},
+            {"seed", plan.seed},
+            {"split", splitName(plan.split)},
+            {"time", plan.time},
+            {"size", {spec.width, spec.height}},
+            {"camera",
+             {{"eye", vec(pose.eye)},
+              {"target", vec(pose.target)},
+              {"up", vec(pose.up)},
+              {"fov_y", pose.fovY},
+              {"tilted", options.tiltedCamera}}},
+            {"sampler", render::samplerName(options.sampler)},
+            {"light", vec(scene.lightDirection)},
+            {"samples",
+             {{"input", 1},
+              {"truth", truthSamples},
+              {"truth_tile_samples", truthTileSamples},
+              {"adaptive", spec.adaptive}}},
+            {"edge_fraction", double(measures.edges) / pixels},
+            {"aliased_psnr", mse > 0 ? 10 * std::log10(1.0 / mse) : 999.0},
+            {"sequence", {{"length", K}, {"move", moveJson}}},
+            {"motion",
+             {{"mean_speed", motion.speedSum / counted},
+              {"max_speed", motion.speedMax},
+              {"moving_fraction", double(motion.moving) / counted},
+              {"disoccluded_fraction", double(motion.disoccluded) / counted}}},
+            {"files", files}};
+}
+
 }  // namespace
 
 json ItemRenderer::render(const DatasetSpec& spec, const ItemPlan& plan, const std::string& folder) {
@@ -244,6 +512,9 @@ json ItemRenderer::render(const DatasetSpec& spec, const ItemPlan& plan, const s
     render::Scene scene = render::buildScene(plan.scene, options);
     vary(scene, plan.seed);
 
+    if (spec.sequences())
+        return renderSequence(*impl_->context, spec, plan, folder, std::move(scene), options);
+
     render::Renderer renderer(*impl_->context, scene, spec.width, spec.height);
     render::FrameRequest request;
     request.time = plan.time, request.previousTime = plan.time - 1;
@@ -255,27 +526,10 @@ json ItemRenderer::render(const DatasetSpec& spec, const ItemPlan& plan, const s
     render::TruthStats stats;
     const Image truth = imageFromFrame(renderer.renderTruth(plan.time, truthOptions, &stats));
 
-    // Edge pixels (an ID or a depth jump of > 5 % to the right or below) and the aliased frame's PSNR.
-    int64_t edges = 0;
-    double squared = 0;
-    const int id = input.findChannel("id.ID"), depth = input.findChannel("depth.Z"),
-              r = input.findChannel("R");
-    for (int y = 0; y < input.height; ++y)
-        for (int x = 0; x < input.width; ++x) {
-            bool edge = false;
-            for (const auto& [dx, dy] : {std::pair{1, 0}, std::pair{0, 1}}) {
-                if (x + dx >= input.width || y + dy >= input.height) continue;
-                const float d0 = input.at(x, y, depth), d1 = input.at(x + dx, y + dy, depth);
-                edge = edge || input.at(x, y, id) != input.at(x + dx, y + dy, id) ||
-                       std::abs(d0 - d1) > 0.05f * std::min(d0, d1);
-            }
-            edges += edge;
-            for (int c = 0; c < 3; ++c) {
-                const double d = double(input.at(x, y, r + c)) - double(truth.at(x, y, c));
-                squared += d * d;
-            }
-        }
-    const double mse = squared / (3.0 * double(input.pixelCount()));
+    // Edge pixels and the aliased frame's PSNR.
+    const FrameMeasures measures = measureFrame(input, truth);
+    const int64_t edges = measures.edges;
+    const double mse = measures.squared / (3.0 * double(input.pixelCount()));
 
     fs::create_directories(fs::path(folder) / "items" / plan.family);
     writeImage((fs::path(folder) / plan.inputFile()).string(), input);
@@ -333,17 +587,32 @@ std::string recordProblem(const json& r) {
         r["size"][1].get<int64_t>() < 1 || r["size"][0].get<int64_t>() > 65536 ||
         r["size"][1].get<int64_t>() > 65536)
         return "'size' is not [width, height]";
-    if (!has(r, "files", &json::is_object)) return "'files' is not an object";
-    for (const char* which : {"input", "truth"}) {
-        if (!has(r["files"], which, &json::is_object)) return std::string("'files.") + which + "' is missing";
-        const json& f = r["files"][which];
-        if (!has(f, "path", &json::is_string) || !has(f, "bytes", &json::is_number_unsigned) ||
-            !has(f, "checksum", &json::is_string))
-            return std::string("'files.") + which + "' needs path, bytes and checksum";
+    if (!has(r, "files", &json::is_object) || r["files"].empty()) return "'files' is not an object";
+    if (r.contains("sequence")) {
+        const json& q = r["sequence"];
+        if (!q.is_object() || !has(q, "length", &json::is_number_integer) ||
+            !has(q, "move", &json::is_object) || !has(q["move"], "kind", &json::is_string) ||
+            !has(q["move"], "cut", &json::is_number_integer))
+            return "'sequence' needs length and move (kind, cut)";
+        if (!has(r, "motion", &json::is_object)) return "'motion' is not an object";
+        for (const char* key : {"mean_speed", "max_speed", "moving_fraction", "disoccluded_fraction"})
+            if (!has(r["motion"], key, &json::is_number))
+                return std::string("'motion.") + key + "' is not a number";
+    }
+    // A single frame has its input and truth; a sequence (a record with "sequence") its frames, their
+    // truths and render.json, by any names.
+    if (!r.contains("sequence"))
+        for (const char* which : {"input", "truth"})
+            if (!has(r["files"], which, &json::is_object))
+                return std::string("'files.") + which + "' is missing";
+    for (const auto& [which, f] : r["files"].items()) {
+        if (!f.is_object() || !has(f, "path", &json::is_string) ||
+            !has(f, "bytes", &json::is_number_unsigned) || !has(f, "checksum", &json::is_string))
+            return "'files." + which + "' needs path, bytes and checksum";
         const fs::path path(f["path"].get<std::string>());
         if (path.empty() || path.is_absolute() ||
             std::any_of(path.begin(), path.end(), [](const fs::path& part) { return part == ".."; }))
-            return std::string("'files.") + which + ".path' is not a path inside the dataset";
+            return "'files." + which + ".path' is not a path inside the dataset";
     }
     return {};
 }
@@ -384,8 +653,7 @@ void writeManifest(const std::string& folder, std::vector<json> records) {
 }
 
 bool filesPresent(const std::string& folder, const json& record) {
-    for (const char* which : {"input", "truth"}) {
-        const json& f = record["files"][which];
+    for (const json& f : record["files"]) {
         const fs::path path = fs::path(folder) / f["path"].get<std::string>();
         std::error_code ec;
         if (!fs::is_regular_file(path, ec) || fs::file_size(path, ec) != f["bytes"].get<uintmax_t>())
@@ -604,8 +872,11 @@ VerifyReport verifyDataset(const std::string& folder) {
         if (r.value("family", std::string()) != plan.family ||
             r.value("split", std::string()) != splitName(plan.split))
             report.problems.push_back("item " + id + ": family or split differs from the dataset's plan");
-        for (const char* which : {"input", "truth"}) {
-            const json& f = r["files"][which];
+        if (r.contains("sequence") != spec.sequences())
+            report.problems.push_back("item " + id +
+                                      (spec.sequences() ? ": a single frame in a dataset of sequences"
+                                                        : ": a sequence in a dataset of single frames"));
+        for (const json& f : r["files"]) {
             const std::string relative = f.value("path", std::string());
             referenced.insert(relative);
             const fs::path path = fs::path(folder) / relative;
@@ -643,9 +914,38 @@ json datasetStats(const std::string& folder) {
     std::map<std::string, std::vector<double>> psnr;           // family -> aliased PSNRs
     std::map<std::string, double> edges;
     json flat = json::array();
+    // Sequences: per family (and "all") the sums and counts behind the motion statistics.
+    struct MotionTally {
+        int sequences = 0, cuts = 0;
+        double meanSpeed = 0, maxSpeed = 0, moving = 0, disoccluded = 0;
+        std::map<std::string, int> moves;
+        void add(const json& r) {
+            ++sequences;
+            const json& m = r["motion"];
+            meanSpeed += m["mean_speed"].get<double>(),
+                maxSpeed = std::max(maxSpeed, m["max_speed"].get<double>());
+            moving += m["moving_fraction"].get<double>(),
+                disoccluded += m["disoccluded_fraction"].get<double>();
+            cuts += r["sequence"]["move"]["cut"].get<int>() >= 0;
+            ++moves[r["sequence"]["move"]["kind"].get<std::string>()];
+        }
+        json toJson() const {
+            const double n = std::max(sequences, 1);
+            return {{"sequences", sequences},
+                    {"mean_speed", meanSpeed / n},
+                    {"max_speed", maxSpeed},
+                    {"moving_fraction", moving / n},
+                    {"disoccluded_fraction", disoccluded / n},
+                    {"cuts", cuts},
+                    {"moves", moves}};
+        }
+    };
+    std::map<std::string, MotionTally> motion;
+    MotionTally allMotion;
     for (const json& r : records) {
         const std::string family = r["family"], split = r["split"];
         ++counts[family][split];
+        if (r.contains("sequence")) motion[family].add(r), allMotion.add(r);
         if (r["aliased_psnr"].get<double>() >= kFlatItemPsnr)
             flat.push_back(
                 {{"id", r["id"]}, {"family", family}, {"split", split}, {"aliased_psnr", r["aliased_psnr"]}});
@@ -671,12 +971,14 @@ json datasetStats(const std::string& folder) {
                                    {"splits", bySplit},
                                    {"edge_fraction", edges[family] / total},
                                    {"aliased_psnr", summary(psnr[family])}};
+        if (motion.count(family)) out["families"][family]["motion"] = motion[family].toJson();
         all.insert(all.end(), psnr[family].begin(), psnr[family].end());
     }
     out["items"] = records.size();
     out["splits"] = splits;
     out["aliased_psnr"] = summary(all);
     out["flat_items"] = flat;
+    if (allMotion.sequences > 0) out["motion"] = allMotion.toJson();
     return out;
 }
 

@@ -3,7 +3,8 @@
 // A dataset folder holds dataset.json (the arguments that define it), manifest.jsonl (one record per
 // complete item, sorted by index once generation finishes) and items/FAMILY/ID_input.exr (lit colour +
 // albedo, depth, motion, IDs of the aliased frame: unjittered, one sample per pixel) and ID_truth.exr
-// (the accumulated truth of the same pose). Items are independent: item i's scene, camera, light,
+// (the accumulated truth of the same pose); or, for a sequence dataset, items/FAMILY/ID/ with the
+// jittered frames of one camera move and their truths. Items are independent: item i's scene, camera, light,
 // colours and time come from hash(seed, i) and its family from i, so a dataset renders the same on any
 // number of workers and in any order.
 #pragma once
@@ -38,6 +39,12 @@ struct DatasetSpec {
     bool adaptive = true;
     uint64_t seed = 1;
     double validationFraction = 0.1;  // of the non-test items, chosen by item seed
+    // Sequences: with sequenceLength K >= 2 an item is K consecutive frames of a moving camera (and
+    // moving objects), each jittered by a Halton(2,3) point of this spread in pixels and with the truth of
+    // its own pose (docs/data.md, "Sequences"). 1: single unjittered frames.
+    int sequenceLength = 1;
+    double jitterSpread = 1.0;
+    bool sequences() const { return sequenceLength > 1; }
 
     // Throws dejag::Error for an unknown family, count < 1, a bad size or sample count.
     void validate() const;
@@ -55,9 +62,24 @@ struct ItemPlan {
     std::string family, scene;
     uint64_t seed = 0;
     Split split = Split::Train;
-    double time = 0;  // scene time (animated scenes)
+    double time = 0;  // scene time (animated scenes); a sequence's first frame
     std::string inputFile() const { return "items/" + family + "/" + id + "_input.exr"; }
     std::string truthFile() const { return "items/" + family + "/" + id + "_truth.exr"; }
+
+    // Sequences only: how the camera moves over the K frames, in pixels a frame at its target's distance.
+    struct Move {
+        std::string kind = "still";  // still | pan | orbit | dolly
+        double speed = 0;            // pixels per frame
+        double direction = 0;        // pan: angle in the image plane (0 = right, pi/2 = up); orbit and
+                                     // dolly: its cosine's sign picks the way (around / in or out)
+        double timeStep = 1;         // scene time per frame: 0 freezes the scene's own animation
+        int cut = -1;                // the frame that starts a second shot (another view), or -1
+        int jitterStart = 0;         // the Halton point of frame 0 (frame k takes point jitterStart + k)
+    } move;
+    // A sequence's folder and files: frame_NNNN.exr (the jittered frame and its buffers),
+    // truth_NNNN.exr, render.json (jitter, cuts, cameras; what dejag filter reads beside a sequence).
+    std::string sequenceFolder() const { return "items/" + family + "/" + id; }
+    std::string sequenceFile(const char* stem, int frame) const;
 };
 ItemPlan planItem(const DatasetSpec& spec, int index);
 
@@ -117,7 +139,8 @@ VerifyReport verifyDataset(const std::string& folder);
 inline constexpr double kFlatItemPsnr = 80.0;
 
 // Items per family and split, fraction of edge pixels, aliased-vs-truth PSNR distribution, and the flat
-// items ("flat_items": id, family, split, aliased_psnr of each).
+// items ("flat_items": id, family, split, aliased_psnr of each). For sequences also "motion" per family
+// and overall: speeds, moving and disoccluded pixels, camera moves, cuts.
 nlohmann::json datasetStats(const std::string& folder);
 
 }  // namespace dejag::data

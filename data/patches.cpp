@@ -91,11 +91,14 @@ PatchSampler::PatchSampler(const std::string& folder, const PatchOptions& option
     // Items load in parallel (reading EXRs dominates), each into its own slot: the order stays the
     // manifest's whatever the thread count.
     std::vector<nlohmann::json> records;
-    for (nlohmann::json& record : readManifest(folder))
+    for (nlohmann::json& record : readManifest(folder)) {
+        if (record.contains("sequence"))
+            throw Error("'" + folder + "' is a dataset of sequences; the patch sampler takes single frames");
         if (record["split"] == splitName(options.split) &&
             (options.families.empty() || std::find(options.families.begin(), options.families.end(),
                                                    record.value("family", "")) != options.families.end()))
             records.push_back(std::move(record));
+    }
     items_.resize(records.size());
     parallelFor(0, int64_t(records.size()), 1, [&](int64_t first, int64_t last) {
         for (int64_t i = first; i < last; ++i) loadItem(records[size_t(i)], items_[size_t(i)]);

@@ -7,15 +7,20 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <algorithm>
+#include <array>
 #include <chrono>
+#include <cmath>
 #include <filesystem>
 #include <fstream>
 #include <functional>
+#include <map>
 #include <set>
 #include <sstream>
 #include <thread>
 
 #include "base/error.h"
+#include "data/image.h"
 #include "tests/test_util.h"
 
 namespace dejag::data {
@@ -228,6 +233,14 @@ TEST(DatasetManifest, BadRecordsAreRefusedNamingTheLineAndTheField) {
         {[](nlohmann::json& r) { r["files"]["input"]["bytes"] = -1; }, "files.input"},
         {[](nlohmann::json& r) { r["files"]["input"]["path"] = "../../etc/passwd"; }, "inside the dataset"},
         {[](nlohmann::json& r) { r = 5; }, "not a JSON object"},
+        {[](nlohmann::json& r) {
+             r["sequence"] = {{"length", 4}, {"move", {{"kind", "pan"}, {"cut", -1}}}};
+         },
+         "'motion'"},
+        {[](nlohmann::json& r) {
+             r["sequence"] = {{"length", 4}};
+         },
+         "'sequence'"},
     };
     for (const Case& c : cases) {
         nlohmann::json bad = valid;
@@ -266,6 +279,198 @@ TEST(DatasetGenerate, BadInputIsOneLineAndOverwritesNothing) {
     EXPECT_NE(err.find("different dataset"), std::string::npos) << err;
     EXPECT_EQ(std::count(err.begin(), err.end(), '\n'), 1) << err;
     EXPECT_TRUE(contents(out) == before);
+}
+
+// ---- Sequences ------------------------------------------------------------------------------------------
+
+TEST(DatasetSequences, PlansDrawMovesWithoutChangingTheItemsOfSingleFrames) {
+    DatasetSpec single = allFamilies(400), sequences = allFamilies(400);
+    sequences.sequenceLength = 8;
+    std::map<std::string, int> kinds;
+    int cuts = 0, frozen = 0;
+    double slowest = 1e9, fastest = 0;
+    for (int i = 0; i < sequences.count; ++i) {
+        const ItemPlan a = planItem(single, i), b = planItem(sequences, i);
+        EXPECT_EQ(a.scene, b.scene);
+        EXPECT_EQ(a.seed, b.seed);
+        EXPECT_EQ(a.split, b.split);
+        EXPECT_EQ(a.time, b.time);
+        EXPECT_EQ(a.move.kind, "still");  // single frames do not move
+        ++kinds[b.move.kind];
+        if (b.move.kind != "still")
+            slowest = std::min(slowest, b.move.speed), fastest = std::max(fastest, b.move.speed);
+        else
+            EXPECT_EQ(b.move.speed, 0.0);
+        if (b.move.cut >= 0) {
+            ++cuts;
+            EXPECT_GE(b.move.cut, 2);
+            EXPECT_LE(b.move.cut, 6);
+        }
+        frozen += b.move.timeStep == 0;
+        EXPECT_GE(b.move.jitterStart, 0);
+        EXPECT_LT(b.move.jitterStart, 16);
+    }
+    for (const char* kind : {"still", "pan", "orbit", "dolly"}) EXPECT_GT(kinds[kind], 30) << kind;
+    EXPECT_GT(cuts, 30);
+    EXPECT_LT(cuts, 100);
+    EXPECT_GT(frozen, 100);
+    EXPECT_LT(slowest, 0.2);
+    EXPECT_GT(fastest, 6.0);
+    EXPECT_EQ(DatasetSpec::fromJson(sequences.toJson()).toJson(), sequences.toJson());
+    EXPECT_FALSE(single.toJson().contains("sequence"));  // the single-frame dataset.json is unchanged
+    sequences.sequenceLength = 0;
+    EXPECT_THROW(sequences.validate(), Error);
+    sequences.sequenceLength = 8, sequences.jitterSpread = -1;
+    EXPECT_THROW(sequences.validate(), Error);
+}
+
+// Bilinear read of an image's channels c .. c + 2 at pixel coordinates (centres at + 0.5), clamped.
+std::array<double, 3> bilinear(const Image& image, int c, double x, double y) {
+    x -= 0.5, y -= 0.5;
+    const int x0 = int(std::floor(x)), y0 = int(std::floor(y));
+    const double fx = x - x0, fy = y - y0;
+    std::array<double, 3> v{};
+    for (int dy = 0; dy < 2; ++dy)
+        for (int dx = 0; dx < 2; ++dx) {
+            const int px = std::clamp(x0 + dx, 0, image.width - 1),
+                      py = std::clamp(y0 + dy, 0, image.height - 1);
+            const double w = (dx ? fx : 1 - fx) * (dy ? fy : 1 - fy);
+            for (int k = 0; k < 3; ++k) v[size_t(k)] += w * image.at(px, py, c + k);
+        }
+    return v;
+}
+
+// A sequence's motion vectors say where each pixel was: each frame's truth matches the previous frame's
+// truth read at p - motion better than read where it is, and far better than read at p + motion.
+TEST(DatasetSequences, MotionVectorsCarryEachTruthOntoTheNext) {
+    DatasetSpec spec;
+    spec.families = {"shapes", "pipes", "foliage"}, spec.testFamilies = {"foliage"};
+    spec.count = 300, spec.width = 96, spec.height = 64, spec.truthSamples = 16, spec.adaptive = false;
+    spec.sequenceLength = 4;
+    testing::TempDir dir;
+    ItemRenderer renderer;
+    int checked = 0;
+    for (const char* kind : {"pan", "orbit", "dolly"}) {
+        int index = 0;
+        for (; index < spec.count; ++index) {
+            const ItemPlan p = planItem(spec, index);
+            if (p.move.kind == kind && p.move.speed > 1.5 && p.move.cut < 0 && p.family == "pipes") break;
+        }
+        ASSERT_LT(index, spec.count) << kind;
+        const ItemPlan plan = planItem(spec, index);
+        const nlohmann::json record = renderer.render(spec, plan, dir.path().string());
+        EXPECT_EQ(record["files"].size(), size_t(2 * spec.sequenceLength + 1));
+        EXPECT_GT(record["motion"]["moving_fraction"].get<double>(), 0.1) << kind;
+        for (int k = 1; k < spec.sequenceLength; ++k) {
+            const Image frame = readImage((fs::path(dir.path()) / plan.sequenceFile("frame", k)).string());
+            const Image truth = readImage((fs::path(dir.path()) / plan.sequenceFile("truth", k)).string());
+            const Image previous =
+                readImage((fs::path(dir.path()) / plan.sequenceFile("truth", k - 1)).string());
+            const int mx = frame.findChannel("motion.X"), my = frame.findChannel("motion.Y");
+            ASSERT_GE(mx, 0);
+            ASSERT_GE(frame.findChannel("prevdepth.Z"), 0);
+            double warped = 0, flipped = 0, still = 0;
+            int n = 0;
+            for (int y = 4; y < frame.height - 4; ++y)
+                for (int x = 4; x < frame.width - 4; ++x) {
+                    const double vx = frame.at(x, y, mx), vy = frame.at(x, y, my);
+                    if (vx == 0 && vy == 0) continue;  // the background: no geometry, no motion
+                    const std::array<double, 3> was = bilinear(previous, 0, x + 0.5 - vx, y + 0.5 - vy),
+                                                wrongWay = bilinear(previous, 0, x + 0.5 + vx, y + 0.5 + vy);
+                    for (int c = 0; c < 3; ++c) {
+                        warped += std::abs(truth.at(x, y, c) - was[size_t(c)]);
+                        flipped += std::abs(truth.at(x, y, c) - wrongWay[size_t(c)]);
+                        still += std::abs(truth.at(x, y, c) - previous.at(x, y, c));
+                    }
+                    ++n;
+                }
+            ASSERT_GT(n, 100) << kind;
+            // (Not all of the difference goes: the bilinear read blurs, and the highlights move with the
+            // view — an orbit turns the view while moving near pixels less than a pan, so there that is
+            // most of what changes. The wrong sign of the motion is far worse everywhere.)
+            if (std::string(kind) != "orbit") {
+                EXPECT_LT(warped, 0.75 * still) << kind << " frame " << k;
+            }
+            EXPECT_LT(warped, 0.5 * flipped) << kind << " frame " << k;
+            ++checked;
+        }
+    }
+    EXPECT_EQ(checked, 9);
+}
+
+const std::string kTinySequences =
+    "data generate --families shapes,hair,foliage --test-families foliage --count 4 --size 48x40 --truth 8 "
+    "--sequence-length 5 --quiet";
+
+TEST(DatasetSequences, GenerateVerifyStatsAndRedoAPartialSequence) {
+    testing::TempDir dir;
+    const std::string whole = dir.file("whole"), broken = dir.file("broken");
+    ASSERT_EQ(run(kTinySequences + " --workers 2 --out '" + whole + "'"), 0);
+    EXPECT_TRUE(verifyDataset(whole).ok());
+    const std::vector<nlohmann::json> records = readManifest(whole);
+    ASSERT_EQ(records.size(), 4u);
+    for (const nlohmann::json& r : records) {
+        EXPECT_EQ(r["files"].size(), 11u);
+        const fs::path folder =
+            fs::path(whole) / "items" / r["family"].get<std::string>() / r["id"].get<std::string>();
+        std::ifstream in(folder / "render.json");
+        const nlohmann::json sidecar = nlohmann::json::parse(in);
+        ASSERT_EQ(sidecar["frames"].size(), 5u);
+        for (const nlohmann::json& f : sidecar["frames"]) {
+            EXPECT_TRUE(fs::exists(folder / f["file"].get<std::string>()));
+            for (int a = 0; a < 2; ++a) EXPECT_LE(std::abs(f["jitter_pixels"][a].get<double>()), 0.5);
+        }
+        EXPECT_EQ(sidecar["cuts"].size(), r["sequence"]["move"]["cut"].get<int>() >= 0 ? 1u : 0u);
+    }
+    const nlohmann::json stats = datasetStats(whole);
+    ASSERT_TRUE(stats.contains("motion"));
+    EXPECT_EQ(stats["motion"]["sequences"].get<int>(), 4);
+    std::string out;
+    EXPECT_EQ(run("data stats '" + whole + "'", nullptr, &out), 0);
+    EXPECT_NE(out.find("camera moves:"), std::string::npos) << out;
+    // Single-frame readers refuse a dataset of sequences in one line.
+    std::string err;
+    EXPECT_EQ(run("data stats '" + whole + "' --sampler", &err), 2);
+    EXPECT_NE(err.find("sequences"), std::string::npos) << err;
+
+    // An item half-written when the run stopped (its record not in the manifest, a truth missing, a
+    // temporary file left) is rendered again, to the same bytes.
+    fs::copy(whole, broken, fs::copy_options::recursive);
+    std::string manifest = slurp(fs::path(broken) / "manifest.jsonl");
+    manifest.erase(manifest.rfind('\n', manifest.size() - 2) + 1);
+    std::ofstream(fs::path(broken) / "manifest.jsonl", std::ios::trunc) << manifest;
+    const nlohmann::json last = records.back();
+    fs::remove(fs::path(broken) / last["files"]["truth_0003"]["path"].get<std::string>());
+    std::ofstream((fs::path(broken) / last["files"]["frame_0001"]["path"].get<std::string>()).string() +
+                  ".tmp-9")
+        << "x";
+    EXPECT_FALSE(verifyDataset(broken).ok());
+    ASSERT_EQ(run(kTinySequences + " --workers 1 --out '" + broken + "'"), 0);
+    expectSameFiles(broken, whole);
+    // dejag filter reads a sequence's folder with its jitter and restarts the history at its cuts.
+    {
+        const fs::path sequence = fs::path(whole) / records[0]["files"]["render"]["path"].get<std::string>();
+        std::ifstream in(sequence);
+        nlohmann::json sidecar = nlohmann::json::parse(in);
+        in.close();
+        sidecar["cuts"] = {3};
+        std::ofstream(sequence, std::ios::trunc) << sidecar.dump();
+        ASSERT_EQ(run("filter --method taa-hq --json '" + sequence.parent_path().string() + "' '" +
+                          dir.file("filtered/") + "'",
+                      &err, &out),
+                  0)
+            << err;
+        const nlohmann::json result = nlohmann::json::parse(out);
+        ASSERT_EQ(result["frames"].size(), 5u);
+        for (int k = 0; k < 5; ++k) EXPECT_EQ(result["frames"][k]["history_reset"].get<bool>(), k == 3) << k;
+    }
+    // The jitter spread is a sequence's setting.
+    EXPECT_EQ(
+        run("data generate --families shapes --count 1 --size 48x40 --truth 8 --jitter-spread 0.5 --out '" +
+                dir.file("x") + "'",
+            &err),
+        2);
+    EXPECT_NE(err.find("--jitter-spread"), std::string::npos) << err;
 }
 
 }  // namespace
