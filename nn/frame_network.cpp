@@ -33,7 +33,9 @@ ReceptiveField receptiveField(const Model& model) {
         scale[i] = s, radius[i] = r;
         maxScale = std::max(maxScale, s);
     }
-    return {int(std::ceil(radius[size_t(model.outputNode())])), int(std::lround(maxScale))};
+    const double reach = radius[size_t(model.outputNode())];
+    if (!std::isfinite(reach)) return {0, int(std::lround(maxScale)), false};
+    return {int(std::ceil(reach)), int(std::lround(maxScale))};
 }
 
 namespace {
@@ -187,6 +189,9 @@ void FrameNetwork::Impl::check() {
             "bf16 inference needs a CPU with AVX-512 BF16 (this one, or the SIMD level forced, has none)");
     grey = c == 1;
     field = receptiveField(m);
+    if (!field.bounded)
+        throw Error("model '" + m.name() +
+                    "' warps by motion: what it sees has no bound, and a frame filter works in tiles");
     const int a = field.stride;
     halo = (field.radius + a - 1) / a * a;
     const int64_t side = (32 + a - 1) / a * a;

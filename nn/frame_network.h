@@ -22,10 +22,11 @@
 namespace dejag::nn {
 
 // How many input pixels on each side of a pixel can change its output, and the product of the model's
-// strides. Exact for conv, transposed conv, pooling, resampling and shuffles.
+// strides. Exact for conv, transposed conv, pooling, resampling and shuffles; unbounded through a warp.
 struct ReceptiveField {
     int radius = 0;
     int stride = 1;
+    bool bounded = true;  // false: a warp reads wherever the motion points (radius is then 0)
 };
 ReceptiveField receptiveField(const Model& model);
 

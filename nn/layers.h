@@ -192,4 +192,37 @@ void kernelFilterBackward(T* dinput,        // (N, C, H, W) or null
                           const T* logits,  // (N, k^2, H, W)
                           const KernelFilterDesc& d);
 
+// ---- Motion warp (a recurrent network's history read where each pixel was) -------------------------------
+// out(n, c, y, x) = image(n, c) read at (x - motion(n, 0, y, x), y - motion(n, 1, y, x)) in pixel indices:
+// the motion is what dejag's motion vectors hold (pixels moved since the previous frame, +x right, +y
+// down), so the previous frame's pixel p - motion is where p was. Read with a separable filter over the
+// taps around that place, each tap's index clamped to the image (edge pixels repeated):
+//   bilinear      2 x 2 taps, weights 1 - f, f (PyTorch grid_sample bilinear, border padding);
+//   catmull-rom   4 x 4 taps, the cubic convolution kernel with a = -0.5: exact on linear ramps and on
+//                 whole-pixel motion, and the least blur of the cubics (what taa-hq reads its history with);
+//   bicubic       4 x 4 taps, a = -0.75 (PyTorch's and OpenCV's bicubic: grid_sample bicubic, border).
+// Backward: the image's gradient (each tap's weight times the output's), and the motion's (the weights'
+// derivative; 0 where the read place is a whole pixel of a bilinear read, a kink).
+enum class WarpFilter { Bilinear, CatmullRom, Bicubic };
+struct WarpDesc {
+    int64_t batch = 1, channels = 1, height = 1, width = 1;
+    WarpFilter filter = WarpFilter::Bilinear;
+    int taps() const { return filter == WarpFilter::Bilinear ? 2 : 4; }
+};
+template <class T>
+void warpForward(T* out,           // (N, C, H, W)
+                 const T* image,   // (N, C, H, W)
+                 const T* motion,  // (N, 2, H, W)
+                 const WarpDesc& d);
+template <class T>
+void warpBackward(T* dimage,        // (N, C, H, W) or null
+                  T* dmotion,       // (N, 2, H, W) or null
+                  const T* dout,    // (N, C, H, W)
+                  const T* image,   // (N, C, H, W)
+                  const T* motion,  // (N, 2, H, W)
+                  const WarpDesc& d);
+// "bilinear" | "catmull-rom" | "bicubic"; throws dejag::Error naming the choices.
+WarpFilter parseWarpFilter(const std::string& name);
+const char* warpFilterName(WarpFilter filter);
+
 }  // namespace dejag::nn

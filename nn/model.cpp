@@ -55,6 +55,8 @@ struct Model::Impl {
     bool fastKernels = true;
     const Tensor* lastInput = nullptr;
     Shape lastInputShape;
+    bool wantInputGradient = false;
+    Tensor inputGradient;  // backward(): the gradient w.r.t. *lastInput, when wanted
 
     // Output shape of node i given its input shapes (validating them).
     Shape nodeOutputShape(const Node& n, const std::vector<Shape>& ins) const {
@@ -120,6 +122,13 @@ MaxPool2dDesc GraphNode::poolDesc(const Shape& in) const {
 ResampleDesc GraphNode::resampleDesc(const Shape& in) const {
     return {in[0], in[1], in[2], in[3], factor};
 }
+WarpDesc GraphNode::warpDesc(const Shape& in) const {
+    WarpDesc d;
+    d.batch = in[0], d.channels = in[1], d.height = in[2], d.width = in[3];
+    d.filter = warpFilter;
+    return d;
+}
+
 KernelFilterDesc GraphNode::kernelFilterDesc(const Shape& in) const {
     return {in[0], in[1], in[2], in[3], kernel, centreBias};
 }
@@ -478,6 +487,12 @@ void Model::backward(const Tensor& doutput) {
         n.gradient.zero();
     }
     std::memcpy(outputNode.gradient.data(), doutput.data(), doutput.byteSize());
+    float* dinput = nullptr;
+    if (m.wantInputGradient) {
+        ensureShape(m.inputGradient, m.lastInputShape);
+        m.inputGradient.zero();
+        dinput = m.inputGradient.data();
+    }
     std::vector<Shape> shapes;
     for (const Node& n : m.nodes) shapes.push_back(n.output.shape());
 
@@ -485,7 +500,7 @@ void Model::backward(const Tensor& doutput) {
         Node& n = m.nodes[size_t(i)];
         const std::vector<Shape> ins = m.inputShapes(n, shapes, m.lastInputShape);
         const float* x = m.inputTensor(n.inputs[0]).data();
-        float* dx = n.inputs[0] >= 0 ? m.nodes[size_t(n.inputs[0])].gradient.data() : nullptr;
+        float* dx = n.inputs[0] >= 0 ? m.nodes[size_t(n.inputs[0])].gradient.data() : dinput;
         const float* weight = n.weightOffset >= 0 ? m.params.data() + n.weightOffset : nullptr;
         float* dweight = n.weightOffset >= 0 ? m.grads.data() + n.weightOffset : nullptr;
         float* dbias = n.biasOffset >= 0 ? m.grads.data() + n.biasOffset : nullptr;
@@ -531,13 +546,22 @@ void Model::backward(const Tensor& doutput) {
             OpBackward<float> call{n, ins, n.output.shape()};
             for (int k : n.inputs) {
                 call.inputs.push_back(m.inputTensor(k).data());
-                call.dInputs.push_back(k >= 0 ? m.nodes[size_t(k)].gradient.data() : nullptr);
+                call.dInputs.push_back(k >= 0 ? m.nodes[size_t(k)].gradient.data() : dinput);
             }
             call.weight = weight, call.output = n.output.data(), call.dOutput = g;
             call.dWeight = dweight, call.dBias = dbias, call.indices = &n.argmax;
             def.backward(call);
         }
     }
+}
+
+void Model::setInputGradient(bool wanted) {
+    impl_->wantInputGradient = wanted;
+}
+
+const Tensor& Model::inputGradient() const {
+    if (!impl_->wantInputGradient) throw Error("inputGradient(): not asked for (setInputGradient)");
+    return impl_->inputGradient;
 }
 
 void saveModel(const std::string& path, const Model& model,

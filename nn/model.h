@@ -18,6 +18,9 @@
 //   pixel_shuffle     factor (2)
 //   kernel_filter     inputs [image, logits with kernel^2 channels]; kernel (3), centre_bias (0): each
 //                     pixel a softmax-weighted average of the image's kernel x kernel neighbourhood
+//   slice             from (0), to (the input's channels): channels [from, to)
+//   warp              inputs [image, motion (2 channels: x right, y down)]; filter ("bilinear" |
+//                     "catmull-rom" | "bicubic"): the image read at each pixel minus its motion
 // Nodes are listed in topological order: inputs name "input" or earlier nodes. A DAG, so skips work.
 //
 // forward() keeps what backward() needs; backward() zeroes the gradient buffer, then fills it.
@@ -55,6 +58,8 @@ enum class GraphOp {
     Upsample,
     PixelShuffle,
     KernelFilter,
+    Slice,
+    Warp,
     Count
 };
 const char* graphOpName(GraphOp op);
@@ -69,11 +74,13 @@ struct GraphNode {
     bool samePadding = false;
     int padding = 0;
     bool bias = true;
-    ActivationDesc activation{Activation::None};  // fused into convolutions; the op of "activation"
-    bool bilinear = false;                        // upsample
-    int factor = 2;                               // upsample, pixel_shuffle
-    float centreBias = 0.0f;                      // kernel_filter
-    int64_t weightOffset = -1, biasOffset = -1;   // into the flat parameter buffer
+    ActivationDesc activation{Activation::None};   // fused into convolutions; the op of "activation"
+    bool bilinear = false;                         // upsample
+    int factor = 2;                                // upsample, pixel_shuffle
+    float centreBias = 0.0f;                       // kernel_filter
+    int sliceFrom = 0, sliceTo = 0;                // slice: channels [from, to)
+    WarpFilter warpFilter = WarpFilter::Bilinear;  // warp
+    int64_t weightOffset = -1, biasOffset = -1;    // into the flat parameter buffer
 
     // Layer descriptors for an input of shape (N, C, H, W).
     Conv2dDesc convDesc(const Shape& in) const;
@@ -81,6 +88,7 @@ struct GraphNode {
     MaxPool2dDesc poolDesc(const Shape& in) const;
     ResampleDesc resampleDesc(const Shape& in) const;
     KernelFilterDesc kernelFilterDesc(const Shape& in) const;
+    WarpDesc warpDesc(const Shape& in) const;
 };
 
 struct ModelOptions {
@@ -131,8 +139,14 @@ class Model {
     // input (N, Cin, H, W). Throws dejag::Error on a wrong channel count, a size the graph cannot take,
     // or a NaN/Inf in the input. The returned tensor lives until the next forward().
     const Tensor& forward(const Tensor& input);
-    // doutput: gradient of the loss w.r.t. the last forward's output. Fills gradientData().
+    // doutput: gradient of the loss w.r.t. the last forward's output. Fills gradientData(), and
+    // inputGradient() when asked for (setInputGradient).
     void backward(const Tensor& doutput);
+    // The gradient w.r.t. the last forward's input as well (off by default: a single frame's input needs
+    // none; a recurrent network's input holds its previous output, through which training
+    // backpropagates in time). Valid after backward() until the next forward().
+    void setInputGradient(bool wanted);
+    const Tensor& inputGradient() const;
     // Output shape for an input shape, without running.
     Shape outputShape(const Shape& inputShape) const;
     // Multiply-adds of one forward at this input size, total and per input pixel.

@@ -111,5 +111,7 @@ OpDef concatOp();
 OpDef upsampleOp();
 OpDef pixelShuffleOp();
 OpDef kernelFilterOp();
+OpDef sliceOp();
+OpDef warpOp();
 
 }  // namespace dejag::nn

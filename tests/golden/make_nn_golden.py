@@ -135,6 +135,22 @@ def kernel_filter_case(name, n, c, h, w, k, centre_bias, logit_scale=2.0):
                    "width": w, "kernel": k, "centre_bias": centre_bias})
 
 
+def warp_case(name, n, c, h, w, mode, reach):
+    """dejag's warp: each pixel reads the image at (x - motion_x, y - motion_y) in pixel indices, edge
+    pixels repeated: grid_sample with align_corners=False and border padding (bicubic: a = -0.75)."""
+    inputs = {"input": f32(n, c, h, w), "motion": f32(n, 2, h, w, low=-reach, high=reach)}
+
+    def fn(input, motion):
+        ys, xs = torch.meshgrid(torch.arange(h, dtype=motion.dtype), torch.arange(w, dtype=motion.dtype),
+                                indexing="ij")
+        sx, sy = xs - motion[:, 0], ys - motion[:, 1]
+        grid = torch.stack([(2 * sx + 1) / w - 1, (2 * sy + 1) / h - 1], dim=-1)
+        return F.grid_sample(input, grid, mode=mode, padding_mode="border", align_corners=False)
+
+    cases[name] = (run(fn, inputs, {}), {"layer": "warp", "batch": n, "channels": c, "height": h, "width": w,
+                                         "filter": mode})
+
+
 def gaussian_window():
     coords = torch.arange(11, dtype=torch.float64) - 5
     g = torch.exp(-0.5 * coords ** 2 / 1.5 ** 2)
@@ -293,6 +309,11 @@ def main():
     kernel_filter_case("kernel_filter_k5_small_image", 1, 2, 3, 4, 5, 0.0)
     kernel_filter_case("kernel_filter_k1", 1, 3, 4, 5, 1, 0.0)
     kernel_filter_case("kernel_filter_k3_large_logits", 1, 3, 5, 6, 3, -2.5, logit_scale=60.0)
+
+    # The motion warp: reads inside the image and across its borders (motion up to 3 pixels on 7x9).
+    warp_case("warp_bilinear", 2, 3, 7, 9, "bilinear", 3.0)
+    warp_case("warp_bicubic", 2, 3, 7, 9, "bicubic", 3.0)
+    warp_case("warp_bicubic_small_image", 1, 2, 3, 2, "bicubic", 1.5)
 
     for name, (tensors, config) in cases.items():
         write_safetensors(os.path.join(HERE, name + ".safetensors"), tensors, config)

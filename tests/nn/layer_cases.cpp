@@ -52,6 +52,11 @@ std::string describe(const KernelFilterDesc& d) {
            " centre bias " + std::to_string(d.centreBias);
 }
 
+std::string describe(const WarpDesc& d) {
+    return "N" + std::to_string(d.batch) + " C" + std::to_string(d.channels) + " " +
+           std::to_string(d.height) + "x" + std::to_string(d.width) + " " + warpFilterName(d.filter);
+}
+
 // A convolution's case (conv2d or conv_transpose2d: input, weight and an optional bias), given its layer
 // functions as generic lambdas forward(out, in, weight, bias) and backward(dIn, dWeight, dBias, dOut, in,
 // weight).
@@ -146,6 +151,19 @@ LayerCase kernelFilter(const std::string& label, const KernelFilterDesc& d) {
     return c;
 }
 
+// The motion warp: input and motion (up to `reach` pixels, so that reads leave the image at its borders).
+LayerCase warp(const std::string& label, const WarpDesc& d, double reach) {
+    const size_t image = size_t(d.batch * d.channels * d.height * d.width),
+                 motion = size_t(d.batch * 2 * d.height * d.width);
+    LayerCase c = layerCase(
+        "warp " + label + ": " + describe(d), {"input", "motion"}, {image, motion}, image,
+        [d](const auto& call) { warpForward(call.out, call.in[0], call.in[1], d); },
+        [d](const auto& g) { warpBackward(g.dIn[0], g.dIn[1], g.dOut, g.in[0], g.in[1], d); });
+    c.inputLow = -reach, c.inputHigh = reach;
+    c.piecewise = d.filter == WarpFilter::Bilinear;  // its weights have kinks at whole pixels
+    return c;
+}
+
 // The golden fixtures of the layers (losses and optimizers are not layers: tests/nn/golden_test.cpp).
 void goldenCases(std::vector<LayerCase>& cases) {
     const std::filesystem::path folder = ::dejag::testing::sourcePath("tests/golden/nn");
@@ -205,6 +223,11 @@ void goldenCases(std::vector<LayerCase>& cases) {
             d.batch = c["batch"], d.channels = c["channels"], d.height = c["height"], d.width = c["width"];
             d.kernel = c["kernel"], d.centreBias = c["centre_bias"];
             lc = kernelFilter(label, d);
+        } else if (layer == "warp") {
+            WarpDesc d;
+            d.batch = c["batch"], d.channels = c["channels"], d.height = c["height"], d.width = c["width"];
+            d.filter = parseWarpFilter(c["filter"]);
+            lc = warp(label, d, 1.0);
         } else {
             continue;  // a loss or an optimizer
         }
@@ -270,6 +293,14 @@ void randomCases(std::vector<LayerCase>& cases) {
         d.kernel = 1 + 2 * int(rng() % 3);
         d.centreBias = float(int(rng() % 5) - 1);
         cases.push_back(kernelFilter("random " + std::to_string(trial), d));
+    }
+    rng.seed(10);
+    for (int trial = 0; trial < 9; ++trial) {
+        WarpDesc d;
+        d.batch = 1 + int(rng() % 2), d.channels = 1 + int(rng() % 3);
+        d.height = 1 + int(rng() % 7), d.width = 1 + int(rng() % 8);  // smaller than the taps too
+        d.filter = WarpFilter(trial % 3);
+        cases.push_back(warp("random " + std::to_string(trial), d, 1.0 + double(trial % 4)));
     }
 }
 

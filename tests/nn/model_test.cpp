@@ -240,6 +240,73 @@ TEST(Model, ForwardInDoubleAgreesWithTheFloatForward) {
     }
 }
 
+// A recurrent network's step: its input holds the frame (3), its previous output (3) and the motion (2);
+// the history is warped and concatenated with the frame. The gradient w.r.t. that input (what
+// backpropagation through time passes to the previous step) against central differences of the
+// double-precision forward, on the fast and the reference kernels.
+TEST(Model, TheInputGradientMatchesCentralDifferences) {
+    using nlohmann::json;
+    auto node = [](const std::string& name, const std::string& op, std::vector<std::string> inputs,
+                   json fields = json::object()) {
+        json n = {{"name", name}, {"op", op}, {"inputs", inputs}};
+        for (auto& [k, v] : fields.items()) n[k] = v;
+        return n;
+    };
+    const json nodes = json::array(
+        {node("frame", "slice", {"input"}, {{"from", 0}, {"to", 3}}),
+         node("history", "slice", {"input"}, {{"from", 3}, {"to", 6}}),
+         node("motion", "slice", {"input"}, {{"from", 6}, {"to", 8}}),
+         node("warped", "warp", {"history", "motion"}, {{"filter", "catmull-rom"}}),
+         node("both", "concat", {"frame", "warped"}),
+         node("c1", "conv2d", {"both"},
+              {{"out_channels", 8}, {"kernel", 3}, {"padding", "same"}, {"activation", "sigmoid"}}),
+         node("c2", "conv2d", {"c1"}, {{"out_channels", 3}, {"kernel", 3}, {"padding", "same"}}),
+         node("out", "add", {"c2", "warped"})});
+    for (bool fast : {true, false}) {
+        SCOPED_TRACE(fast ? "fast kernels" : "reference kernels");
+        Model model = Model::fromArchitecture(
+            {{"name", "step"}, {"input_channels", 8}, {"nodes", nodes}, {"output", "out"}});
+        model.initialize(3);
+        model.setFastKernels(fast);
+        model.setInputGradient(true);
+        const Shape shape{1, 8, 10, 12};
+        Tensor x(shape), r(Shape{1, 3, 10, 12});
+        Rng rng(21);
+        for (int64_t i = 0; i < x.numel(); ++i) {
+            const int64_t channel = (i / (10 * 12)) % 8;
+            x.data()[i] = channel >= 6 ? float(rng.uniform() * 3 - 1.5) : float(rng.uniform());
+        }
+        for (int64_t i = 0; i < r.numel(); ++i) r.data()[i] = float(rng.uniform() * 2 - 1);
+        model.forward(x);
+        model.backward(r);
+        const Tensor& g = model.inputGradient();
+        ASSERT_EQ(g.shape(), shape);
+        std::vector<double> xd(x.data(), x.data() + x.numel());
+        auto loss = [&] {
+            const std::vector<double> y = forwardInDouble(model, xd, shape);
+            double sum = 0;
+            for (size_t i = 0; i < y.size(); ++i) sum += y[i] * r.data()[i];
+            return sum;
+        };
+        double worst = 0, largest = 0;
+        for (int64_t i = 0; i < x.numel(); i += 7) {
+            const double keep = xd[size_t(i)], h = 1e-5;
+            xd[size_t(i)] = keep + h;
+            const double up = loss();
+            xd[size_t(i)] = keep - h;
+            const double down = loss();
+            xd[size_t(i)] = keep;
+            const double numeric = (up - down) / (2 * h);
+            worst = std::max(worst, std::abs(numeric - g.data()[i]));
+            largest = std::max(largest, std::abs(numeric));
+        }
+        EXPECT_GT(largest, 0.1);
+        EXPECT_LE(worst, 1e-4 * std::max(1.0, largest));
+    }
+    Model plain = Model::builtin("fast");
+    EXPECT_THROW((void)plain.inputGradient(), Error);
+}
+
 TEST(Model, FastKernelsMatchTheReferenceKernelsInTheGraph) {
     Model seed = Model::builtin("seed2020");
     expectFastMatchesReference(seed, {2, 1, 24, 20});

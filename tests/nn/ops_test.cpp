@@ -115,6 +115,17 @@ std::vector<OpCase> cases() {
                      json::array({logits, node("op", "kernel_filter", {"input", "logits"},
                                                {{"kernel", k}, {"centre_bias", k == 5 ? 1.0 : 0.0}})})});
     }
+    single("slice 2..5 of 6", node("op", "slice", {"input"}, {{"from", 2}, {"to", 5}}), false, 6);
+    single("slice all", node("op", "slice", {"input"}));
+    // A recurrent network's input: an image (3 channels) and its motion (2), split and warped.
+    for (const char* filter : {"bilinear", "catmull-rom", "bicubic"}) {
+        const json image = node("image", "slice", {"input"}, {{"from", 0}, {"to", 3}});
+        const json motion = node("motion", "slice", {"input"}, {{"from", 3}, {"to", 5}});
+        c.push_back(
+            {std::string("warp ") + filter, 5,
+             json::array({image, motion, node("op", "warp", {"image", "motion"}, {{"filter", filter}})}), 12,
+             16, std::string(filter) == "bilinear"});
+    }
     return c;
 }
 
@@ -381,7 +392,7 @@ TEST(LayerHarness, EveryLayerFixtureIsACase) {
         const auto layer = json::parse(readSafetensors(entry.path().string()).metadata.at("config"))["layer"]
                                .get<std::string>();
         for (const char* name : {"conv2d", "conv_transpose2d", "maxpool2d", "activation", "nearest",
-                                 "bilinear", "pixel_shuffle", "kernel_filter"})
+                                 "bilinear", "pixel_shuffle", "kernel_filter", "warp"})
             layers += layer == name;
     }
     EXPECT_EQ(int(harness::goldenLayerCases().size()), layers);
@@ -402,6 +413,9 @@ TEST(OpTable, NothingBeyondTheReceptiveFieldChanges) {
         if (out[2] != H || out[3] != W) continue;  // the op changes the size
         ++checked;
         const ReceptiveField field = receptiveField(model);
+        // A warp reads wherever the motion points: unbounded, and only a warp is.
+        EXPECT_EQ(field.bounded, c.label.rfind("warp", 0) != 0);
+        if (!field.bounded) continue;
         Tensor x = randomInput(inShape, 3);
         const Tensor before = model.forward(x).clone();
         const int cy = H / 2, cx = W / 2;
@@ -419,6 +433,42 @@ TEST(OpTable, NothingBeyondTheReceptiveFieldChanges) {
         EXPECT_GT(changedNear, 0) << "the change reached no output at all";
     }
     EXPECT_GE(checked, 12);
+}
+
+// The warp's invariants, every filter: a whole-pixel motion copies the image shifted (the cubics read the
+// texel exactly) and a constant image stays constant; and bilinear and Catmull-Rom read a linear ramp
+// exactly where the taps lie inside the image (of the cubic convolution kernels only a = -0.5 reproduces
+// linear functions: with bicubic's a = -0.75 a ramp comes back bent).
+TEST(Warp, WholePixelsCopyConstantsStayAndRampsAreExact) {
+    const int H = 9, W = 11;
+    WarpDesc d;
+    d.height = H, d.width = W;
+    std::vector<double> image(size_t(H * W)), ramp(image.size()), constant(image.size(), 0.37),
+        motion(size_t(2 * H * W)), out(image.size());
+    std::mt19937 rng(4);
+    std::uniform_real_distribution<double> u(-1.5, 1.5);
+    for (int i = 0; i < H * W; ++i)
+        image[size_t(i)] = u(rng), ramp[size_t(i)] = 0.25 * (i % W) - 0.5 * (i / W);
+    for (WarpFilter filter : {WarpFilter::Bilinear, WarpFilter::CatmullRom, WarpFilter::Bicubic}) {
+        SCOPED_TRACE(warpFilterName(filter));
+        d.filter = filter;
+        for (int i = 0; i < H * W; ++i) motion[size_t(i)] = 2, motion[size_t(H * W + i)] = -1;
+        warpForward(out.data(), image.data(), motion.data(), d);
+        for (int y = 0; y < H - 1; ++y)
+            for (int x = 2; x < W; ++x) EXPECT_EQ(out[size_t(y * W + x)], image[size_t((y + 1) * W + x - 2)]);
+        for (double& m : motion) m = u(rng);
+        warpForward(out.data(), constant.data(), motion.data(), d);
+        for (double v : out) EXPECT_NEAR(v, 0.37, 1e-12);
+        if (filter == WarpFilter::Bicubic) continue;
+        warpForward(out.data(), ramp.data(), motion.data(), d);
+        const int reach = d.taps() / 2 + 2;
+        for (int y = reach; y < H - reach; ++y)
+            for (int x = reach; x < W - reach; ++x) {
+                const double sx = x - motion[size_t(y * W + x)], sy = y - motion[size_t(H * W + y * W + x)];
+                EXPECT_NEAR(out[size_t(y * W + x)], 0.25 * sx - 0.5 * sy, 1e-12);
+            }
+    }
+    EXPECT_THROW(parseWarpFilter("lanczos"), Error);
 }
 
 TEST(OpTable, EveryOpHasItsEntryAndItsName) {

@@ -1,0 +1,194 @@
+// The motion warp, forward and backward (see nn/layers.h).
+#include <algorithm>
+#include <cmath>
+#include <string>
+
+#include "base/error.h"
+#include "base/thread_pool.h"
+#include "nn/layers.h"
+
+namespace dejag::nn {
+namespace {
+
+// The cubic convolution kernel of parameter a at distance t >= 0, and its derivative in t.
+template <class T>
+T cubicNear(T t, T a) {  // |t| <= 1
+    return ((a + 2) * t - (a + 3)) * t * t + 1;
+}
+template <class T>
+T cubicFar(T t, T a) {  // 1 < |t| < 2
+    return ((a * t - 5 * a) * t + 8 * a) * t - 4 * a;
+}
+template <class T>
+T cubicNearSlope(T t, T a) {
+    return (3 * (a + 2) * t - 2 * (a + 3)) * t;
+}
+template <class T>
+T cubicFarSlope(T t, T a) {
+    return (3 * a * t - 10 * a) * t + 8 * a;
+}
+
+// The taps of a read at index coordinate s along one axis: the first tap's index, each tap's weight and
+// the weight's derivative in s.
+template <class T>
+struct Taps {
+    int64_t first = 0;
+    T w[4] = {}, dw[4] = {};
+};
+template <class T>
+Taps<T> taps(T s, WarpFilter filter) {
+    Taps<T> t;
+    const T base = std::floor(s), f = s - base;
+    if (filter == WarpFilter::Bilinear) {
+        t.first = int64_t(base);
+        t.w[0] = 1 - f, t.w[1] = f;
+        t.dw[0] = -1, t.dw[1] = 1;
+        return t;
+    }
+    const T a = filter == WarpFilter::CatmullRom ? T(-0.5) : T(-0.75);
+    t.first = int64_t(base) - 1;
+    // Distances 1 + f, f, 1 - f, 2 - f from the taps first .. first + 3.
+    t.w[0] = cubicFar(1 + f, a), t.dw[0] = cubicFarSlope(1 + f, a);
+    t.w[1] = cubicNear(f, a), t.dw[1] = cubicNearSlope(f, a);
+    t.w[2] = cubicNear(1 - f, a), t.dw[2] = -cubicNearSlope(1 - f, a);
+    t.w[3] = cubicFar(2 - f, a), t.dw[3] = -cubicFarSlope(2 - f, a);
+    return t;
+}
+
+// Where pixel (y, x) of item n reads, in index coordinates; a non-finite or huge motion reads the border
+// (the clamp keeps the tap indices in range; its gradient there is 0).
+template <class T>
+void readPlace(const T* motion, const WarpDesc& d, int64_t n, int64_t y, int64_t x, T& sx, T& sy) {
+    const int64_t plane = d.height * d.width, at = y * d.width + x;
+    sx = T(x) - motion[(n * 2) * plane + at];
+    sy = T(y) - motion[(n * 2 + 1) * plane + at];
+    const T limitX = T(d.width + 2), limitY = T(d.height + 2);
+    sx = std::isnan(sx) ? T(0) : std::clamp(sx, -limitX, 2 * limitX);
+    sy = std::isnan(sy) ? T(0) : std::clamp(sy, -limitY, 2 * limitY);
+}
+
+void check(const WarpDesc& d) {
+    if (d.batch < 1 || d.channels < 1 || d.height < 1 || d.width < 1) throw Error("warp: empty shape");
+}
+
+}  // namespace
+
+WarpFilter parseWarpFilter(const std::string& name) {
+    if (name == "bilinear") return WarpFilter::Bilinear;
+    if (name == "catmull-rom") return WarpFilter::CatmullRom;
+    if (name == "bicubic") return WarpFilter::Bicubic;
+    throw Error("unknown warp filter '" + name + "' (bilinear, catmull-rom, bicubic)");
+}
+
+const char* warpFilterName(WarpFilter filter) {
+    switch (filter) {
+        case WarpFilter::Bilinear:
+            return "bilinear";
+        case WarpFilter::CatmullRom:
+            return "catmull-rom";
+        case WarpFilter::Bicubic:
+            return "bicubic";
+    }
+    return "?";
+}
+
+template <class T>
+void warpForward(T* out, const T* image, const T* motion, const WarpDesc& d) {
+    check(d);
+    const int64_t plane = d.height * d.width;
+    const int k = d.taps();
+    parallelFor(0, d.batch * d.height, 1, [&](int64_t first, int64_t last) {
+        for (int64_t row = first; row < last; ++row) {
+            const int64_t n = row / d.height, y = row % d.height;
+            for (int64_t x = 0; x < d.width; ++x) {
+                T sx, sy;
+                readPlace(motion, d, n, y, x, sx, sy);
+                const Taps<T> tx = taps(sx, d.filter), ty = taps(sy, d.filter);
+                int64_t offset[4][4];
+                for (int j = 0; j < k; ++j)
+                    for (int i = 0; i < k; ++i)
+                        offset[j][i] = std::clamp<int64_t>(ty.first + j, 0, d.height - 1) * d.width +
+                                       std::clamp<int64_t>(tx.first + i, 0, d.width - 1);
+                for (int64_t c = 0; c < d.channels; ++c) {
+                    const T* src = image + (n * d.channels + c) * plane;
+                    T sum = 0;
+                    for (int j = 0; j < k; ++j) {
+                        T rowSum = 0;
+                        for (int i = 0; i < k; ++i) rowSum += tx.w[i] * src[offset[j][i]];
+                        sum += ty.w[j] * rowSum;
+                    }
+                    out[(n * d.channels + c) * plane + y * d.width + x] = sum;
+                }
+            }
+        }
+    });
+}
+
+template <class T>
+void warpBackward(T* dimage, T* dmotion, const T* dout, const T* image, const T* motion, const WarpDesc& d) {
+    check(d);
+    const int64_t plane = d.height * d.width;
+    const int k = d.taps();
+    // The image's gradient: a scatter, so each thread owns whole planes (no two write one value, and the
+    // sums come in one order whatever the thread count).
+    if (dimage)
+        parallelFor(0, d.batch * d.channels, 1, [&](int64_t first, int64_t last) {
+            for (int64_t nc = first; nc < last; ++nc) {
+                const int64_t n = nc / d.channels;
+                T* grad = dimage + nc * plane;
+                const T* g = dout + nc * plane;
+                for (int64_t y = 0; y < d.height; ++y)
+                    for (int64_t x = 0; x < d.width; ++x) {
+                        T sx, sy;
+                        readPlace(motion, d, n, y, x, sx, sy);
+                        const Taps<T> tx = taps(sx, d.filter), ty = taps(sy, d.filter);
+                        const T go = g[y * d.width + x];
+                        for (int j = 0; j < k; ++j) {
+                            const int64_t r = std::clamp<int64_t>(ty.first + j, 0, d.height - 1) * d.width;
+                            for (int i = 0; i < k; ++i)
+                                grad[r + std::clamp<int64_t>(tx.first + i, 0, d.width - 1)] +=
+                                    ty.w[j] * tx.w[i] * go;
+                        }
+                    }
+            }
+        });
+    // The motion's: the read place moves against the motion (s = x - motion).
+    if (dmotion)
+        parallelFor(0, d.batch * d.height, 1, [&](int64_t first, int64_t last) {
+            for (int64_t row = first; row < last; ++row) {
+                const int64_t n = row / d.height, y = row % d.height;
+                for (int64_t x = 0; x < d.width; ++x) {
+                    T sx, sy;
+                    readPlace(motion, d, n, y, x, sx, sy);
+                    const int64_t at = y * d.width + x;
+                    const T rawX = T(x) - motion[(n * 2) * plane + at],
+                            rawY = T(y) - motion[(n * 2 + 1) * plane + at];
+                    const Taps<T> tx = taps(sx, d.filter), ty = taps(sy, d.filter);
+                    T gx = 0, gy = 0;
+                    for (int64_t c = 0; c < d.channels; ++c) {
+                        const T* src = image + (n * d.channels + c) * plane;
+                        const T go = dout[(n * d.channels + c) * plane + at];
+                        for (int j = 0; j < k; ++j) {
+                            const int64_t r = std::clamp<int64_t>(ty.first + j, 0, d.height - 1) * d.width;
+                            for (int i = 0; i < k; ++i) {
+                                const T v = src[r + std::clamp<int64_t>(tx.first + i, 0, d.width - 1)] * go;
+                                gx += ty.w[j] * tx.dw[i] * v, gy += ty.dw[j] * tx.w[i] * v;
+                            }
+                        }
+                    }
+                    // (Where the place was clamped, it does not move with the motion.)
+                    dmotion[(n * 2) * plane + at] += rawX == sx ? -gx : T(0);
+                    dmotion[(n * 2 + 1) * plane + at] += rawY == sy ? -gy : T(0);
+                }
+            }
+        });
+}
+
+#define DEJAG_WARP(T)                                                      \
+    template void warpForward<T>(T*, const T*, const T*, const WarpDesc&); \
+    template void warpBackward<T>(T*, T*, const T*, const T*, const T*, const WarpDesc&);
+DEJAG_WARP(float)
+DEJAG_WARP(double)
+#undef DEJAG_WARP
+
+}  // namespace dejag::nn
