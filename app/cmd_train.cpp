@@ -61,7 +61,8 @@ void registerTrainCommand(CLI::App& app) {
     trainCommand
         ->add_option("--arch", config->arch,
                      "seed2020 | fast | fast:WIDTHxDEPTH (the fast family at another size, e.g. fast:12x3) | "
-                     "kpn | kpn:WIDTHxDEPTH (fast's trunk predicting a 3x3 kernel per pixel) | FILE.json")
+                     "kpn | kpn:WIDTHxDEPTH (fast's trunk predicting a 3x3 kernel per pixel) | temporal | "
+                     "temporal:WIDTHxDEPTH (recurrent; trains on a dataset of sequences) | FILE.json")
         ->capture_default_str();
     trainCommand->add_option("--out", config->out, "run folder (checkpoints, logs, plots)");
     trainCommand
@@ -118,6 +119,17 @@ void registerTrainCommand(CLI::App& app) {
                      "skip a step whose loss exceeds K times its running average, or whose input's "
                      "detail lies above K times or below 1/K^2 of its own (0: off; K > 1)")
         ->check(CLI::Range(0.0, 1e6))
+        ->capture_default_str();
+    trainCommand
+        ->add_option("--frames", config->frames,
+                     "sequences: frames each crop is unrolled over (0: the dataset's sequence length)")
+        ->check(CLI::Range(0, 1000))
+        ->capture_default_str();
+    trainCommand
+        ->add_option("--temporal-loss", config->temporalLoss,
+                     "sequences: weight of the temporal term, |(X_t - X_t-1) - (R_t - R_t-1)| (the flicker "
+                     "against the truth's own change)")
+        ->check(CLI::Range(0.0, 100.0))
         ->capture_default_str();
     addRuntimeOptions(trainCommand, *runtime);
     trainCommand->footer(

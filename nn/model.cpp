@@ -315,7 +315,67 @@ nlohmann::json Model::builtinArchitecture(const std::string& name, const ModelOp
                 {"output", output},
                 {"family", {{"width", w}, {"depth", levels}}}};
     }
-    throw Error("unknown built-in architecture '" + name + "' (seed2020, fast, kpn)");
+    if (name == "temporal") {
+        // A recurrent network (docs/train.md, train/temporal.h): its input holds the frame, its own
+        // previous output (RGB and `state` channels), the motion and the jitter. The history is warped
+        // to where each pixel was (Catmull-Rom, taa-hq's history filter), put beside the frame and the
+        // jitter, and a full-resolution conv and the fast family's U-Net below it (from 1/2 down to
+        // 1/2^depth and back) make a correction of the warped history: output = warped + correction,
+        // starting near "keep the history" (the correction's conv at 0.1x its initialisation).
+        const int w = options.width, levels = options.depth, state = options.state, history = 3 + state;
+        if (w < 2 || w % 2 != 0 || w > kMaxChannels || levels < 1 || levels > 6 || state < 0 || state > 16)
+            throw Error("the temporal family needs an even width from 2 to " + std::to_string(kMaxChannels) +
+                        ", a depth (levels) in 1..6 and 0..16 state channels");
+        auto slice = [](const std::string& n, int from, int to) {
+            return json{{"name", n}, {"op", "slice"}, {"inputs", {"input"}}, {"from", from}, {"to", to}};
+        };
+        json nodes = json::array();
+        nodes.push_back(slice("frame", 0, 3));
+        nodes.push_back(slice("history", 3, 3 + history));
+        nodes.push_back(slice("motion", 3 + history, 5 + history));
+        nodes.push_back(slice("jitter", 5 + history, 7 + history));
+        nodes.push_back({{"name", "warped"},
+                         {"op", "warp"},
+                         {"inputs", {"history", "motion"}},
+                         {"filter", "catmull-rom"}});
+        nodes.push_back({{"name", "seen"}, {"op", "concat"}, {"inputs", {"frame", "warped", "jitter"}}});
+        nodes.push_back(conv("full", "seen", w, 3, "relu"));
+        nodes.push_back(conv("enc1", "full", w, 3, "relu", 2));
+        std::vector<std::string> encoder = {"enc1"};
+        for (int l = 2; l <= levels; ++l) {
+            const std::string n = "enc" + std::to_string(l);
+            const int width = w << (l - 1);
+            nodes.push_back(conv(n, encoder.back(), width, 3, "relu", 2));
+            nodes.push_back(conv(n + "b", n, width, 3, "relu"));
+            encoder.push_back(n + "b");
+        }
+        std::string previous = encoder.back();
+        for (int l = levels; l >= 2; --l) {
+            const std::string up = "up" + std::to_string(l), cat = "cat" + std::to_string(l - 1),
+                              dec = "dec" + std::to_string(l - 1);
+            nodes.push_back({{"name", up}, {"op", "pixel_shuffle"}, {"inputs", {previous}}, {"factor", 2}});
+            nodes.push_back({{"name", cat}, {"op", "concat"}, {"inputs", {up, encoder[size_t(l - 2)]}}});
+            nodes.push_back(conv(dec, cat, w << (l - 2), 3, "relu"));
+            previous = dec;
+        }
+        // Back to full resolution beside the full-resolution features, then the correction.
+        nodes.push_back(conv("to_full", previous, 2 * w, 3, "relu"));
+        nodes.push_back({{"name", "up1"}, {"op", "pixel_shuffle"}, {"inputs", {"to_full"}}, {"factor", 2}});
+        nodes.push_back({{"name", "cat0"}, {"op", "concat"}, {"inputs", {"up1", "full"}}});
+        nodes.push_back(conv("correction", "cat0", history, 3, "none"));
+        nodes.back()["init_scale"] = 0.1;
+        nodes.push_back({{"name", "output"}, {"op", "add"}, {"inputs", {"warped", "correction"}}});
+        return {{"name", "temporal"},
+                {"input_channels", 3 + history + 4},
+                {"input_colour",
+                 "sRGB-encoded RGB frame, previous output (RGB + state), motion (px), jitter (px)"},
+                {"normalisation", "[0, 1]"},
+                {"init", "he_normal"},
+                {"nodes", nodes},
+                {"output", "output"},
+                {"family", {{"width", w}, {"depth", levels}, {"state", state}}}};
+    }
+    throw Error("unknown built-in architecture '" + name + "' (seed2020, fast, kpn, temporal)");
 }
 
 Model Model::builtin(const std::string& name, const ModelOptions& options) {

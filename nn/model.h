@@ -94,6 +94,7 @@ struct GraphNode {
 struct ModelOptions {
     int width = 16, depth = 3;  // the "fast" residual U-Net: first width (even), levels
     int channels = 3;
+    int state = 1;  // temporal: channels a frame passes to the next besides its RGB
 };
 
 class Model {

@@ -1,5 +1,7 @@
 #include "train/trainer.h"
 
+#include "train/temporal.h"
+
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -58,10 +60,12 @@ json readJsonFile(const std::string& path) {
 }  // namespace
 
 nlohmann::json architectureFor(const std::string& arch) {
-    if (arch == "seed2020" || arch == "fast" || arch == "kpn") return nn::Model::builtinArchitecture(arch);
-    // fast:W, fast:WxD, kpn:W, kpn:WxD: the family with first width W and D levels (default 16 and 3).
+    if (arch == "seed2020" || arch == "fast" || arch == "kpn" || arch == "temporal")
+        return nn::Model::builtinArchitecture(arch);
+    // fast:W, fast:WxD, kpn:W, kpn:WxD, temporal:W, temporal:WxD: the family with first width W and D
+    // levels (default 16 and 3).
     const std::string family = arch.substr(0, arch.find(':'));
-    if ((family == "fast" || family == "kpn") && arch.size() > family.size()) {
+    if ((family == "fast" || family == "kpn" || family == "temporal") && arch.size() > family.size()) {
         nn::ModelOptions options;
         const std::string spec = arch.substr(family.size() + 1);
         size_t used = 0, usedDepth = 0;
@@ -80,8 +84,10 @@ nlohmann::json architectureFor(const std::string& arch) {
         return nn::Model::builtinArchitecture(family, options);
     }
     if (!fs::exists(arch))
-        throw Error("--arch '" + arch +
-                    "' is neither seed2020, fast, fast:WxD, kpn, kpn:WxD nor an existing JSON file");
+        throw Error(
+            "--arch '" + arch +
+            "' is neither seed2020, fast, fast:WxD, kpn, kpn:WxD, temporal, temporal:WxD nor an existing "
+            "JSON file");
     try {
         return json::parse(readText(arch));
     } catch (const json::exception& e) {
@@ -111,6 +117,8 @@ json configToJson(const TrainConfig& c) {
             {"adversarial", c.adversarialFraction},
             {"outlier_factor", c.outlierFactor},
             {"uniform_patches", c.uniformPatches},
+            {"frames", c.frames},
+            {"temporal_loss", c.temporalLoss},
             {"threads", threadCount()}};
 }
 
@@ -129,7 +137,9 @@ void requireSameRun(const json& saved, const json& now) {
         {"families", json::array()},
         {"adversarial", json(0.0)},
         {"outlier_factor", json(0.0)},
-        {"uniform_patches", json(data::PatchOptions().uniformFraction)}};
+        {"uniform_patches", json(data::PatchOptions().uniformFraction)},
+        {"frames", json(0)},
+        {"temporal_loss", json(0.0)}};
     for (const auto& [key, absent] : keys) {
         const json before = saved.contains(key) ? saved.at(key) : absent;
         if (before != now.at(key))
@@ -530,8 +540,16 @@ void checkConfig(const TrainConfig& config) {
 }
 
 // The network --arch names, checked for what training does with it.
-nn::Model buildModel(const TrainConfig& config) {
+nn::Model buildModel(const TrainConfig& config, bool temporal) {
     nn::Model model = nn::Model::fromArchitecture(architectureFor(config.arch));
+    if (temporal) {
+        const TemporalLayout layout = temporalLayout(model);  // throws for a single-frame network
+        const nn::Shape out = model.outputShape({1, layout.inputChannels(), config.patch, config.patch});
+        if (out[2] != config.patch || out[3] != config.patch)
+            throw Error("the architecture does not return the size of a " + std::to_string(config.patch) +
+                        " px patch");
+        return model;
+    }
     if (model.inputChannels() != 1 && model.inputChannels() != 3)
         throw Error("the architecture takes " + std::to_string(model.inputChannels()) +
                     " channels; dejag trains on RGB (3) or luma (1)");
@@ -603,9 +621,16 @@ class RunFolder {
 // test faults injected on their steps. The learning rate follows the clean batches.
 class Batches {
   public:
-    Batches(const TrainConfig& config, const TrainFaults& faults, bool grey, int64_t stepsDone)
+    Batches(const TrainConfig& config, const TrainFaults& faults, bool grey, int64_t stepsDone, bool temporal)
         : config_(config), faults_(faults) {
         for (int64_t s = 0; s < stepsDone; ++s) cleanBatches_ += kindAt(s) == AdversarialKind::None;
+        if (temporal) {
+            data::SequenceOptions options;
+            options.patchSize = config.patch, options.batchSize = config.batch, options.seed = config.seed;
+            options.frames = config.frames, options.families = config.families;
+            sequences_.emplace(config.data, options);
+            return;
+        }
         data::PatchOptions patches;
         patches.patchSize = config.patch, patches.batchSize = config.batch, patches.seed = config.seed;
         patches.uniformFraction = config.uniformPatches;
@@ -627,6 +652,7 @@ class Batches {
     }
     struct Step {
         data::Batch batch;
+        data::SequenceBatch sequence;  // a temporal network's
         AdversarialKind adversarial = AdversarialKind::None;
         int64_t schedulePosition = 0;
     };
@@ -634,6 +660,11 @@ class Batches {
         Step s;
         s.adversarial = kindAt(step);
         s.schedulePosition = cleanBatches_;
+        if (sequences_) {  // (no adversarial steps: checked with the configuration)
+            s.sequence = sequences_->assemble(uint64_t(cleanBatches_++));
+            faults_.inject(step, s.sequence.frames[0].colour, s.sequence.frames[0].truth);
+            return s;
+        }
         s.batch = s.adversarial == AdversarialKind::None ? sampler_->next()
                                                          : sampler_->assemble(uint64_t(cleanBatches_));
         if (s.adversarial == AdversarialKind::None) ++cleanBatches_;
@@ -647,6 +678,7 @@ class Batches {
     const TrainConfig& config_;
     const TrainFaults& faults_;
     std::optional<data::PatchSampler> sampler_;
+    std::optional<data::SequenceSampler> sequences_;
     int64_t cleanBatches_ = 0;  // clean batches taken before the next step
 };
 
@@ -656,7 +688,8 @@ int64_t cleanStepsOf(const TrainConfig& config) {
     double pixels = 0;
     for (const json& r : items)
         if (r.value("split", "") == "train")
-            pixels += double(r["size"][0].get<int>()) * r["size"][1].get<int>();
+            pixels += double(r["size"][0].get<int>()) * r["size"][1].get<int>() *
+                      (r.contains("sequence") ? r["sequence"]["length"].get<double>() : 1.0);
     return std::max<int64_t>(
         1, int64_t(std::ceil(config.epochs * pixels / (double(config.batch) * config.patch * config.patch))));
 }
@@ -683,6 +716,13 @@ class StepGuard {
         state_.detail.add(detail, config_.outlierFactor);
         if (!finite) return Skip{"the batch holds NaN or Inf", true, false};
         if (ratio) return Skip{outlierReason("the input's detail", detail, *ratio), true, true};
+        return std::nullopt;
+    }
+    // A temporal network's batch: every frame finite.
+    std::optional<Skip> sequence(const data::SequenceBatch& b) {
+        for (const data::SequenceFrame& f : b.frames)
+            if (!allFinite(f.colour) || !allFinite(f.truth) || !allFinite(f.motion))
+                return Skip{"the batch holds NaN or Inf", true, false};
         return std::nullopt;
     }
     // After the loss: it and its gradient are finite, and the loss is no outlier.
@@ -743,11 +783,61 @@ class StepGuard {
 // Validation: the baselines scored once, the network at every evaluation; the evaluation lines.
 class Validation {
   public:
-    Validation(const TrainConfig& config, const std::vector<Method>& baselines, bool grey)
+    Validation(const TrainConfig& config, const std::vector<Method>& baselines, bool grey, bool temporal)
         : config_(config), grey_(grey) {
+        if (temporal) {
+            // Whole validation sequences, every frame after the first scored (the first has no history);
+            // the baseline is the jittered frame itself (no AA).
+            data::SequenceOptions options;
+            options.split = data::Split::Validation, options.families = config.families;
+            options.patchSize = 8, options.batchSize = 1;
+            sequences_.emplace(config.data, options);
+            const int count = config.validationImages > 0
+                                  ? std::min(config.validationImages, sequences_->sequenceCount())
+                                  : sequences_->sequenceCount();
+            for (int i = 0; i < count; ++i)
+                chosen_.push_back(int(int64_t(i) * sequences_->sequenceCount() / count));
+            MethodScores none;
+            none.name = "no aa";
+            for (int i : chosen_) {
+                const data::SequenceBatch b = sequences_->whole(i);
+                for (size_t t = 1; t < b.frames.size(); ++t)
+                    none.summary.add(frameScore(b.frames[t].colour, b.frames[t].truth));
+            }
+            none.summary.finish();
+            baselineScores_.push_back(none);
+            return;
+        }
         items_ = data::loadEvaluationItems(config.data, data::Split::Validation, config.validationImages,
                                            config.families);
         baselineScores_ = scoreMethods(items_, baselines, grey);
+    }
+    size_t size() const { return sequences_ ? chosen_.size() : items_.size(); }
+    // One frame's score: PSNR and SSIM of the whole frame (a sequence's frames carry no region masks), the
+    // output clamped to [0, 1] as it is displayed.
+    static data::ImageScore frameScore(const nn::Tensor& rgb, const nn::Tensor& truth) {
+        std::vector<float> clamped(size_t(rgb.numel()));
+        double squared = 0;
+        bool finite = true;
+        for (int64_t i = 0; i < rgb.numel(); ++i) {
+            finite = finite && std::isfinite(rgb.data()[i]);
+            clamped[size_t(i)] = std::clamp(rgb.data()[i], 0.0f, 1.0f);
+            const double d = double(clamped[size_t(i)]) - truth.data()[i];
+            squared += d * d;
+        }
+        data::ImageScore score;
+        score.nonFinite = !finite;
+        data::RegionScore& whole = score.region[0];
+        whole.scored = true;
+        if (!finite) {
+            whole.psnr = data::kWorstPsnr, whole.ssim = -1;
+            return score;
+        }
+        const double mse = squared / double(rgb.numel());
+        whole.psnr = mse > 0 ? 10 * std::log10(1.0 / mse) : 100.0;
+        const nn::SsimLossDesc desc{rgb.dim(0), rgb.dim(1), rgb.dim(2), rgb.dim(3), 1.0};
+        whole.ssim = 1.0 - nn::ssimLoss<float>(clamped.data(), truth.data(), desc);
+        return score;
     }
     const std::vector<data::EvaluationItem>& items() const { return items_; }
     const std::vector<MethodScores>& baselineScores() const { return baselineScores_; }
@@ -760,7 +850,27 @@ class Validation {
         return j;
     }
     // Scores the model into the row; returns how many images its output was not finite on.
-    int evaluate(const nn::Model& model, LogRow& row) const {
+    int evaluate(nn::Model& model, LogRow& row) const {
+        if (sequences_) {
+            data::ScoreSummary summary;
+            Unroller unroller(model);
+            nn::Tensor rgb;
+            for (int i : chosen_) {
+                const data::SequenceBatch b = sequences_->whole(i);
+                unroller.run(b, false);
+                for (size_t t = 1; t < b.frames.size(); ++t) {
+                    const nn::Tensor& out = unroller.output(int(t));
+                    rgb = nn::Tensor({1, 3, out.dim(2), out.dim(3)});
+                    std::copy_n(out.data(), rgb.numel(), rgb.data());
+                    summary.add(frameScore(rgb, b.frames[t].truth));
+                }
+            }
+            summary.finish();
+            row.evaluated = true;
+            for (int k = 0; k < int(data::Region::Count); ++k)
+                row.psnr[k] = summary.psnr[k], row.ssim[k] = summary.ssim[k];
+            return summary.nonFiniteImages;
+        }
         auto network = nn::FrameNetwork::borrowing(model);
         const std::vector<MethodScores> s = scoreMethods(
             items_, {{"network", [&](const Image& im) { return runNetwork(network, im); }}}, grey_);
@@ -795,6 +905,8 @@ class Validation {
   private:
     const TrainConfig& config_;
     bool grey_;
+    std::optional<data::SequenceSampler> sequences_;
+    std::vector<int> chosen_;  // the validation sequences scored
     std::vector<data::EvaluationItem> items_;
     std::vector<MethodScores> baselineScores_;
 };
@@ -816,8 +928,26 @@ TrainResult trainModel(const TrainConfig& config, const std::vector<Method>& bas
                        const TrainFaults& faults) {
     checkConfig(config);
     const nn::CompositeLoss loss = nn::CompositeLoss::parse(config.loss);
-    nn::Model model = buildModel(config);
+    // A dataset of sequences trains a recurrent network, unrolled over each crop's frames.
+    bool temporal = false;
+    if (std::ifstream in(fs::path(config.data) / "dataset.json"); in) {
+        const json spec = json::parse(in, nullptr, false);
+        temporal = spec.is_object() && spec.contains("sequence");
+    }
+    if (temporal && (config.adversarialFraction > 0 || config.outlierFactor > 0))
+        throw Error("--adversarial and --skip-outliers train single-frame networks; '" + config.data +
+                    "' holds sequences");
+    if (!temporal && (config.frames != 0 || config.temporalLoss != 0))
+        throw Error("--frames and --temporal-loss train on sequences; '" + config.data +
+                    "' holds single frames");
+    nn::Model model = buildModel(config, temporal);
     const bool grey = model.inputChannels() == 1;
+    std::optional<Unroller> unroller;
+    if (temporal) {
+        TemporalLoss temporalLoss;
+        temporalLoss.perFrame = loss, temporalLoss.temporalWeight = config.temporalLoss;
+        unroller.emplace(model, temporalLoss);
+    }
 
     const RunFolder folder(config.out);
     json runConfig = configToJson(config);
@@ -842,7 +972,7 @@ TrainResult trainModel(const TrainConfig& config, const std::vector<Method>& bas
         model.initialize(config.seed);
     }
 
-    Batches batches(config, faults, grey, state.step);
+    Batches batches(config, faults, grey, state.step, temporal);
     const int64_t cleanSteps = cleanStepsOf(config), totalSteps = batches.stepsFor(cleanSteps);
     runConfig["total_steps"] = totalSteps;
     nn::LrSchedule schedule;
@@ -850,7 +980,7 @@ TrainResult trainModel(const TrainConfig& config, const std::vector<Method>& bas
     schedule.baseRate = config.learningRate, schedule.minRate = 0.05 * config.learningRate;
     schedule.warmupSteps = config.warmupSteps, schedule.totalSteps = cleanSteps;
 
-    const Validation validation(config, baselines, grey);
+    const Validation validation(config, baselines, grey, temporal);
     {
         json run = {
             {"format", "dejag-run-1"},
@@ -859,7 +989,8 @@ TrainResult trainModel(const TrainConfig& config, const std::vector<Method>& bas
             {"architecture", model.architecture()},
             {"parameters", model.parameterCount()},
             {"macs_per_pixel", double(model.macs({1, model.inputChannels(), 256, 256})) / (256.0 * 256.0)},
-            {"validation_items", validation.items().size()}};
+            {"validation_items", validation.size()},
+            {"temporal", temporal}};
         const std::string datasetJson = (fs::path(config.data) / "dataset.json").string();
         if (fs::exists(datasetJson)) run["dataset"] = readJsonFile(datasetJson);
         run["validation_baselines"] = validation.baselinesJson();
@@ -893,8 +1024,13 @@ TrainResult trainModel(const TrainConfig& config, const std::vector<Method>& bas
         const double rate = schedule.rateAt(step.schedulePosition) * state.learningRateScale;
         // 2. Guard, forward and loss, backward, guard again.
         double value = NAN;
-        std::optional<StepGuard::Skip> skip = guard.batch(step.batch);
-        if (!skip) {
+        std::optional<StepGuard::Skip> skip =
+            temporal ? guard.sequence(step.sequence) : guard.batch(step.batch);
+        if (!skip && temporal) {
+            // Forward over the frames and backpropagation through time: the gradient is in the model.
+            value = unroller->run(step.sequence, true);
+            skip = guard.loss(value, dout);
+        } else if (!skip) {
             const nn::Tensor& out = model.forward(step.batch.input);
             if (dout.shape() != out.shape()) dout = nn::Tensor(out.shape());
             dout.zero();
@@ -903,7 +1039,7 @@ TrainResult trainModel(const TrainConfig& config, const std::vector<Method>& bas
             skip = guard.loss(value, dout);
         }
         if (!skip) {
-            model.backward(dout);
+            if (!temporal) model.backward(dout);
             const double norm =
                 config.clipNorm > 0
                     ? nn::clipGradientNorm(model.gradientData(), model.parameterCount(), config.clipNorm)

@@ -60,6 +60,10 @@ struct TrainConfig {
     double uniformPatches = data::PatchOptions().uniformFraction;
     std::string commandLine;            // recorded in run.json and the model card
     std::vector<std::string> families;  // train and validate on these families only (empty: all but test)
+    // A dataset of sequences (a temporal network, train/temporal.h): frames per crop (0: the sequences'
+    // length) and the weight of the temporal term of the loss.
+    int frames = 0;
+    double temporalLoss = 0;
 };
 
 // The batches `--adversarial` mixes in. Constant: every patch one grey level, input = target; noise:
