@@ -12,6 +12,7 @@
 #include "base/thread_pool.h"
 #include "base/timer.h"
 #include "infer/cnn.h"
+#include "infer/cnn_temporal.h"
 #include "infer/fxaa.h"
 #include "infer/taa.h"
 #include "infer/taa_hq.h"
@@ -205,7 +206,8 @@ MethodSpec noneMethod() {
 // The table of methods: one line each.
 const std::vector<MethodSpec>& filterMethods() {
     static const std::vector<MethodSpec> table = {
-        noneMethod(), fxaaMethod(), cnnMethod(), taaMethod(false), taaMethod(true), taaHqMethod(),
+        noneMethod(),    fxaaMethod(),  cnnMethod(),         taaMethod(false),
+        taaMethod(true), taaHqMethod(), cnnTemporalMethod(),
     };
     return table;
 }

@@ -636,13 +636,14 @@ TEST(Cli, FilterListsItsMethodsAndRefusesParametersNoMethodReads) {
     testing::TempDir dir;
     RunResult r = run("filter --list-methods", dir);
     ASSERT_EQ(r.exitCode, 0) << r.err;
-    for (const char* text :
-         {"none\n", "fxaa\n", "cnn\n", "taa  (temporal", "taa-sobel  (temporal", "taa-hq  (temporal",
-          "static-lock = true", "preset = 39", "gate = auto", "needs: depth, motion", "feedback-max = 0.979"})
+    for (const char* text : {"none\n", "fxaa\n", "cnn\n", "taa  (temporal", "taa-sobel  (temporal",
+                             "taa-hq  (temporal", "cnn-temporal  (temporal", "static-lock = true",
+                             "preset = 39", "gate = auto", "needs: depth, motion", "feedback-max = 0.979"})
         EXPECT_NE(r.out.find(text), std::string::npos) << text;
     r = run("filter --list-methods --json", dir);
     ASSERT_EQ(r.exitCode, 0) << r.err;
-    EXPECT_EQ(nlohmann::json::parse(r.out).size(), 6u);  // none, fxaa, cnn, taa, taa-sobel, taa-hq
+    EXPECT_EQ(nlohmann::json::parse(r.out).size(),
+              7u);  // none, fxaa, cnn, taa, taa-sobel, taa-hq, cnn-temporal
     Image edge(24, 20, {"R", "G", "B"}, PixelType::UInt8);
     for (int y = 0; y < 20; ++y)
         for (int x = 0; x < 24; ++x)

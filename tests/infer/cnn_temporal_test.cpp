@@ -1,0 +1,171 @@
+// The recurrent network filter: what it outputs is what training's unrolled forward computes on the same
+// frames (the inference plan against the model, the history kept and warped alike), a cut starts the
+// history over, and the thread count changes nothing.
+#include "infer/cnn_temporal.h"
+
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <random>
+#include <string>
+#include <vector>
+
+#include "base/error.h"
+#include "base/thread_pool.h"
+#include "nn/model.h"
+#include "tests/test_util.h"
+#include "train/temporal.h"
+
+namespace dejag::infer {
+namespace {
+
+constexpr int W = 40, H = 24, K = 4;
+
+// A short sequence: a soft pattern moving 0.7 px right and 0.3 px down a frame, exact motion, jitter.
+struct Sequence {
+    std::vector<std::vector<float>> colour, motion;
+    std::vector<std::array<float, 2>> jitter;
+};
+Sequence makeSequence() {
+    Sequence s;
+    for (int t = 0; t < K; ++t) {
+        std::vector<float> c(size_t(W * H * 3)), m(size_t(W * H * 2));
+        for (int y = 0; y < H; ++y)
+            for (int x = 0; x < W; ++x) {
+                const double u = x - 0.7 * t, v = y - 0.3 * t;
+                for (int k = 0; k < 3; ++k)
+                    c[size_t((y * W + x) * 3 + k)] =
+                        float(0.5 + 0.4 * std::sin(0.45 * u * (k + 1) + 0.3 * v));
+                m[size_t((y * W + x) * 2)] = 0.7f, m[size_t((y * W + x) * 2 + 1)] = 0.3f;
+            }
+        s.colour.push_back(c), s.motion.push_back(m);
+        s.jitter.push_back({0.25f - 0.1f * t, -0.2f + 0.15f * t});
+    }
+    return s;
+}
+
+std::string savedModel(const testing::TempDir& dir) {
+    nn::ModelOptions options;
+    options.width = 4, options.depth = 2, options.state = 1;
+    nn::Model model = nn::Model::builtin("temporal", options);
+    model.initialize(11);
+    // A correction of full size, so that every part of the network shows in the output.
+    for (const nn::ParameterInfo& p : model.parameters())
+        if (p.name.rfind("correction", 0) == 0)
+            for (int64_t i = 0; i < nn::shapeNumel(p.shape); ++i) model.parameterData()[p.offset + i] *= 10;
+    const std::string path = dir.file("temporal.safetensors");
+    nn::saveModel(path, model);
+    return path;
+}
+
+std::vector<std::vector<float>> runFilter(Filter& filter, const Sequence& s, int resetAt = -1) {
+    std::vector<std::vector<float>> outputs;
+    for (int t = 0; t < K; ++t) {
+        Frame f;
+        f.width = W, f.height = H, f.colour = s.colour[size_t(t)].data(),
+        f.motion = s.motion[size_t(t)].data();
+        f.hasJitter = true, f.jitter[0] = s.jitter[size_t(t)][0], f.jitter[1] = s.jitter[size_t(t)][1];
+        if (t == resetAt) filter.reset();
+        outputs.emplace_back(size_t(W * H * 3));
+        filter.apply(f, outputs.back().data());
+    }
+    return outputs;
+}
+
+TEST(CnnTemporal, TheFilterIsTrainingsUnrolledForward) {
+    testing::TempDir dir;
+    const std::string path = savedModel(dir);
+    const Sequence s = makeSequence();
+    const auto filter = makeFilter("cnn-temporal", {{"model", path}, {"precision", "fp32"}});
+    EXPECT_TRUE(filter->temporal());
+    const auto outputs = runFilter(*filter, s);
+    // Training's view of the same frames: a batch of one whole sequence.
+    data::SequenceBatch batch;
+    for (int t = 0; t < K; ++t) {
+        data::SequenceFrame f;
+        f.colour = nn::Tensor({1, 3, H, W}), f.truth = nn::Tensor({1, 3, H, W}),
+        f.motion = nn::Tensor({1, 2, H, W});
+        for (int p = 0; p < W * H; ++p) {
+            for (int c = 0; c < 3; ++c)
+                f.colour.data()[c * W * H + p] = s.colour[size_t(t)][size_t(p * 3 + c)];
+            if (t > 0)
+                for (int c = 0; c < 2; ++c)
+                    f.motion.data()[c * W * H + p] = s.motion[size_t(t)][size_t(p * 2 + c)];
+        }
+        f.fresh = {uint8_t(t == 0)};
+        f.jitter = {s.jitter[size_t(t)][0], s.jitter[size_t(t)][1]};
+        batch.frames.push_back(std::move(f));
+    }
+    nn::Model model = nn::loadModel(path);
+    train::Unroller unroller(model);
+    unroller.run(batch, false);
+    double worst = 0, moved = 0;
+    for (int t = 0; t < K; ++t) {
+        const nn::Tensor& expected = unroller.output(t);
+        for (int p = 0; p < W * H; ++p)
+            for (int c = 0; c < 3; ++c) {
+                const float want = std::clamp(expected.data()[c * W * H + p], 0.0f, 1.0f);
+                worst = std::max(worst, double(std::abs(outputs[size_t(t)][size_t(p * 3 + c)] - want)));
+                moved = std::max(moved, double(std::abs(want - s.colour[size_t(t)][size_t(p * 3 + c)])));
+            }
+    }
+    EXPECT_LE(worst, 1e-5);
+    EXPECT_GT(moved, 1e-2);  // the network does something to the frames
+}
+
+TEST(CnnTemporal, ACutStartsTheHistoryOverAndThreadsChangeNothing) {
+    testing::TempDir dir;
+    const std::string path = savedModel(dir);
+    const Sequence s = makeSequence();
+    const auto filter = makeFilter("cnn-temporal", {{"model", path}, {"precision", "fp32"}});
+    const auto whole = runFilter(*filter, s);
+    // Frame 2 after a reset is frame 2 of a filter that saw nothing before it...
+    const auto cut = runFilter(*makeFilter("cnn-temporal", {{"model", path}, {"precision", "fp32"}}), s, 2);
+    Sequence later = s;
+    later.colour.erase(later.colour.begin(), later.colour.begin() + 2);
+    later.motion.erase(later.motion.begin(), later.motion.begin() + 2);
+    later.jitter.erase(later.jitter.begin(), later.jitter.begin() + 2);
+    std::vector<std::vector<float>> fresh;
+    {
+        const auto f = makeFilter("cnn-temporal", {{"model", path}, {"precision", "fp32"}});
+        for (int t = 0; t < 2; ++t) {
+            Frame frame;
+            frame.width = W, frame.height = H, frame.colour = later.colour[size_t(t)].data();
+            frame.motion = later.motion[size_t(t)].data(), frame.hasJitter = true;
+            frame.jitter[0] = later.jitter[size_t(t)][0], frame.jitter[1] = later.jitter[size_t(t)][1];
+            fresh.emplace_back(size_t(W * H * 3));
+            f->apply(frame, fresh.back().data());
+        }
+    }
+    EXPECT_EQ(cut[2], fresh[0]);
+    EXPECT_EQ(cut[3], fresh[1]);
+    // ... and not the frame with its history.
+    EXPECT_NE(cut[2], whole[2]);
+    // One thread or two: the same bytes.
+    const int threads = threadCount();
+    setThreadCount(1);
+    const auto single = runFilter(*makeFilter("cnn-temporal", {{"model", path}, {"precision", "fp32"}}), s);
+    setThreadCount(threads);
+    EXPECT_EQ(single, whole);
+}
+
+TEST(CnnTemporal, ASingleFrameModelOrMissingMotionIsOneClearError) {
+    testing::TempDir dir;
+    const std::string path = dir.file("fast.safetensors");
+    nn::saveModel(path, nn::Model::builtin("fast"));
+    try {
+        (void)makeFilter("cnn-temporal", {{"model", path}});
+        ADD_FAILURE() << "accepted a single-frame model";
+    } catch (const Error& e) {
+        EXPECT_NE(std::string(e.what()).find("not a temporal network"), std::string::npos) << e.what();
+    }
+    const auto filter = makeFilter("cnn-temporal", {{"model", savedModel(dir)}});
+    std::vector<float> colour(size_t(W * H * 3), 0.5f), out(colour.size());
+    Frame f;
+    f.width = W, f.height = H, f.colour = colour.data();
+    EXPECT_THROW(filter->apply(f, out.data()), Error);  // no motion
+}
+
+}  // namespace
+}  // namespace dejag::infer
