@@ -26,6 +26,39 @@ train::Method filterMethod(const std::string& label, const std::string& method) 
             }};
 }
 
+// A temporal method of the filter face run over a whole sequence (training's planar tensors in and out),
+// restarted where the sequence's history restarts.
+train::SequenceMethod sequenceFilterMethod(const std::string& label, const std::string& method) {
+    return {label, [method](const data::SequenceBatch& batch) {
+                const std::unique_ptr<infer::Filter> filter = infer::makeFilter(method, {});
+                std::vector<nn::Tensor> out;
+                std::vector<float> colour, motion, result;
+                for (const data::SequenceFrame& f : batch.frames) {
+                    const int64_t H = f.colour.dim(2), W = f.colour.dim(3), plane = H * W;
+                    colour.resize(size_t(3 * plane)), motion.resize(size_t(2 * plane)),
+                        result.resize(colour.size());
+                    for (int64_t p = 0; p < plane; ++p) {
+                        for (int c = 0; c < 3; ++c)
+                            colour[size_t(3 * p + c)] = f.colour.data()[c * plane + p];
+                        for (int c = 0; c < 2; ++c)
+                            motion[size_t(2 * p + c)] = f.motion.data()[c * plane + p];
+                    }
+                    infer::Frame frame;
+                    frame.width = int(W), frame.height = int(H), frame.colour = colour.data();
+                    frame.motion = motion.data(), frame.depth = f.depth.data(),
+                    frame.previousDepth = f.previousDepth.data();
+                    frame.hasJitter = true, frame.jitter[0] = f.jitter[0], frame.jitter[1] = f.jitter[1];
+                    if (f.fresh[0]) filter->reset();
+                    filter->apply(frame, result.data());
+                    nn::Tensor rgb({1, 3, H, W});
+                    for (int64_t p = 0; p < plane; ++p)
+                        for (int c = 0; c < 3; ++c) rgb.data()[c * plane + p] = result[size_t(3 * p + c)];
+                    out.push_back(std::move(rgb));
+                }
+                return out;
+            }};
+}
+
 // The comparison methods of validation and of the model card: the unfiltered frame and FXAA 3.11 at
 // its highest preset (train/ cannot depend on infer/, so they are wired in here).
 std::vector<train::Method> standardBaselines() {
@@ -160,7 +193,8 @@ void registerTrainCommand(CLI::App& app) {
     exportCommand->callback([=] {
         applyRuntimeOptions(*exportRuntime);
         const std::string card =
-            train::exportModel(*exportRun, *exportModel, standardBaselines(), *testImages, *exportQuiet);
+            train::exportModel(*exportRun, *exportModel, standardBaselines(), *testImages, *exportQuiet,
+                               {sequenceFilterMethod("taa-hq", "taa-hq")});
         if (!*exportQuiet) std::printf("%s", card.c_str());
     });
 

@@ -86,8 +86,9 @@ SequenceSampler::SequenceSampler(const std::string& folder, const SequenceOption
                                     std::to_string(s.height) + ")");
                 }
                 const int red = frame.findChannel("R"), mx = frame.findChannel("motion.X"),
-                          my = frame.findChannel("motion.Y"), tr = truth.findChannel("R");
-                if (red < 0 || mx < 0 || my < 0 || tr < 0 || frame.width != s.width ||
+                          my = frame.findChannel("motion.Y"), tr = truth.findChannel("R"),
+                          dz = frame.findChannel("depth.Z"), pz = frame.findChannel("prevdepth.Z");
+                if (red < 0 || mx < 0 || my < 0 || tr < 0 || dz < 0 || pz < 0 || frame.width != s.width ||
                     truth.width != s.width || frame.height != s.height || truth.height != s.height)
                     throw Error("sequence " + r["id"].get<std::string>() + ", frame " + std::to_string(k) +
                                 ": colour, motion or truth missing or of another size");
@@ -108,6 +109,11 @@ SequenceSampler::SequenceSampler(const std::string& folder, const SequenceOption
                     for (size_t p = 0; p < plane; ++p)
                         s.motion.push_back(
                             frame.at(int(p % size_t(s.width)), int(p / size_t(s.width)), channel));
+                const float far = sidecar.value("depth_far", 200.0f);
+                for (const int channel : {dz, pz})
+                    for (size_t p = 0; p < plane; ++p)
+                        s.depth.push_back(
+                            frame.at(int(p % size_t(s.width)), int(p / size_t(s.width)), channel) / far);
                 const nlohmann::json& f = sidecar["frames"][size_t(k)];
                 s.jitter.push_back(f["jitter_pixels"][0].get<float>());
                 s.jitter.push_back(f["jitter_pixels"][1].get<float>());
@@ -124,6 +130,7 @@ SequenceBatch SequenceSampler::assemble(uint64_t index) const {
     for (SequenceFrame& f : batch.frames) {
         f.colour = nn::Tensor({N, 3, P, P}), f.truth = nn::Tensor({N, 3, P, P});
         f.motion = nn::Tensor({N, 2, P, P});
+        f.depth = nn::Tensor({N, 1, P, P}), f.previousDepth = nn::Tensor({N, 1, P, P});
         f.jitter.assign(size_t(2 * N), 0.0f), f.fresh.assign(size_t(N), 0);
     }
     Random random(splitMix64(options_.seed * 0x9E3779B97F4A7C15ull ^ index));
@@ -167,6 +174,9 @@ SequenceBatch SequenceSampler::assemble(uint64_t index) const {
                     if (f.fresh[size_t(n)]) mx = my = 0;
                     f.motion.data()[(int64_t(n) * 2) * P * P + to] = mx;
                     f.motion.data()[(int64_t(n) * 2 + 1) * P * P + to] = my;
+                    f.depth.data()[int64_t(n) * P * P + to] = s.depth[(size_t(k) * 2) * plane + from];
+                    f.previousDepth.data()[int64_t(n) * P * P + to] =
+                        s.depth[(size_t(k) * 2 + 1) * plane + from];
                 }
         }
     }
@@ -182,6 +192,9 @@ SequenceBatch SequenceSampler::whole(int i) const {
         SequenceFrame f;
         f.colour = nn::Tensor({1, 3, H, W}), f.truth = nn::Tensor({1, 3, H, W}),
         f.motion = nn::Tensor({1, 2, H, W});
+        f.depth = nn::Tensor({1, 1, H, W}), f.previousDepth = nn::Tensor({1, 1, H, W});
+        std::copy_n(s.depth.begin() + k * 2 * plane, plane, f.depth.data());
+        std::copy_n(s.depth.begin() + (k * 2 + 1) * plane, plane, f.previousDepth.data());
         std::copy_n(s.colour.begin() + k * 3 * plane, 3 * plane, f.colour.data());
         std::copy_n(s.truth.begin() + k * 3 * plane, 3 * plane, f.truth.data());
         f.fresh.push_back(k == 0 || s.cut[size_t(k)]);

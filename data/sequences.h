@@ -28,8 +28,11 @@ struct SequenceOptions {
 // +y down: the previous frame's pixel p - motion is where p was); jitter the frame's image shift in pixels
 // (+y down), per crop.
 struct SequenceFrame {
-    nn::Tensor colour, truth;   // (N, 3, P, P)
-    nn::Tensor motion;          // (N, 2, P, P)
+    nn::Tensor colour, truth;  // (N, 3, P, P)
+    nn::Tensor motion;         // (N, 2, P, P)
+    // Depth and the previous frame's depth (N, 1, P, P), divided by the far plane (render.json's
+    // depth_far): what taa-hq's disocclusion test reads.
+    nn::Tensor depth, previousDepth;
     std::vector<float> jitter;  // N pairs (x, y)
     // Per crop: the history restarts at this frame (the crop's first frame, or a cut). Its motion is 0.
     std::vector<uint8_t> fresh;
@@ -55,6 +58,7 @@ class SequenceSampler {
     struct Sequence {
         int index = 0, width = 0, height = 0, length = 0;
         std::vector<float> colour, truth, motion;  // per frame, planar: 3, 3 and 2 planes
+        std::vector<float> depth;                  // per frame, planar: depth and previous depth / far
         std::vector<float> jitter;                 // per frame (x, y)
         std::vector<uint8_t> cut;                  // per frame
     };

@@ -781,6 +781,33 @@ class StepGuard {
 };
 
 // Validation: the baselines scored once, the network at every evaluation; the evaluation lines.
+// One frame's score: PSNR and SSIM of the whole frame (a sequence's frames carry no region masks), the
+// output clamped to [0, 1] as it is displayed.
+data::ImageScore frameScore(const nn::Tensor& rgb, const nn::Tensor& truth) {
+    std::vector<float> clamped(size_t(rgb.numel()));
+    double squared = 0;
+    bool finite = true;
+    for (int64_t i = 0; i < rgb.numel(); ++i) {
+        finite = finite && std::isfinite(rgb.data()[i]);
+        clamped[size_t(i)] = std::clamp(rgb.data()[i], 0.0f, 1.0f);
+        const double d = double(clamped[size_t(i)]) - truth.data()[i];
+        squared += d * d;
+    }
+    data::ImageScore score;
+    score.nonFinite = !finite;
+    data::RegionScore& whole = score.region[0];
+    whole.scored = true;
+    if (!finite) {
+        whole.psnr = data::kWorstPsnr, whole.ssim = -1;
+        return score;
+    }
+    const double mse = squared / double(rgb.numel());
+    whole.psnr = mse > 0 ? 10 * std::log10(1.0 / mse) : 100.0;
+    const nn::SsimLossDesc desc{rgb.dim(0), rgb.dim(1), rgb.dim(2), rgb.dim(3), 1.0};
+    whole.ssim = 1.0 - nn::ssimLoss<float>(clamped.data(), truth.data(), desc);
+    return score;
+}
+
 class Validation {
   public:
     Validation(const TrainConfig& config, const std::vector<Method>& baselines, bool grey, bool temporal)
@@ -813,32 +840,6 @@ class Validation {
         baselineScores_ = scoreMethods(items_, baselines, grey);
     }
     size_t size() const { return sequences_ ? chosen_.size() : items_.size(); }
-    // One frame's score: PSNR and SSIM of the whole frame (a sequence's frames carry no region masks), the
-    // output clamped to [0, 1] as it is displayed.
-    static data::ImageScore frameScore(const nn::Tensor& rgb, const nn::Tensor& truth) {
-        std::vector<float> clamped(size_t(rgb.numel()));
-        double squared = 0;
-        bool finite = true;
-        for (int64_t i = 0; i < rgb.numel(); ++i) {
-            finite = finite && std::isfinite(rgb.data()[i]);
-            clamped[size_t(i)] = std::clamp(rgb.data()[i], 0.0f, 1.0f);
-            const double d = double(clamped[size_t(i)]) - truth.data()[i];
-            squared += d * d;
-        }
-        data::ImageScore score;
-        score.nonFinite = !finite;
-        data::RegionScore& whole = score.region[0];
-        whole.scored = true;
-        if (!finite) {
-            whole.psnr = data::kWorstPsnr, whole.ssim = -1;
-            return score;
-        }
-        const double mse = squared / double(rgb.numel());
-        whole.psnr = mse > 0 ? 10 * std::log10(1.0 / mse) : 100.0;
-        const nn::SsimLossDesc desc{rgb.dim(0), rgb.dim(1), rgb.dim(2), rgb.dim(3), 1.0};
-        whole.ssim = 1.0 - nn::ssimLoss<float>(clamped.data(), truth.data(), desc);
-        return score;
-    }
     const std::vector<data::EvaluationItem>& items() const { return items_; }
     const std::vector<MethodScores>& baselineScores() const { return baselineScores_; }
     json baselinesJson() const {
@@ -1168,8 +1169,194 @@ json scoresToJson(const std::vector<MethodScores>& scores) {
 
 }  // namespace
 
+namespace {
+
+// The architecture table of a model card.
+std::string architectureTable(const nn::Model& model) {
+    std::ostringstream md;
+    md << "| node | op | inputs | out channels | kernel | stride | activation "
+          "|\n|---|---|---|---|---|---|---|\n";
+    const auto graph = model.graph();
+    for (const nn::GraphNode& n : graph) {
+        std::string inputs;
+        for (int i : n.inputs)
+            inputs += (inputs.empty() ? "" : ", ") + (i < 0 ? std::string("input") : graph[size_t(i)].name);
+        const nn::OpCard cells = nn::opDef(n.op).card(n);
+        md << "| " << n.name << " | " << nn::graphOpName(n.op) << " | " << inputs << " | "
+           << cells.outChannels << " | " << cells.kernel << " | " << cells.stride << " | " << cells.activation
+           << " |\n";
+    }
+    return md.str();
+}
+
+// A method's scores over sequences: PSNR and SSIM of every frame after each sequence's first, and the
+// flicker against the truth's own change (docs/metrics.md) over the same frames.
+struct SequenceScores {
+    std::string name;
+    data::ScoreSummary summary;
+    double flickerSum = 0;
+    int flickerFrames = 0;
+    double flicker() const { return flickerFrames ? flickerSum / flickerFrames : NAN; }
+};
+
+std::vector<SequenceScores> scoreSequences(const data::SequenceSampler& sequences, int limit,
+                                           const std::vector<SequenceMethod>& methods) {
+    std::vector<SequenceScores> scores(methods.size());
+    for (size_t m = 0; m < methods.size(); ++m) scores[m].name = methods[m].name;
+    const int count = limit > 0 ? std::min(limit, sequences.sequenceCount()) : sequences.sequenceCount();
+    for (int k = 0; k < count; ++k) {
+        const data::SequenceBatch batch =
+            sequences.whole(int(int64_t(k) * sequences.sequenceCount() / count));
+        for (size_t m = 0; m < methods.size(); ++m) {
+            const std::vector<nn::Tensor> frames = methods[m].apply(batch);
+            for (size_t t = 1; t < frames.size(); ++t) {
+                scores[m].summary.add(frameScore(frames[t], batch.frames[t].truth));
+                if (batch.frames[t].fresh[0]) continue;
+                const nn::Tensor &now = frames[t], &before = frames[t - 1];
+                const nn::Tensor &truth = batch.frames[t].truth, &truthBefore = batch.frames[t - 1].truth;
+                double sum = 0;
+                for (int64_t i = 0; i < now.numel(); ++i) {
+                    auto shown = [](float v) {
+                        return std::round(std::clamp(v, 0.0f, 1.0f) * 255.0f) / 255.0f;
+                    };
+                    sum += std::abs(double(shown(now.data()[i]) - shown(before.data()[i])) -
+                                    double(shown(truth.data()[i]) - shown(truthBefore.data()[i])));
+                }
+                scores[m].flickerSum += sum / double(now.numel()), ++scores[m].flickerFrames;
+            }
+        }
+    }
+    for (SequenceScores& s : scores) s.summary.finish();
+    return scores;
+}
+
+std::string sequenceTable(const std::vector<SequenceScores>& scores) {
+    std::ostringstream md;
+    md << "| method | PSNR dB | SSIM | flicker |\n|---|---|---|---|\n";
+    char line[256];
+    for (const SequenceScores& s : scores) {
+        std::snprintf(line, sizeof line, "| %s | %.2f | %.4f | %.5f |\n", s.name.c_str(), s.summary.psnr[0],
+                      s.summary.ssim[0], s.flicker());
+        md << line;
+    }
+    return md.str();
+}
+
+json sequenceScoresJson(const std::vector<SequenceScores>& scores) {
+    json j = json::object();
+    for (const SequenceScores& s : scores)
+        j[s.name] = {{"psnr", s.summary.psnr[0]}, {"ssim", s.summary.ssim[0]}, {"flicker", s.flicker()}};
+    return j;
+}
+
+// The export of a temporal network's run: scored on whole sequences next to the jittered frames and the
+// given baselines; its card.
+std::string exportTemporal(const json& runJson, nn::Model model, const std::string& modelPath,
+                           const std::vector<SequenceMethod>& baselines, int testSequences, bool quiet) {
+    const std::string dataFolder = runJson.at("config").at("data");
+    std::vector<SequenceMethod> methods;
+    methods.push_back({"no AA", [](const data::SequenceBatch& b) {
+                           std::vector<nn::Tensor> out;
+                           for (const data::SequenceFrame& f : b.frames) out.push_back(f.colour.clone());
+                           return out;
+                       }});
+    for (const SequenceMethod& m : baselines) methods.push_back(m);
+    methods.push_back({"network", [&](const data::SequenceBatch& b) {
+                           Unroller unroller(model);
+                           unroller.run(b, false);
+                           std::vector<nn::Tensor> out;
+                           for (size_t t = 0; t < b.frames.size(); ++t) {
+                               const nn::Tensor& o = unroller.output(int(t));
+                               nn::Tensor rgb({1, 3, o.dim(2), o.dim(3)});
+                               std::copy_n(o.data(), rgb.numel(), rgb.data());
+                               out.push_back(std::move(rgb));
+                           }
+                           return out;
+                       }});
+    if (!quiet)
+        std::fprintf(stderr, "scoring on the validation and test sequences of '%s'...\n", dataFolder.c_str());
+    data::SequenceOptions options;
+    options.patchSize = 8, options.batchSize = 1;
+    options.split = data::Split::Validation;
+    options.families = runJson.at("config").value("families", std::vector<std::string>{});
+    const auto validation = scoreSequences(data::SequenceSampler(dataFolder, options), 0, methods);
+    options.split = data::Split::Test, options.families.clear();
+    const data::SequenceSampler testSequencesData(dataFolder, options);
+    const auto test = scoreSequences(testSequencesData, testSequences, methods);
+    const int testCount = testSequences > 0 ? std::min(testSequences, testSequencesData.sequenceCount())
+                                            : testSequencesData.sequenceCount();
+
+    const std::string name = fs::path(modelPath).stem().string();
+    const json& config = runJson.at("config");
+    const json& finished = runJson.at("finished");
+    const json card = {{"name", name},
+                       {"architecture", model.name()},
+                       {"parameters", model.parameterCount()},
+                       {"macs_per_pixel", runJson.at("macs_per_pixel")},
+                       {"command", runJson.at("command")},
+                       {"training_seconds", finished.at("seconds")},
+                       {"steps", finished.at("steps")},
+                       {"best_step", finished.at("best_step")},
+                       {"validation", sequenceScoresJson(validation)},
+                       {"test", sequenceScoresJson(test)}};
+    nn::saveModel(
+        modelPath, model,
+        {{"dejag.provenance", runJson.at("command").get<std::string>()}, {"dejag.card", card.dump()}});
+
+    std::ostringstream md;
+    char line[512];
+    md << "# " << name << "\n\n";
+    md << "Trained by dejag (`dejag train` on a dataset of sequences, then `dejag train export`). A "
+          "recurrent "
+          "network: per frame it takes the jittered frame, its own previous output (RGB and state, warped by "
+          "the motion inside the network), the motion and the jitter, and returns the frame and its state "
+          "(docs/train.md); `dejag filter --method cnn-temporal` runs it.\n\n";
+    md << "## Architecture\n\n";
+    std::snprintf(line, sizeof line, "`%s`: %lld parameters, %.0f multiply-adds per input pixel.\n\n",
+                  model.name().c_str(), (long long)model.parameterCount(),
+                  runJson.at("macs_per_pixel").get<double>());
+    md << line << architectureTable(model);
+    md << "\n## Training\n\nCommand:\n\n```\n" << runJson.at("command").get<std::string>() << "\n```\n\n";
+    std::snprintf(
+        line, sizeof line,
+        "Loss `%s` per frame plus %g times the temporal term, unrolled over %d frames; Adam, learning "
+        "rate %g (cosine decay to 5 %%, %lld warm-up steps), gradient norm clipped at %g, batch %d "
+        "crops of %d px, seed %llu, threads: %d.\n",
+        config.at("loss").get<std::string>().c_str(), config.value("temporal_loss", 0.0),
+        config.value("frames", 0), config.at("lr").get<double>(),
+        (long long)config.at("warmup_steps").get<int64_t>(), config.at("clip_norm").get<double>(),
+        config.at("batch").get<int>(), config.at("patch").get<int>(),
+        (unsigned long long)config.at("seed").get<uint64_t>(), config.at("threads").get<int>());
+    md << line;
+    std::snprintf(line, sizeof line,
+                  "%lld steps in %s of wall time on this machine (2 cores); %lld steps skipped by the NaN "
+                  "guard; the weights are those of step %lld, the best validation PSNR (%.2f dB).\n\n",
+                  (long long)finished.at("steps").get<int64_t>(),
+                  formatDuration(finished.at("seconds")).c_str(),
+                  (long long)finished.at("skipped").get<int64_t>(),
+                  (long long)finished.at("best_step").get<int64_t>(), finished.at("best_psnr").get<double>());
+    md << line;
+    if (runJson.contains("dataset"))
+        md << "Data: `" << dataFolder << "`, made by `dejag data generate` with "
+           << runJson.at("dataset").dump() << ".\n\n";
+    md << "## Results\n\nEvery frame after each sequence's first (which has no history), whole sequences at "
+          "their size: PSNR and SSIM against the frame's own truth on sRGB-encoded values (data range 1), "
+          "mean over frames; flicker = mean |(X_t - X_t-1) - (R_t - R_t-1)| on 8-bit values "
+          "(docs/metrics.md), "
+          "over the frames whose history continues.\n\n";
+    std::snprintf(line, sizeof line, "### Test split (%d sequences of families never trained on)\n\n",
+                  testCount);
+    md << line << sequenceTable(test) << "\n### Validation split\n\n" << sequenceTable(validation);
+    const std::string cardPath = (fs::path(modelPath).parent_path() / (name + ".md")).string();
+    writeTextFileAtomically(cardPath, md.str());
+    return md.str();
+}
+
+}  // namespace
+
 std::string exportModel(const std::string& run, const std::string& modelPath,
-                        const std::vector<Method>& baselines, int testImages, bool quiet) {
+                        const std::vector<Method>& baselines, int testImages, bool quiet,
+                        const std::vector<SequenceMethod>& sequenceBaselines) {
     const std::string runJsonPath = (fs::path(run) / "run.json").string();
     const std::string bestPath = (fs::path(run) / "best.safetensors").string();
     requireReadableFile(runJsonPath);
@@ -1177,6 +1364,14 @@ std::string exportModel(const std::string& run, const std::string& modelPath,
     const json runJson = readJsonFile(runJsonPath);
     if (!runJson.contains("finished"))
         throw Error("the run in '" + run + "' has not finished (resume it first)");
+    // Before the scoring, which takes minutes: where the model goes.
+    if (const fs::path folder = fs::path(modelPath).parent_path(); !folder.empty() && !fs::is_directory(folder))
+        throw Error("cannot write '" + modelPath + "': folder '" + folder.string() + "' does not exist");
+    if (runJson.value("temporal", false)) {
+        std::map<std::string, std::string> metadata;
+        return exportTemporal(runJson, nn::loadModel(bestPath, &metadata), modelPath, sequenceBaselines,
+                              testImages, quiet);
+    }
     std::map<std::string, std::string> metadata;
     nn::Model model = nn::loadModel(bestPath, &metadata);
     const bool grey = model.inputChannels() == 1;

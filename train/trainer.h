@@ -22,6 +22,7 @@
 
 #include "data/evaluation.h"
 #include "data/patches.h"
+#include "data/sequences.h"
 #include "nn/frame_network.h"
 #include "nn/model.h"
 
@@ -133,7 +134,15 @@ std::vector<MethodScores> scoreMethods(const std::vector<data::EvaluationItem>& 
 // `dejag train export`: writes RUN's best model to `modelPath` (metadata: the provenance) and the model
 // card next to it (NAME.md): architecture, parameters, MACs per pixel, data recipe, training command,
 // wall time, and validation and test metrics against the baselines. Returns the card's text.
+// A temporal network's run (a dataset of sequences) is scored on whole validation and test sequences next
+// to `sequenceBaselines` (each run over a whole sequence, a batch of one: every frame's sRGB RGB,
+// (1, 3, H, W)) and the jittered frames themselves; `testImages` then limits the test sequences.
+struct SequenceMethod {
+    std::string name;
+    std::function<std::vector<nn::Tensor>(const data::SequenceBatch&)> apply;
+};
 std::string exportModel(const std::string& run, const std::string& modelPath,
-                        const std::vector<Method>& baselines, int testImages, bool quiet);
+                        const std::vector<Method>& baselines, int testImages, bool quiet,
+                        const std::vector<SequenceMethod>& sequenceBaselines = {});
 
 }  // namespace dejag::train

@@ -9,6 +9,7 @@
 #include <algorithm>
 #include <cmath>
 #include <filesystem>
+#include <map>
 #include <random>
 #include <string>
 #include <vector>
@@ -165,7 +166,8 @@ TEST(TemporalTraining, AConstantSequenceStaysConstantWithoutACorrection) {
     }
 }
 
-// A rendered dataset of sequences, shared by the tests below: 20 sequences of 4 frames at 64x48.
+// A rendered dataset of sequences, shared by the tests below: 24 sequences of 4 frames at 64x48 (the
+// foliage ones the test split).
 class TemporalData : public ::testing::Test {
   protected:
     static void SetUpTestSuite() {
@@ -173,7 +175,7 @@ class TemporalData : public ::testing::Test {
         fs::remove_all(folder_);
         const std::string command =
             "'" + std::string(DEJAG_BINARY) +
-            "' data generate --families pipes,shapes,thin --test-families none --count 20 "
+            "' data generate --families pipes,shapes,thin,foliage --test-families foliage --count 24 "
             "--size 64x48 --truth 8 --sequence-length 4 --workers 2 --quiet --out '" +
             folder_ + "/data'";
         ASSERT_EQ(std::system(command.c_str()), 0);
@@ -281,6 +283,24 @@ TEST_F(TemporalData, ResumedTrainingEqualsTheUninterruptedRunBitForBit) {
     faults.stopAfterSteps = 0;
     EXPECT_EQ(trainModel(broken, {}, faults).steps, 12);
     EXPECT_EQ(finalWeights(straight), finalWeights(broken));
+    // Export: the best model and its card, scored on whole sequences next to the jittered frames and a
+    // given baseline (here the frames themselves under another name: the same figures).
+    const std::string exported = folder_ + "/models/dejag-temporal-test.safetensors";
+    fs::create_directories(folder_ + "/models");
+    const SequenceMethod copy{"copy", [](const data::SequenceBatch& b) {
+                                  std::vector<nn::Tensor> out;
+                                  for (const data::SequenceFrame& f : b.frames)
+                                      out.push_back(f.colour.clone());
+                                  return out;
+                              }};
+    const std::string card = exportModel(straight.out, exported, {}, 0, true, {copy});
+    for (const char* text : {"| no AA |", "| copy |", "| network |", "### Test split", "`temporal`"})
+        EXPECT_NE(card.find(text), std::string::npos) << text;
+    std::map<std::string, std::string> metadata;
+    const nn::Model shipped = nn::loadModel(exported, &metadata);
+    const nlohmann::json scores = nlohmann::json::parse(metadata.at("dejag.card"));
+    EXPECT_EQ(scores["validation"]["copy"], scores["validation"]["no AA"]);
+    EXPECT_TRUE(fs::exists(folder_ + "/models/dejag-temporal-test.md"));
     // A NaN in a batch is skipped, the weights untouched by it.
     TrainConfig poisoned = tinyConfig("poisoned");
     TrainFaults poison;
