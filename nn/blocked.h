@@ -48,4 +48,11 @@ Tensor allocateBlocked(const BlockedShape& shape);
 void toBlocked(float* blocked, const float* plain, const BlockedShape& shape);
 void fromBlocked(float* plain, const float* blocked, const BlockedShape& shape);
 
+// The inference plan's slice and warp (nn/layers.h) on blocked activations (any block sizes; the
+// channels past the count stay zero). Rows split across the thread pool.
+void blockedSlice(float* out, const BlockedShape& os, const float* in, const BlockedShape& is, int from);
+enum class WarpFilter;
+void blockedWarp(float* out, const BlockedShape& os, const float* image, const BlockedShape& is,
+                 const float* motion, const BlockedShape& ms, WarpFilter filter);
+
 }  // namespace dejag::nn

@@ -185,9 +185,6 @@ struct InferencePlan::Impl {
         std::optional<BlockedConv> conv;  // conv2d, conv_transpose2d
         MaxPool2dDesc pool;               // maxpool2d
         bool sigmoidAfterConv = false;
-        // slice, warp (no blocked kernel yet): planar copies of the inputs, then of the output, for the
-        // op's reference forward; made with the plan, so running allocates nothing.
-        std::vector<Tensor> planar;
     };
     InferencePrecision precision = InferencePrecision::Float32;
     int bf16Activations = 0;
@@ -326,9 +323,6 @@ InferencePlan::InferencePlan(const Model& model, const Shape& inputShape, Infere
             m.macs += step.conv->macs();
         } else if (step.node.op == GraphOp::MaxPool2d) {
             step.pool = step.node.poolDesc(g.shapeOf(step.node.inputs[0]));
-        } else if (step.node.op == GraphOp::Slice || step.node.op == GraphOp::Warp) {
-            for (int source : step.node.inputs) step.planar.emplace_back(g.shapeOf(source));
-            step.planar.emplace_back(g.shapeOf(i));
         }
         m.steps.push_back(std::move(step));
     }
@@ -876,20 +870,11 @@ void InferencePlan::Impl::runSteps(InputRowSource* streamed) {
                                     n.kernelFilterDesc({is.batch, is.channels, is.height, is.width}));
                 break;
             case GraphOp::Slice:
-            case GraphOp::Warp: {
-                // Through planes with the op's reference forward (a blocked kernel is future work).
-                std::vector<Shape> inShapes;
-                OpForward<float> call{n, inShapes, step.planar.back().shape()};
-                for (size_t k = 0; k < n.inputs.size(); ++k) {
-                    fromBlocked(step.planar[k].data(), m.data(n.inputs[k]), m.shape(n.inputs[k]));
-                    inShapes.push_back(step.planar[k].shape());
-                    call.inputs.push_back(step.planar[k].data());
-                }
-                call.output = step.planar.back().data();
-                opDef(n.op).forward(call);
-                toBlocked(out, step.planar.back().data(), os);
+                blockedSlice(out, os, in, is, n.sliceFrom);
                 break;
-            }
+            case GraphOp::Warp:
+                blockedWarp(out, os, in, is, m.data(n.inputs[1]), m.shape(n.inputs[1]), n.warpFilter);
+                break;
             case GraphOp::Count:
                 break;
         }

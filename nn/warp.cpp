@@ -5,6 +5,7 @@
 
 #include "base/error.h"
 #include "base/thread_pool.h"
+#include "nn/blocked.h"
 #include "nn/layers.h"
 
 namespace dejag::nn {
@@ -182,6 +183,85 @@ void warpBackward(T* dimage, T* dmotion, const T* dout, const T* image, const T*
                 }
             }
         });
+}
+
+void blockedSlice(float* out, const BlockedShape& os, const float* in, const BlockedShape& is, int from) {
+    parallelFor(0, os.batch * os.height, 8, [&](int64_t first, int64_t last) {
+        for (int64_t row = first; row < last; ++row) {
+            const int64_t n = row / os.height, y = row % os.height;
+            for (int64_t c = 0; c < os.channels; ++c) {
+                const int64_t source = c + from;
+                float* o = out + os.offset(n, c / os.block, y, 0) + c % os.block;
+                const float* i = in + is.offset(n, source / is.block, y, 0) + source % is.block;
+                for (int64_t x = 0; x < os.width; ++x) o[x * os.block] = i[x * is.block];
+            }
+            // The lanes past the channel count are zero in every blocked activation (the arena is reused).
+            for (int64_t c = os.channels; c < os.channelBlocks() * os.block; ++c) {
+                float* o = out + os.offset(n, c / os.block, y, 0) + c % os.block;
+                for (int64_t x = 0; x < os.width; ++x) o[x * os.block] = 0.0f;
+            }
+        }
+    });
+}
+
+void blockedWarp(float* out, const BlockedShape& os, const float* image, const BlockedShape& is,
+                 const float* motion, const BlockedShape& ms, WarpFilter filter) {
+    WarpDesc d;
+    d.batch = os.batch, d.channels = os.channels, d.height = os.height, d.width = os.width, d.filter = filter;
+    const int k = d.taps();
+    const int64_t blocks = os.channelBlocks();
+    const bool sameBlock = os.block == is.block;
+    parallelFor(0, d.batch * d.height, 4, [&](int64_t first, int64_t last) {
+        for (int64_t row = first; row < last; ++row) {
+            const int64_t n = row / d.height, y = row % d.height;
+            const float* mxRow = motion + ms.offset(n, 0, y, 0);
+            const float* myRow = motion + ms.offset(n, 1 / ms.block, y, 0) + 1 % ms.block;
+            for (int64_t x = 0; x < d.width; ++x) {
+                float sx = float(x) - mxRow[x * ms.block], sy = float(y) - myRow[x * ms.block];
+                const float limitX = float(d.width + 2), limitY = float(d.height + 2);
+                sx = std::isnan(sx) ? 0.0f : std::clamp(sx, -limitX, 2 * limitX);
+                sy = std::isnan(sy) ? 0.0f : std::clamp(sy, -limitY, 2 * limitY);
+                const Taps<float> tx = taps(sx, filter), ty = taps(sy, filter);
+                int64_t column[4], line[4];
+                for (int i = 0; i < k; ++i) column[i] = std::clamp<int64_t>(tx.first + i, 0, d.width - 1);
+                for (int j = 0; j < k; ++j) line[j] = std::clamp<int64_t>(ty.first + j, 0, d.height - 1);
+                if (sameBlock) {
+                    // One channel block at a time: each tap is one vector of the block's channels.
+                    constexpr int kMaxBlock = 64;
+                    const int B = os.block;
+                    for (int64_t cb = 0; cb < blocks; ++cb) {
+                        float sum[kMaxBlock] = {};
+                        for (int j = 0; j < k; ++j) {
+                            float rowSum[kMaxBlock] = {};
+                            for (int i = 0; i < k; ++i) {
+                                const float* p = image + is.offset(n, cb, line[j], column[i]);
+                                const float w = tx.w[i];
+                                for (int l = 0; l < B; ++l) rowSum[l] += w * p[l];
+                            }
+                            for (int l = 0; l < B; ++l) sum[l] += ty.w[j] * rowSum[l];
+                        }
+                        float* o = out + os.offset(n, cb, y, x);
+                        for (int l = 0; l < B; ++l) o[l] = sum[l];
+                    }
+                } else {
+                    for (int64_t c = 0; c < d.channels; ++c) {
+                        float sum = 0;
+                        for (int j = 0; j < k; ++j) {
+                            float rowSum = 0;
+                            for (int i = 0; i < k; ++i)
+                                rowSum +=
+                                    tx.w[i] *
+                                    image[is.offset(n, c / is.block, line[j], column[i]) + c % is.block];
+                            sum += ty.w[j] * rowSum;
+                        }
+                        out[os.offset(n, c / os.block, y, x) + c % os.block] = sum;
+                    }
+                    for (int64_t c = d.channels; c < blocks * os.block; ++c)
+                        out[os.offset(n, c / os.block, y, x) + c % os.block] = 0.0f;
+                }
+            }
+        }
+    });
 }
 
 #define DEJAG_WARP(T)                                                      \
