@@ -61,63 +61,80 @@ SequenceSampler::SequenceSampler(const std::string& folder, const SequenceOption
         for (int64_t i = first; i < last; ++i) {
             const nlohmann::json& r = records[size_t(i)];
             Sequence& s = sequences_[size_t(i)];
-            s.index = r["index"].get<int>();
-            s.length = r["sequence"]["length"].get<int>();
-            const fs::path dir = fs::path(folder) / r["files"]["render"]["path"].get<std::string>();
-            std::ifstream in(dir);
-            const nlohmann::json sidecar = nlohmann::json::parse(in, nullptr, false);
-            if (!sidecar.is_object() || !sidecar.contains("frames") ||
-                int(sidecar["frames"].size()) != s.length)
-                throw Error("sequence " + r["id"].get<std::string>() + ": render.json does not list its " +
-                            std::to_string(s.length) + " frames");
-            for (int k = 0; k < s.length; ++k) {
-                char key[32];
-                std::snprintf(key, sizeof key, "frame_%04d", k);
-                const Image frame =
-                    readImage((fs::path(folder) / r["files"][key]["path"].get<std::string>()).string());
-                std::snprintf(key, sizeof key, "truth_%04d", k);
-                const Image truth =
-                    readImage((fs::path(folder) / r["files"][key]["path"].get<std::string>()).string());
-                if (k == 0) {
-                    s.width = frame.width, s.height = frame.height;
-                    if (s.width < P || s.height < P)
-                        throw Error("crops of " + std::to_string(P) + " px do not fit sequence " +
-                                    r["id"].get<std::string>() + " (" + std::to_string(s.width) + "x" +
-                                    std::to_string(s.height) + ")");
+            try {
+                s.index = r["index"].get<int>();
+                s.length = r["sequence"]["length"].get<int>();
+                if (s.length < frames_)
+                    throw Error("sequence " + r["id"].get<std::string>() + " has " +
+                                std::to_string(s.length) + " frames, fewer than the " +
+                                std::to_string(frames_) + " of a crop");
+                const size_t pixels =
+                    size_t(r["size"][0].get<int>()) * size_t(r["size"][1].get<int>()) * size_t(s.length);
+                s.colour.reserve(3 * pixels), s.truth.reserve(3 * pixels), s.motion.reserve(2 * pixels);
+                if (options.depth) s.depth.reserve(2 * pixels);
+                const fs::path dir =
+                    fs::path(folder) / r.at("files").at("render").at("path").get<std::string>();
+                std::ifstream in(dir);
+                const nlohmann::json sidecar = nlohmann::json::parse(in, nullptr, false);
+                if (!sidecar.is_object() || !sidecar.contains("frames") ||
+                    int(sidecar["frames"].size()) != s.length)
+                    throw Error("sequence " + r["id"].get<std::string>() +
+                                ": render.json does not list its " + std::to_string(s.length) + " frames");
+                for (int k = 0; k < s.length; ++k) {
+                    char key[32];
+                    std::snprintf(key, sizeof key, "frame_%04d", k);
+                    const Image frame = readImage(
+                        (fs::path(folder) / r.at("files").at(key).at("path").get<std::string>()).string());
+                    std::snprintf(key, sizeof key, "truth_%04d", k);
+                    const Image truth = readImage(
+                        (fs::path(folder) / r.at("files").at(key).at("path").get<std::string>()).string());
+                    if (k == 0) {
+                        s.width = frame.width, s.height = frame.height;
+                        if (s.width < P || s.height < P)
+                            throw Error("crops of " + std::to_string(P) + " px do not fit sequence " +
+                                        r["id"].get<std::string>() + " (" + std::to_string(s.width) + "x" +
+                                        std::to_string(s.height) + ")");
+                    }
+                    const int red = frame.findChannel("R"), mx = frame.findChannel("motion.X"),
+                              my = frame.findChannel("motion.Y"), tr = truth.findChannel("R"),
+                              dz = frame.findChannel("depth.Z"), pz = frame.findChannel("prevdepth.Z");
+                    if (red < 0 || mx < 0 || my < 0 || tr < 0 || dz < 0 || pz < 0 || frame.width != s.width ||
+                        truth.width != s.width || frame.height != s.height || truth.height != s.height)
+                        throw Error("sequence " + r["id"].get<std::string>() + ", frame " +
+                                    std::to_string(k) +
+                                    ": colour, motion or truth missing or of another size");
+                    const size_t plane = size_t(s.width) * size_t(s.height);
+                    for (int c = 0; c < 3; ++c)
+                        for (size_t p = 0; p < plane; ++p) {
+                            const int x = int(p % size_t(s.width)), y = int(p / size_t(s.width));
+                            s.colour.push_back(std::clamp(
+                                linearToSrgb(std::max(frame.at(x, y, red + c), 0.0f)), 0.0f, 1.0f));
+                        }
+                    for (int c = 0; c < 3; ++c)
+                        for (size_t p = 0; p < plane; ++p) {
+                            const int x = int(p % size_t(s.width)), y = int(p / size_t(s.width));
+                            s.truth.push_back(
+                                std::clamp(linearToSrgb(std::max(truth.at(x, y, tr + c), 0.0f)), 0.0f, 1.0f));
+                        }
+                    for (const int channel : {mx, my})
+                        for (size_t p = 0; p < plane; ++p)
+                            s.motion.push_back(
+                                frame.at(int(p % size_t(s.width)), int(p / size_t(s.width)), channel));
+                    const float far = sidecar.value("depth_far", 200.0f);
+                    if (options.depth)
+                        for (const int channel : {dz, pz})
+                            for (size_t p = 0; p < plane; ++p)
+                                s.depth.push_back(
+                                    frame.at(int(p % size_t(s.width)), int(p / size_t(s.width)), channel) /
+                                    far);
+                    const nlohmann::json& f = sidecar.at("frames").at(size_t(k));
+                    s.jitter.push_back(f.at("jitter_pixels").at(0).get<float>());
+                    s.jitter.push_back(f.at("jitter_pixels").at(1).get<float>());
+                    s.cut.push_back(f.value("cut", false) ? 1 : 0);
                 }
-                const int red = frame.findChannel("R"), mx = frame.findChannel("motion.X"),
-                          my = frame.findChannel("motion.Y"), tr = truth.findChannel("R"),
-                          dz = frame.findChannel("depth.Z"), pz = frame.findChannel("prevdepth.Z");
-                if (red < 0 || mx < 0 || my < 0 || tr < 0 || dz < 0 || pz < 0 || frame.width != s.width ||
-                    truth.width != s.width || frame.height != s.height || truth.height != s.height)
-                    throw Error("sequence " + r["id"].get<std::string>() + ", frame " + std::to_string(k) +
-                                ": colour, motion or truth missing or of another size");
-                const size_t plane = size_t(s.width) * size_t(s.height);
-                for (int c = 0; c < 3; ++c)
-                    for (size_t p = 0; p < plane; ++p) {
-                        const int x = int(p % size_t(s.width)), y = int(p / size_t(s.width));
-                        s.colour.push_back(
-                            std::clamp(linearToSrgb(std::max(frame.at(x, y, red + c), 0.0f)), 0.0f, 1.0f));
-                    }
-                for (int c = 0; c < 3; ++c)
-                    for (size_t p = 0; p < plane; ++p) {
-                        const int x = int(p % size_t(s.width)), y = int(p / size_t(s.width));
-                        s.truth.push_back(
-                            std::clamp(linearToSrgb(std::max(truth.at(x, y, tr + c), 0.0f)), 0.0f, 1.0f));
-                    }
-                for (const int channel : {mx, my})
-                    for (size_t p = 0; p < plane; ++p)
-                        s.motion.push_back(
-                            frame.at(int(p % size_t(s.width)), int(p / size_t(s.width)), channel));
-                const float far = sidecar.value("depth_far", 200.0f);
-                for (const int channel : {dz, pz})
-                    for (size_t p = 0; p < plane; ++p)
-                        s.depth.push_back(
-                            frame.at(int(p % size_t(s.width)), int(p / size_t(s.width)), channel) / far);
-                const nlohmann::json& f = sidecar["frames"][size_t(k)];
-                s.jitter.push_back(f["jitter_pixels"][0].get<float>());
-                s.jitter.push_back(f["jitter_pixels"][1].get<float>());
-                s.cut.push_back(f.value("cut", false) ? 1 : 0);
+            } catch (const nlohmann::json::exception& e) {
+                throw Error("sequence " + r.value("id", std::string("?")) +
+                            ": its manifest record or render.json is incomplete (" + e.what() + ")");
             }
         }
     });
@@ -130,7 +147,7 @@ SequenceBatch SequenceSampler::assemble(uint64_t index) const {
     for (SequenceFrame& f : batch.frames) {
         f.colour = nn::Tensor({N, 3, P, P}), f.truth = nn::Tensor({N, 3, P, P});
         f.motion = nn::Tensor({N, 2, P, P});
-        f.depth = nn::Tensor({N, 1, P, P}), f.previousDepth = nn::Tensor({N, 1, P, P});
+        if (options_.depth) f.depth = nn::Tensor({N, 1, P, P}), f.previousDepth = nn::Tensor({N, 1, P, P});
         f.jitter.assign(size_t(2 * N), 0.0f), f.fresh.assign(size_t(N), 0);
     }
     Random random(splitMix64(options_.seed * 0x9E3779B97F4A7C15ull ^ index));
@@ -174,9 +191,11 @@ SequenceBatch SequenceSampler::assemble(uint64_t index) const {
                     if (f.fresh[size_t(n)]) mx = my = 0;
                     f.motion.data()[(int64_t(n) * 2) * P * P + to] = mx;
                     f.motion.data()[(int64_t(n) * 2 + 1) * P * P + to] = my;
-                    f.depth.data()[int64_t(n) * P * P + to] = s.depth[(size_t(k) * 2) * plane + from];
-                    f.previousDepth.data()[int64_t(n) * P * P + to] =
-                        s.depth[(size_t(k) * 2 + 1) * plane + from];
+                    if (options_.depth) {
+                        f.depth.data()[int64_t(n) * P * P + to] = s.depth[(size_t(k) * 2) * plane + from];
+                        f.previousDepth.data()[int64_t(n) * P * P + to] =
+                            s.depth[(size_t(k) * 2 + 1) * plane + from];
+                    }
                 }
         }
     }
@@ -192,9 +211,11 @@ SequenceBatch SequenceSampler::whole(int i) const {
         SequenceFrame f;
         f.colour = nn::Tensor({1, 3, H, W}), f.truth = nn::Tensor({1, 3, H, W}),
         f.motion = nn::Tensor({1, 2, H, W});
-        f.depth = nn::Tensor({1, 1, H, W}), f.previousDepth = nn::Tensor({1, 1, H, W});
-        std::copy_n(s.depth.begin() + k * 2 * plane, plane, f.depth.data());
-        std::copy_n(s.depth.begin() + (k * 2 + 1) * plane, plane, f.previousDepth.data());
+        if (options_.depth) {
+            f.depth = nn::Tensor({1, 1, H, W}), f.previousDepth = nn::Tensor({1, 1, H, W});
+            std::copy_n(s.depth.begin() + k * 2 * plane, plane, f.depth.data());
+            std::copy_n(s.depth.begin() + (k * 2 + 1) * plane, plane, f.previousDepth.data());
+        }
         std::copy_n(s.colour.begin() + k * 3 * plane, 3 * plane, f.colour.data());
         std::copy_n(s.truth.begin() + k * 3 * plane, 3 * plane, f.truth.data());
         f.fresh.push_back(k == 0 || s.cut[size_t(k)]);

@@ -22,6 +22,7 @@ struct SequenceOptions {
     bool augment = true;  // flips and transposes
     uint64_t seed = 1;
     std::vector<std::string> families;  // only sequences of these families (empty: all)
+    bool depth = false;                 // also keep depth and previous depth (taa-hq reads them)
 };
 
 // One frame of a batch. Values of colour and truth are sRGB-encoded in [0, 1]; motion in pixels (+x right,
@@ -30,8 +31,8 @@ struct SequenceOptions {
 struct SequenceFrame {
     nn::Tensor colour, truth;  // (N, 3, P, P)
     nn::Tensor motion;         // (N, 2, P, P)
-    // Depth and the previous frame's depth (N, 1, P, P), divided by the far plane (render.json's
-    // depth_far): what taa-hq's disocclusion test reads.
+    // With SequenceOptions::depth: depth and the previous frame's depth (N, 1, P, P), divided by the far
+    // plane (render.json's depth_far), what taa-hq's disocclusion test reads; else empty.
     nn::Tensor depth, previousDepth;
     std::vector<float> jitter;  // N pairs (x, y)
     // Per crop: the history restarts at this frame (the crop's first frame, or a cut). Its motion is 0.

@@ -202,7 +202,8 @@ void kernelFilterBackward(T* dinput,        // (N, C, H, W) or null
 //                 whole-pixel motion, and the least blur of the cubics (what taa-hq reads its history with);
 //   bicubic       4 x 4 taps, a = -0.75 (PyTorch's and OpenCV's bicubic: grid_sample bicubic, border).
 // Backward: the image's gradient (each tap's weight times the output's), and the motion's (the weights'
-// derivative; 0 where the read place is a whole pixel of a bilinear read, a kink).
+// derivative; at a whole pixel of a bilinear read, a kink, the one-sided derivative toward the next tap,
+// as PyTorch's; 0 where the read place was clamped).
 enum class WarpFilter { Bilinear, CatmullRom, Bicubic };
 struct WarpDesc {
     int64_t batch = 1, channels = 1, height = 1, width = 1;

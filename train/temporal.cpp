@@ -86,6 +86,10 @@ double Unroller::run(const data::SequenceBatch& batch, bool backward) {
         const data::SequenceFrame& f = batch.frames[size_t(t)];
         makeTemporalInput(inputs_[size_t(t)], f, t > 0 ? &outputs_[size_t(t - 1)] : nullptr, layout_);
         const nn::Tensor& out = model_.forward(inputs_[size_t(t)]);
+        // A frame whose output is not finite (a diverging step) makes a history the next frame cannot
+        // take: the loss is NaN, and the guard skips the step.
+        for (int64_t i = 0; i < out.numel(); ++i)
+            if (!std::isfinite(out.data()[i])) return std::nan("");
         if (outputs_[size_t(t)].shape() != out.shape()) outputs_[size_t(t)] = nn::Tensor(out.shape());
         std::memcpy(outputs_[size_t(t)].data(), out.data(), size_t(out.numel()) * sizeof(float));
         takeRgb(rgb_, out);

@@ -49,7 +49,8 @@ struct TemporalLoss {
 class Unroller {
   public:
     explicit Unroller(nn::Model& model, TemporalLoss loss = {});
-    // The loss; with `backward`, its gradient w.r.t. the parameters in model.gradientData().
+    // The loss; with `backward`, its gradient w.r.t. the parameters in model.gradientData(). NaN (and no
+    // gradient) when a frame's output is not finite: outputs from that frame on are not made.
     double run(const data::SequenceBatch& batch, bool backward);
     // Frame t's output (N, history, P, P) from the last run.
     const nn::Tensor& output(int t) const { return outputs_[size_t(t)]; }

@@ -539,6 +539,16 @@ void checkConfig(const TrainConfig& config) {
     if (config.patience < 0) throw Error("--patience must be >= 0 (0: never stop early)");
 }
 
+// A dataset's frame size (dataset.json).
+struct DatasetSizeCheck {
+    int width = 0, height = 0;
+};
+DatasetSizeCheck datasetSize(const std::string& folder) {
+    std::ifstream in(fs::path(folder) / "dataset.json");
+    const data::DatasetSpec spec = data::DatasetSpec::fromJson(json::parse(in, nullptr, false));
+    return {spec.width, spec.height};
+}
+
 // The network --arch names, checked for what training does with it.
 nn::Model buildModel(const TrainConfig& config, bool temporal) {
     nn::Model model = nn::Model::fromArchitecture(architectureFor(config.arch));
@@ -690,8 +700,13 @@ int64_t cleanStepsOf(const TrainConfig& config) {
         if (r.value("split", "") == "train")
             pixels += double(r["size"][0].get<int>()) * r["size"][1].get<int>() *
                       (r.contains("sequence") ? r["sequence"]["length"].get<double>() : 1.0);
+    // A step of a temporal network sees `frames` frames of each crop (0: the sequences' whole length).
+    double frames = 1;
+    if (!items.empty() && items.front().contains("sequence"))
+        frames = config.frames > 0 ? config.frames : items.front()["sequence"]["length"].get<double>();
     return std::max<int64_t>(
-        1, int64_t(std::ceil(config.epochs * pixels / (double(config.batch) * config.patch * config.patch))));
+        1, int64_t(std::ceil(config.epochs * pixels /
+                             (double(config.batch) * config.patch * config.patch * frames))));
 }
 
 // The step guard: judges a step at each of its stages and keeps the books of the skipped ones. A step
@@ -721,7 +736,8 @@ class StepGuard {
     // A temporal network's batch: every frame finite.
     std::optional<Skip> sequence(const data::SequenceBatch& b) {
         for (const data::SequenceFrame& f : b.frames)
-            if (!allFinite(f.colour) || !allFinite(f.truth) || !allFinite(f.motion))
+            if (!allFinite(f.colour) || !allFinite(f.truth) || !allFinite(f.motion) ||
+                !std::all_of(f.jitter.begin(), f.jitter.end(), [](float v) { return std::isfinite(v); }))
                 return Skip{"the batch holds NaN or Inf", true, false};
         return std::nullopt;
     }
@@ -858,7 +874,13 @@ class Validation {
             nn::Tensor rgb;
             for (int i : chosen_) {
                 const data::SequenceBatch b = sequences_->whole(i);
-                unroller.run(b, false);
+                if (std::isnan(unroller.run(b, false))) {  // an output not finite: every frame the worst
+                    nn::Tensor bad({1, 3, b.frames[0].colour.dim(2), b.frames[0].colour.dim(3)});
+                    bad.data()[0] = NAN;
+                    for (size_t t = 1; t < b.frames.size(); ++t)
+                        summary.add(frameScore(bad, b.frames[t].truth));
+                    continue;
+                }
                 for (size_t t = 1; t < b.frames.size(); ++t) {
                     const nn::Tensor& out = unroller.output(int(t));
                     rgb = nn::Tensor({1, 3, out.dim(2), out.dim(3)});
@@ -942,6 +964,15 @@ TrainResult trainModel(const TrainConfig& config, const std::vector<Method>& bas
         throw Error("--frames and --temporal-loss train on sequences; '" + config.data +
                     "' holds single frames");
     nn::Model model = buildModel(config, temporal);
+    if (temporal) {  // validation runs whole sequences: their size must suit the network's strides
+        const DatasetSizeCheck check = datasetSize(config.data);
+        const nn::Shape out = model.outputShape({1, model.inputChannels(), check.height, check.width});
+        if (out[2] != check.height || out[3] != check.width)
+            throw Error("the network returns " + std::to_string(out[3]) + "x" + std::to_string(out[2]) +
+                        " for the dataset's " + std::to_string(check.width) + "x" +
+                        std::to_string(check.height) +
+                        " frames: its strides need sizes that are multiples of them");
+    }
     const bool grey = model.inputChannels() == 1;
     std::optional<Unroller> unroller;
     if (temporal) {
@@ -1276,7 +1307,7 @@ std::string exportTemporal(const json& runJson, nn::Model model, const std::stri
     if (!quiet)
         std::fprintf(stderr, "scoring on the validation and test sequences of '%s'...\n", dataFolder.c_str());
     data::SequenceOptions options;
-    options.patchSize = 8, options.batchSize = 1;
+    options.patchSize = 8, options.batchSize = 1, options.depth = true;
     options.split = data::Split::Validation;
     options.families = runJson.at("config").value("families", std::vector<std::string>{});
     const auto validation = scoreSequences(data::SequenceSampler(dataFolder, options), 0, methods);
@@ -1365,7 +1396,8 @@ std::string exportModel(const std::string& run, const std::string& modelPath,
     if (!runJson.contains("finished"))
         throw Error("the run in '" + run + "' has not finished (resume it first)");
     // Before the scoring, which takes minutes: where the model goes.
-    if (const fs::path folder = fs::path(modelPath).parent_path(); !folder.empty() && !fs::is_directory(folder))
+    if (const fs::path folder = fs::path(modelPath).parent_path();
+        !folder.empty() && !fs::is_directory(folder))
         throw Error("cannot write '" + modelPath + "': folder '" + folder.string() + "' does not exist");
     if (runJson.value("temporal", false)) {
         std::map<std::string, std::string> metadata;
