@@ -367,6 +367,35 @@ render::CameraPose movedCamera(const std::function<render::CameraPose(double)>& 
     return pose;
 }
 
+// The fields of a manifest record every item has: what it is, its camera (at `pose`), sampler, light and
+// sample counts.
+json itemRecord(const DatasetSpec& spec, const ItemPlan& plan, const render::Scene& scene,
+                const render::SceneOptions& options, const render::CameraPose& pose, int truthSamples,
+                int64_t truthTileSamples) {
+    auto vec = [](const render::Vec3& v) { return json{v.x, v.y, v.z}; };
+    return {{"index", plan.index},
+            {"id", plan.id},
+            {"family", plan.family},
+            {"scene", plan.scene},
+            {"seed", plan.seed},
+            {"split", splitName(plan.split)},
+            {"time", plan.time},
+            {"size", {spec.width, spec.height}},
+            {"camera",
+             {{"eye", vec(pose.eye)},
+              {"target", vec(pose.target)},
+              {"up", vec(pose.up)},
+              {"fov_y", pose.fovY},
+              {"tilted", options.tiltedCamera}}},
+            {"sampler", render::samplerName(options.sampler)},
+            {"light", vec(scene.lightDirection)},
+            {"samples",
+             {{"input", 1},
+              {"truth", truthSamples},
+              {"truth_tile_samples", truthTileSamples},
+              {"adaptive", spec.adaptive}}}};
+}
+
 // A sequence item (spec.sequences()): its K frames, their truths and render.json; its manifest record.
 json renderSequence(const render::GlContext& context, const DatasetSpec& spec, const ItemPlan& plan,
                     const std::string& folder, render::Scene scene, const render::SceneOptions& options) {
@@ -463,38 +492,18 @@ json renderSequence(const render::GlContext& context, const DatasetSpec& spec, c
 
     const double pixels = double(spec.width) * double(spec.height) * K;
     const double mse = measures.squared / (3.0 * pixels);
-    const render::CameraPose pose = scene.cameraAt(0);
     const double counted = std::max<int64_t>(motion.pixels, 1);
-    return {{"index", plan.index},
-            {"id", plan.id},
-            {"family", plan.family},
-            {"scene", plan.scene},
-            {"seed", plan.seed},
-            {"split", splitName(plan.split)},
-            {"time", plan.time},
-            {"size", {spec.width, spec.height}},
-            {"camera",
-             {{"eye", vec(pose.eye)},
-              {"target", vec(pose.target)},
-              {"up", vec(pose.up)},
-              {"fov_y", pose.fovY},
-              {"tilted", options.tiltedCamera}}},
-            {"sampler", render::samplerName(options.sampler)},
-            {"light", vec(scene.lightDirection)},
-            {"samples",
-             {{"input", 1},
-              {"truth", truthSamples},
-              {"truth_tile_samples", truthTileSamples},
-              {"adaptive", spec.adaptive}}},
-            {"edge_fraction", double(measures.edges) / pixels},
-            {"aliased_psnr", mse > 0 ? 10 * std::log10(1.0 / mse) : 999.0},
-            {"sequence", {{"length", K}, {"move", moveJson}}},
-            {"motion",
-             {{"mean_speed", motion.speedSum / counted},
-              {"max_speed", motion.speedMax},
-              {"moving_fraction", double(motion.moving) / counted},
-              {"disoccluded_fraction", double(motion.disoccluded) / counted}}},
-            {"files", files}};
+    json record = itemRecord(spec, plan, scene, options, scene.cameraAt(0), truthSamples, truthTileSamples);
+    record.update({{"edge_fraction", double(measures.edges) / pixels},
+                   {"aliased_psnr", mse > 0 ? 10 * std::log10(1.0 / mse) : 999.0},
+                   {"sequence", {{"length", K}, {"move", moveJson}}},
+                   {"motion",
+                    {{"mean_speed", motion.speedSum / counted},
+                     {"max_speed", motion.speedMax},
+                     {"moving_fraction", double(motion.moving) / counted},
+                     {"disoccluded_fraction", double(motion.disoccluded) / counted}}},
+                   {"files", files}});
+    return record;
 }
 
 }  // namespace
@@ -534,34 +543,14 @@ json ItemRenderer::render(const DatasetSpec& spec, const ItemPlan& plan, const s
     fs::create_directories(fs::path(folder) / "items" / plan.family);
     writeImage((fs::path(folder) / plan.inputFile()).string(), input);
     writeImage((fs::path(folder) / plan.truthFile()).string(), truth);
-    const render::CameraPose pose = scene.cameraAt(plan.time);
-    auto vec = [](const render::Vec3& v) { return json{v.x, v.y, v.z}; };
-    return {
-        {"index", plan.index},
-        {"id", plan.id},
-        {"family", plan.family},
-        {"scene", plan.scene},
-        {"seed", plan.seed},
-        {"split", splitName(plan.split)},
-        {"time", plan.time},
-        {"size", {spec.width, spec.height}},
-        {"camera",
-         {{"eye", vec(pose.eye)},
-          {"target", vec(pose.target)},
-          {"up", vec(pose.up)},
-          {"fov_y", pose.fovY},
-          {"tilted", options.tiltedCamera}}},
-        {"sampler", render::samplerName(options.sampler)},
-        {"light", vec(scene.lightDirection)},
-        {"samples",
-         {{"input", 1},
-          {"truth", stats.samples},
-          {"truth_tile_samples", stats.tileSamples},
-          {"adaptive", spec.adaptive}}},
-        {"edge_fraction", double(edges) / double(input.pixelCount())},
-        {"aliased_psnr", mse > 0 ? 10 * std::log10(1.0 / mse) : 999.0},
-        {"files",
-         {{"input", fileRecord(folder, plan.inputFile())}, {"truth", fileRecord(folder, plan.truthFile())}}}};
+    json record =
+        itemRecord(spec, plan, scene, options, scene.cameraAt(plan.time), stats.samples, stats.tileSamples);
+    record.update({{"edge_fraction", double(edges) / double(input.pixelCount())},
+                   {"aliased_psnr", mse > 0 ? 10 * std::log10(1.0 / mse) : 999.0},
+                   {"files",
+                    {{"input", fileRecord(folder, plan.inputFile())},
+                     {"truth", fileRecord(folder, plan.truthFile())}}}});
+    return record;
 }
 
 // ---- Manifest, generation -------------------------------------------------------------------------------

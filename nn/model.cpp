@@ -216,6 +216,31 @@ nlohmann::json Model::builtinArchitecture(const std::string& name, const ModelOp
         return json{{"name", n},   {"op", "conv2d"},   {"inputs", {in}},    {"out_channels", out},
                     {"kernel", k}, {"stride", stride}, {"padding", "same"}, {"activation", act}};
     };
+    // fast's U-Net from `from` (its nodes appended): a stride-2 conv to 1/2 (width w), then per level a
+    // stride-2 conv and a conv (widths 2w, 4w, ...) down to 1/2^levels; back up, each level
+    // pixel-shuffled to the next finer one, concatenated with its encoder features and convolved. Returns
+    // the name of its last node (at 1/2, width w).
+    auto unet = [&conv](json& nodes, const std::string& from, int w, int levels) {
+        nodes.push_back(conv("enc1", from, w, 3, "relu", 2));
+        std::vector<std::string> encoder = {"enc1"};  // the output of each level
+        for (int l = 2; l <= levels; ++l) {
+            const std::string n = "enc" + std::to_string(l);
+            const int width = w << (l - 1);
+            nodes.push_back(conv(n, encoder.back(), width, 3, "relu", 2));
+            nodes.push_back(conv(n + "b", n, width, 3, "relu"));
+            encoder.push_back(n + "b");
+        }
+        std::string previous = encoder.back();
+        for (int l = levels; l >= 2; --l) {
+            const std::string up = "up" + std::to_string(l), cat = "cat" + std::to_string(l - 1),
+                              dec = "dec" + std::to_string(l - 1);
+            nodes.push_back({{"name", up}, {"op", "pixel_shuffle"}, {"inputs", {previous}}, {"factor", 2}});
+            nodes.push_back({{"name", cat}, {"op", "concat"}, {"inputs", {up, encoder[size_t(l - 2)]}}});
+            nodes.push_back(conv(dec, cat, w << (l - 2), 3, "relu"));
+            previous = dec;
+        }
+        return previous;
+    };
     if (name == "seed2020") {
         // docs/seed-cnn.md. Activations are not published: ReLU inside, sigmoid at the end (output in
         // (0, 1) like the [0, 1] luminance input). Transposed convs: 3x3, stride 2, padding 1,
@@ -265,24 +290,7 @@ nlohmann::json Model::builtinArchitecture(const std::string& name, const ModelOp
             throw Error("the fast and kpn families need an even width from 2 to " +
                         std::to_string(kMaxChannels) + " and a depth (levels) in 2..6");
         json nodes = json::array();
-        nodes.push_back(conv("enc1", "input", w, 3, "relu", 2));
-        std::vector<std::string> encoder = {"enc1"};  // the output of each level
-        for (int l = 2; l <= levels; ++l) {
-            const std::string n = "enc" + std::to_string(l);
-            const int width = w << (l - 1);
-            nodes.push_back(conv(n, encoder.back(), width, 3, "relu", 2));
-            nodes.push_back(conv(n + "b", n, width, 3, "relu"));
-            encoder.push_back(n + "b");
-        }
-        std::string previous = encoder.back();
-        for (int l = levels; l >= 2; --l) {
-            const std::string up = "up" + std::to_string(l), cat = "cat" + std::to_string(l - 1),
-                              dec = "dec" + std::to_string(l - 1);
-            nodes.push_back({{"name", up}, {"op", "pixel_shuffle"}, {"inputs", {previous}}, {"factor", 2}});
-            nodes.push_back({{"name", cat}, {"op", "concat"}, {"inputs", {up, encoder[size_t(l - 2)]}}});
-            nodes.push_back(conv(dec, cat, w << (l - 2), 3, "relu"));
-            previous = dec;
-        }
+        const std::string previous = unet(nodes, "input", w, levels);
         // The head, the same size for both: a last conv at 1/2 starting at 0.1x its initialisation
         // (the network starts near the identity), then a pixel shuffle to full resolution.
         const bool kernels = name == "kpn";
@@ -340,24 +348,7 @@ nlohmann::json Model::builtinArchitecture(const std::string& name, const ModelOp
                          {"filter", "catmull-rom"}});
         nodes.push_back({{"name", "seen"}, {"op", "concat"}, {"inputs", {"frame", "warped", "jitter"}}});
         nodes.push_back(conv("full", "seen", w, 3, "relu"));
-        nodes.push_back(conv("enc1", "full", w, 3, "relu", 2));
-        std::vector<std::string> encoder = {"enc1"};
-        for (int l = 2; l <= levels; ++l) {
-            const std::string n = "enc" + std::to_string(l);
-            const int width = w << (l - 1);
-            nodes.push_back(conv(n, encoder.back(), width, 3, "relu", 2));
-            nodes.push_back(conv(n + "b", n, width, 3, "relu"));
-            encoder.push_back(n + "b");
-        }
-        std::string previous = encoder.back();
-        for (int l = levels; l >= 2; --l) {
-            const std::string up = "up" + std::to_string(l), cat = "cat" + std::to_string(l - 1),
-                              dec = "dec" + std::to_string(l - 1);
-            nodes.push_back({{"name", up}, {"op", "pixel_shuffle"}, {"inputs", {previous}}, {"factor", 2}});
-            nodes.push_back({{"name", cat}, {"op", "concat"}, {"inputs", {up, encoder[size_t(l - 2)]}}});
-            nodes.push_back(conv(dec, cat, w << (l - 2), 3, "relu"));
-            previous = dec;
-        }
+        const std::string previous = unet(nodes, "full", w, levels);
         // Back to full resolution beside the full-resolution features, then the correction.
         nodes.push_back(conv("to_full", previous, 2 * w, 3, "relu"));
         nodes.push_back({{"name", "up1"}, {"op", "pixel_shuffle"}, {"inputs", {"to_full"}}, {"factor", 2}});

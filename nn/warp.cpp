@@ -59,13 +59,17 @@ Taps<T> taps(T s, WarpFilter filter) {
 // Where pixel (y, x) of item n reads, in index coordinates; a non-finite or huge motion reads the border
 // (the clamp keeps the tap indices in range; its gradient there is 0).
 template <class T>
+void clampPlace(T& sx, T& sy, int64_t width, int64_t height) {
+    const T limitX = T(width + 2), limitY = T(height + 2);
+    sx = std::isnan(sx) ? T(0) : std::clamp(sx, -limitX, 2 * limitX);
+    sy = std::isnan(sy) ? T(0) : std::clamp(sy, -limitY, 2 * limitY);
+}
+template <class T>
 void readPlace(const T* motion, const WarpDesc& d, int64_t n, int64_t y, int64_t x, T& sx, T& sy) {
     const int64_t plane = d.height * d.width, at = y * d.width + x;
     sx = T(x) - motion[(n * 2) * plane + at];
     sy = T(y) - motion[(n * 2 + 1) * plane + at];
-    const T limitX = T(d.width + 2), limitY = T(d.height + 2);
-    sx = std::isnan(sx) ? T(0) : std::clamp(sx, -limitX, 2 * limitX);
-    sy = std::isnan(sy) ? T(0) : std::clamp(sy, -limitY, 2 * limitY);
+    clampPlace(sx, sy, d.width, d.height);
 }
 
 void check(const WarpDesc& d) {
@@ -218,9 +222,7 @@ void blockedWarp(float* out, const BlockedShape& os, const float* image, const B
             const float* myRow = motion + ms.offset(n, 1 / ms.block, y, 0) + 1 % ms.block;
             for (int64_t x = 0; x < d.width; ++x) {
                 float sx = float(x) - mxRow[x * ms.block], sy = float(y) - myRow[x * ms.block];
-                const float limitX = float(d.width + 2), limitY = float(d.height + 2);
-                sx = std::isnan(sx) ? 0.0f : std::clamp(sx, -limitX, 2 * limitX);
-                sy = std::isnan(sy) ? 0.0f : std::clamp(sy, -limitY, 2 * limitY);
+                clampPlace(sx, sy, d.width, d.height);
                 const Taps<float> tx = taps(sx, filter), ty = taps(sy, filter);
                 int64_t column[4], line[4];
                 for (int i = 0; i < k; ++i) column[i] = std::clamp<int64_t>(tx.first + i, 0, d.width - 1);

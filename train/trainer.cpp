@@ -1202,6 +1202,19 @@ json scoresToJson(const std::vector<MethodScores>& scores) {
 
 namespace {
 
+// The fields of a model card's JSON (the model file's dejag.card) that every run has.
+json cardFields(const json& runJson, const std::string& name, const nn::Model& model) {
+    const json& finished = runJson.at("finished");
+    return {{"name", name},
+            {"architecture", model.name()},
+            {"parameters", model.parameterCount()},
+            {"macs_per_pixel", runJson.at("macs_per_pixel")},
+            {"command", runJson.at("command")},
+            {"training_seconds", finished.at("seconds")},
+            {"steps", finished.at("steps")},
+            {"best_step", finished.at("best_step")}};
+}
+
 // The architecture table of a model card.
 std::string architectureTable(const nn::Model& model) {
     std::ostringstream md;
@@ -1320,16 +1333,8 @@ std::string exportTemporal(const json& runJson, nn::Model model, const std::stri
     const std::string name = fs::path(modelPath).stem().string();
     const json& config = runJson.at("config");
     const json& finished = runJson.at("finished");
-    const json card = {{"name", name},
-                       {"architecture", model.name()},
-                       {"parameters", model.parameterCount()},
-                       {"macs_per_pixel", runJson.at("macs_per_pixel")},
-                       {"command", runJson.at("command")},
-                       {"training_seconds", finished.at("seconds")},
-                       {"steps", finished.at("steps")},
-                       {"best_step", finished.at("best_step")},
-                       {"validation", sequenceScoresJson(validation)},
-                       {"test", sequenceScoresJson(test)}};
+    json card = cardFields(runJson, name, model);
+    card.update({{"validation", sequenceScoresJson(validation)}, {"test", sequenceScoresJson(test)}});
     nn::saveModel(
         modelPath, model,
         {{"dejag.provenance", runJson.at("command").get<std::string>()}, {"dejag.card", card.dump()}});
@@ -1424,16 +1429,8 @@ std::string exportModel(const std::string& run, const std::string& modelPath,
     const std::string name = fs::path(modelPath).stem().string();
     const json& config = runJson.at("config");
     const json& finished = runJson.at("finished");
-    json card = {{"name", name},
-                 {"architecture", model.name()},
-                 {"parameters", model.parameterCount()},
-                 {"macs_per_pixel", runJson.at("macs_per_pixel")},
-                 {"command", runJson.at("command")},
-                 {"training_seconds", finished.at("seconds")},
-                 {"steps", finished.at("steps")},
-                 {"best_step", finished.at("best_step")},
-                 {"validation", scoresToJson(validation)},
-                 {"test", scoresToJson(test)}};
+    json card = cardFields(runJson, name, model);
+    card.update({{"validation", scoresToJson(validation)}, {"test", scoresToJson(test)}});
     std::map<std::string, std::string> out = {{"dejag.provenance", runJson.at("command").get<std::string>()},
                                               {"dejag.card", card.dump()}};
     nn::saveModel(modelPath, model, out);
@@ -1451,19 +1448,7 @@ std::string exportModel(const std::string& run, const std::string& modelPath,
     std::snprintf(line, sizeof line, "`%s`: %lld parameters, %.0f multiply-adds per input pixel.\n\n",
                   model.name().c_str(), (long long)model.parameterCount(),
                   runJson.at("macs_per_pixel").get<double>());
-    md << line;
-    md << "| node | op | inputs | out channels | kernel | stride | activation "
-          "|\n|---|---|---|---|---|---|---|\n";
-    const auto graph = model.graph();
-    for (const nn::GraphNode& n : graph) {
-        std::string inputs;
-        for (int i : n.inputs)
-            inputs += (inputs.empty() ? "" : ", ") + (i < 0 ? std::string("input") : graph[size_t(i)].name);
-        const nn::OpCard cells = nn::opDef(n.op).card(n);
-        md << "| " << n.name << " | " << nn::graphOpName(n.op) << " | " << inputs << " | "
-           << cells.outChannels << " | " << cells.kernel << " | " << cells.stride << " | " << cells.activation
-           << " |\n";
-    }
+    md << line << architectureTable(model);
     md << "\n## Training\n\n";
     md << "Command:\n\n```\n" << runJson.at("command").get<std::string>() << "\n```\n\n";
     std::snprintf(
