@@ -136,15 +136,17 @@ void copyLanes(float* out, const float* src, int lanes, int64_t width, int64_t s
 }
 
 // The kernel filter (nn/layers.h) between blocked tensors, a pixel at a time.
+// With a history (hs), the last weight takes the history's own pixel.
 void blockedKernelFilter(float* out, const BlockedShape& os, const float* in, const BlockedShape& is,
-                         const float* logits, const BlockedShape& ls, const KernelFilterDesc& d) {
-    const int r = d.kernel / 2, taps = d.kernel * d.kernel;
+                         const float* logits, const BlockedShape& ls, const KernelFilterDesc& d,
+                         const float* history = nullptr, const BlockedShape* hs = nullptr) {
+    const int r = d.kernel / 2, taps = d.kernel * d.kernel, count = int(d.weights());
     parallelFor(0, os.batch * os.height, 0, [&](int64_t first, int64_t last) {
-        float w[49];
+        float w[50];
         for (int64_t row = first; row < last; ++row) {
             const int64_t n = row / os.height, y = row % os.height;
             for (int64_t x = 0; x < os.width; ++x) {
-                for (int j = 0; j < taps; ++j) w[j] = element(logits, ls, n, j, y, x);
+                for (int j = 0; j < count; ++j) w[j] = element(logits, ls, n, j, y, x);
                 kernelFilterWeights(w, w, d);
                 for (int64_t c = 0; c < os.channelBlocks() * os.block; ++c) {
                     float value = 0;
@@ -154,6 +156,7 @@ void blockedKernelFilter(float* out, const BlockedShape& os, const float* in, co
                                 value += w[j] * element(in, is, n, c,
                                                         std::clamp<int64_t>(y + dy, 0, is.height - 1),
                                                         std::clamp<int64_t>(x + dx, 0, is.width - 1));
+                    if (history && c < os.channels) value += w[taps] * element(history, *hs, n, c, y, x);
                     element(out, os, n, c, y, x) = value;
                 }
             }
@@ -865,10 +868,14 @@ void InferencePlan::Impl::runSteps(InputRowSource* streamed) {
                 });
                 break;
             }
-            case GraphOp::KernelFilter:
+            case GraphOp::KernelFilter: {
+                const bool history = n.inputs.size() > 2;
                 blockedKernelFilter(out, os, in, is, m.data(n.inputs[1]), m.shape(n.inputs[1]),
-                                    n.kernelFilterDesc({is.batch, is.channels, is.height, is.width}));
+                                    n.kernelFilterDesc({is.batch, is.channels, is.height, is.width}, history),
+                                    history ? m.data(n.inputs[2]) : nullptr,
+                                    history ? &m.shape(n.inputs[2]) : nullptr);
                 break;
+            }
             case GraphOp::Slice:
                 blockedSlice(out, os, in, is, n.sliceFrom);
                 break;

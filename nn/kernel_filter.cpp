@@ -10,14 +10,14 @@
 namespace dejag::nn {
 namespace {
 
-constexpr int kMaxKernel = 7;
+constexpr int kMaxKernel = 7, kMaxWeights = kMaxKernel * kMaxKernel + 1;
 
 // The softmax weights of pixel (y, x) of batch item n: w[j], j over the k^2 taps.
 template <class T>
 void tapWeights(T* w, const T* logits, int64_t n, int64_t y, int64_t x, const KernelFilterDesc& d) {
-    const int64_t taps = d.taps(), plane = d.height * d.width;
-    const T* l = logits + n * taps * plane + y * d.width + x;
-    for (int64_t j = 0; j < taps; ++j) w[j] = l[j * plane];
+    const int64_t weights = d.weights(), plane = d.height * d.width;
+    const T* l = logits + n * weights * plane + y * d.width + x;
+    for (int64_t j = 0; j < weights; ++j) w[j] = l[j * plane];
     kernelFilterWeights(w, w, d);
 }
 
@@ -35,7 +35,7 @@ void tapOffsets(int64_t* offset, int64_t y, int64_t x, const KernelFilterDesc& d
 template <class T, class F>
 void forEachPixel(const KernelFilterDesc& d, const T* logits, const F& body) {
     parallelFor(0, d.batch * d.height, 1, [&](int64_t first, int64_t last) {
-        T w[kMaxKernel * kMaxKernel];
+        T w[kMaxWeights];
         int64_t offset[kMaxKernel * kMaxKernel];
         for (int64_t row = first; row < last; ++row) {
             const int64_t n = row / d.height, y = row % d.height;
@@ -52,15 +52,15 @@ void forEachPixel(const KernelFilterDesc& d, const T* logits, const F& body) {
 
 template <class T>
 void kernelFilterWeights(T* weights, const T* logits, const KernelFilterDesc& d) {
-    const int64_t taps = d.taps(), centre = taps / 2;
+    const int64_t count = d.weights(), centre = d.taps() / 2;
     T largest = -INFINITY;
-    for (int64_t j = 0; j < taps; ++j) {
+    for (int64_t j = 0; j < count; ++j) {
         weights[j] = logits[j] + (j == centre ? T(d.centreBias) : T(0));
         largest = std::max(largest, weights[j]);
     }
     T sum = 0;
-    for (int64_t j = 0; j < taps; ++j) sum += (weights[j] = std::exp(weights[j] - largest));
-    for (int64_t j = 0; j < taps; ++j) weights[j] /= sum;
+    for (int64_t j = 0; j < count; ++j) sum += (weights[j] = std::exp(weights[j] - largest));
+    for (int64_t j = 0; j < count; ++j) weights[j] /= sum;
 }
 
 void KernelFilterDesc::validate() const {
@@ -72,14 +72,17 @@ void KernelFilterDesc::validate() const {
 }
 
 template <class T>
-void kernelFilterForward(T* out, const T* in, const T* logits, const KernelFilterDesc& d) {
+void kernelFilterForward(T* out, const T* in, const T* logits, const KernelFilterDesc& d, const T* history) {
     d.validate();
+    if (d.history != (history != nullptr))
+        throw Error("KernelFilter: the history is given iff the desc has one");
     const int64_t H = d.height, W = d.width, C = d.channels, plane = H * W, taps = d.taps();
     forEachPixel(d, logits, [&](int64_t n, int64_t y, int64_t x, const T* w, const int64_t* offset) {
         for (int64_t c = 0; c < C; ++c) {
             const T* source = in + (n * C + c) * plane;
             T sum = 0;
             for (int64_t j = 0; j < taps; ++j) sum += w[j] * source[offset[j]];
+            if (history) sum += w[taps] * history[(n * C + c) * plane + y * W + x];
             out[(n * C + c) * plane + y * W + x] = sum;
         }
     });
@@ -87,27 +90,40 @@ void kernelFilterForward(T* out, const T* in, const T* logits, const KernelFilte
 
 template <class T>
 void kernelFilterBackward(T* dinput, T* dlogits, const T* dout, const T* in, const T* logits,
-                          const KernelFilterDesc& d) {
+                          const KernelFilterDesc& d, T* dhistory, const T* history) {
     d.validate();
-    const int64_t H = d.height, W = d.width, C = d.channels, plane = H * W, taps = d.taps();
+    if (d.history != (history != nullptr))
+        throw Error("KernelFilter: the history is given iff the desc has one");
+    const int64_t H = d.height, W = d.width, C = d.channels, plane = H * W, taps = d.taps(),
+                  count = d.weights();
     if (dlogits) {
-        // dL/dlogit_j = w_j (g_j - sum_k w_k g_k), g_j = sum_c dout_c in_c(tap j).
+        // dL/dlogit_j = w_j (g_j - sum_k w_k g_k), g_j = sum_c dout_c in_c(tap j) (the history's own pixel
+        // for the history's weight).
         forEachPixel(d, logits, [&](int64_t n, int64_t y, int64_t x, const T* w, const int64_t* offset) {
-            T g[kMaxKernel * kMaxKernel], mean = 0;
-            for (int64_t j = 0; j < taps; ++j) {
+            T g[kMaxWeights], mean = 0;
+            for (int64_t j = 0; j < count; ++j) {
                 g[j] = 0;
-                for (int64_t c = 0; c < C; ++c)
-                    g[j] += dout[(n * C + c) * plane + y * W + x] * in[(n * C + c) * plane + offset[j]];
+                for (int64_t c = 0; c < C; ++c) {
+                    const int64_t at = (n * C + c) * plane;
+                    g[j] += dout[at + y * W + x] * (j < taps ? in[at + offset[j]] : history[at + y * W + x]);
+                }
                 mean += w[j] * g[j];
             }
-            for (int64_t j = 0; j < taps; ++j)
-                dlogits[(n * taps + j) * plane + y * W + x] += w[j] * (g[j] - mean);
+            for (int64_t j = 0; j < count; ++j)
+                dlogits[(n * count + j) * plane + y * W + x] += w[j] * (g[j] - mean);
         });
     }
+    if (dhistory)
+        forEachPixel(d, logits, [&](int64_t n, int64_t y, int64_t x, const T* w, const int64_t*) {
+            for (int64_t c = 0; c < C; ++c) {
+                const int64_t at = (n * C + c) * plane + y * W + x;
+                dhistory[at] += w[taps] * dout[at];
+            }
+        });
     if (dinput) {
         // Each tap sends w_j dout back to the pixel it read; one thread per batch item, in a fixed order.
         parallelFor(0, d.batch, 1, [&](int64_t first, int64_t last) {
-            T w[kMaxKernel * kMaxKernel];
+            T w[kMaxWeights];
             int64_t offset[kMaxKernel * kMaxKernel];
             for (int64_t n = first; n < last; ++n)
                 for (int64_t y = 0; y < H; ++y)
@@ -124,10 +140,11 @@ void kernelFilterBackward(T* dinput, T* dlogits, const T* dout, const T* in, con
     }
 }
 
-#define DEJAG_INSTANTIATE(T)                                                               \
-    template void kernelFilterWeights<T>(T*, const T*, const KernelFilterDesc&);           \
-    template void kernelFilterForward<T>(T*, const T*, const T*, const KernelFilterDesc&); \
-    template void kernelFilterBackward<T>(T*, T*, const T*, const T*, const T*, const KernelFilterDesc&);
+#define DEJAG_INSTANTIATE(T)                                                                                 \
+    template void kernelFilterWeights<T>(T*, const T*, const KernelFilterDesc&);                             \
+    template void kernelFilterForward<T>(T*, const T*, const T*, const KernelFilterDesc&, const T*);         \
+    template void kernelFilterBackward<T>(T*, T*, const T*, const T*, const T*, const KernelFilterDesc&, T*, \
+                                          const T*);
 DEJAG_INSTANTIATE(float)
 DEJAG_INSTANTIATE(double)
 #undef DEJAG_INSTANTIATE

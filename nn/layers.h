@@ -167,30 +167,39 @@ void pixelShuffleBackward(T* dinput, const T* dout, const ResampleDesc& d);
 // (all weight in the centre) is one logit away.
 //   out(n, c, y, x) = sum_j w_j(n, y, x) in(n, c, clamp(y + dy_j), clamp(x + dx_j)),
 //   w_j = softmax_j(logits(n, j, y, x) + [j is the centre] centreBias), j = (dy + r) k + (dx + r), r = k / 2.
+// With a history (a second image of the same shape, a recurrent network's warped previous output) there
+// is one more logit, k^2, whose weight takes the history's own pixel: the softmax then blends the frame's
+// neighbourhood and the history, as a TAA blends its history with the current frame.
+//   out(n, c, y, x) += w_{k^2}(n, y, x) history(n, c, y, x).
 struct KernelFilterDesc {
     int64_t batch = 1, channels = 1, height = 1, width = 1;
     int kernel = 3;  // odd
     float centreBias = 0.0f;
+    bool history = false;
 
     int64_t taps() const { return int64_t(kernel) * kernel; }
+    int64_t weights() const { return taps() + (history ? 1 : 0); }  // the logits' channels
     void validate() const;
 };
 
-// One pixel's k^2 weights from its k^2 logits (contiguous; weights may equal logits).
+// One pixel's k^2 (+ 1) weights from its logits (contiguous; weights may equal logits).
 template <class T>
 void kernelFilterWeights(T* weights, const T* logits, const KernelFilterDesc& d);
 template <class T>
-void kernelFilterForward(T* out,           // (N, C, H, W)
-                         const T* in,      // (N, C, H, W)
-                         const T* logits,  // (N, k^2, H, W)
-                         const KernelFilterDesc& d);
+void kernelFilterForward(T* out,                       // (N, C, H, W)
+                         const T* in,                  // (N, C, H, W)
+                         const T* logits,              // (N, k^2 (+ 1), H, W)
+                         const KernelFilterDesc& d,    //
+                         const T* history = nullptr);  // (N, C, H, W) when d.history
 template <class T>
-void kernelFilterBackward(T* dinput,        // (N, C, H, W) or null
-                          T* dlogits,       // (N, k^2, H, W) or null
-                          const T* dout,    // (N, C, H, W)
-                          const T* in,      // (N, C, H, W)
-                          const T* logits,  // (N, k^2, H, W)
-                          const KernelFilterDesc& d);
+void kernelFilterBackward(T* dinput,                    // (N, C, H, W) or null
+                          T* dlogits,                   // (N, k^2 (+ 1), H, W) or null
+                          const T* dout,                // (N, C, H, W)
+                          const T* in,                  // (N, C, H, W)
+                          const T* logits,              // (N, k^2 (+ 1), H, W)
+                          const KernelFilterDesc& d,    //
+                          T* dhistory = nullptr,        // (N, C, H, W) or null, when d.history
+                          const T* history = nullptr);  // (N, C, H, W) when d.history
 
 // ---- Motion warp (a recurrent network's history read where each pixel was) -------------------------------
 // out(n, c, y, x) = image(n, c) read at (x - motion(n, 0, y, x), y - motion(n, 1, y, x)) in pixel indices:

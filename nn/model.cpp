@@ -129,8 +129,8 @@ WarpDesc GraphNode::warpDesc(const Shape& in) const {
     return d;
 }
 
-KernelFilterDesc GraphNode::kernelFilterDesc(const Shape& in) const {
-    return {in[0], in[1], in[2], in[3], kernel, centreBias};
+KernelFilterDesc GraphNode::kernelFilterDesc(const Shape& in, bool history) const {
+    return {in[0], in[1], in[2], in[3], kernel, centreBias, history};
 }
 
 Model::Model(std::unique_ptr<Impl> impl) : impl_(std::move(impl)) {}
@@ -328,20 +328,22 @@ nlohmann::json Model::builtinArchitecture(const std::string& name, const ModelOp
         // previous output (RGB and `state` channels), the motion and the jitter. The history is warped
         // to where each pixel was (Catmull-Rom, taa-hq's history filter), put beside the frame and the
         // jitter, and a full-resolution conv and the fast family's U-Net below it (from 1/2 down to
-        // 1/2^depth and back) make a correction of the warped history: output = warped + correction,
-        // starting near "keep the history" (the correction's conv at 0.1x its initialisation).
+        // 1/2^depth and back) make per pixel the 10 logits of a blend: the softmax weights of the frame's
+        // 3x3 neighbourhood and of the warped history (kernel_filter with a history). As in a TAA the output
+        // can only mix what the frame and the history hold, and accumulating over frames is one weight.
+        // The state channels are the warped state plus a correction.
         const int w = options.width, levels = options.depth, state = options.state, history = 3 + state;
         if (w < 2 || w % 2 != 0 || w > kMaxChannels || levels < 1 || levels > 6 || state < 0 || state > 16)
             throw Error("the temporal family needs an even width from 2 to " + std::to_string(kMaxChannels) +
                         ", a depth (levels) in 1..6 and 0..16 state channels");
-        auto slice = [](const std::string& n, int from, int to) {
-            return json{{"name", n}, {"op", "slice"}, {"inputs", {"input"}}, {"from", from}, {"to", to}};
+        auto slice = [](const std::string& n, const std::string& in, int from, int to) {
+            return json{{"name", n}, {"op", "slice"}, {"inputs", {in}}, {"from", from}, {"to", to}};
         };
         json nodes = json::array();
-        nodes.push_back(slice("frame", 0, 3));
-        nodes.push_back(slice("history", 3, 3 + history));
-        nodes.push_back(slice("motion", 3 + history, 5 + history));
-        nodes.push_back(slice("jitter", 5 + history, 7 + history));
+        nodes.push_back(slice("frame", "input", 0, 3));
+        nodes.push_back(slice("history", "input", 3, 3 + history));
+        nodes.push_back(slice("motion", "input", 3 + history, 5 + history));
+        nodes.push_back(slice("jitter", "input", 5 + history, 7 + history));
         nodes.push_back({{"name", "warped"},
                          {"op", "warp"},
                          {"inputs", {"history", "motion"}},
@@ -349,13 +351,31 @@ nlohmann::json Model::builtinArchitecture(const std::string& name, const ModelOp
         nodes.push_back({{"name", "seen"}, {"op", "concat"}, {"inputs", {"frame", "warped", "jitter"}}});
         nodes.push_back(conv("full", "seen", w, 3, "relu"));
         const std::string previous = unet(nodes, "full", w, levels);
-        // Back to full resolution beside the full-resolution features, then the correction.
+        // Back to full resolution beside the full-resolution features, then the blend's logits.
         nodes.push_back(conv("to_full", previous, 2 * w, 3, "relu"));
         nodes.push_back({{"name", "up1"}, {"op", "pixel_shuffle"}, {"inputs", {"to_full"}}, {"factor", 2}});
         nodes.push_back({{"name", "cat0"}, {"op", "concat"}, {"inputs", {"up1", "full"}}});
-        nodes.push_back(conv("correction", "cat0", history, 3, "none"));
+        nodes.push_back(conv("blend_logits", "cat0", 10, 3, "none"));
         nodes.back()["init_scale"] = 0.1;
-        nodes.push_back({{"name", "output"}, {"op", "add"}, {"inputs", {"warped", "correction"}}});
+        std::string colourHistory = "warped";
+        if (state > 0) {
+            nodes.push_back(slice("warped_rgb", "warped", 0, 3));
+            nodes.push_back(slice("warped_state", "warped", 3, history));
+            colourHistory = "warped_rgb";
+        }
+        nodes.push_back({{"name", "blended"},
+                         {"op", "kernel_filter"},
+                         {"inputs", {"frame", "blend_logits", colourHistory}},
+                         {"kernel", 3}});
+        std::string output = "blended";
+        if (state > 0) {
+            nodes.push_back(conv("state_correction", "cat0", state, 3, "none"));
+            nodes.back()["init_scale"] = 0.1;
+            nodes.push_back(
+                {{"name", "state"}, {"op", "add"}, {"inputs", {"warped_state", "state_correction"}}});
+            nodes.push_back({{"name", "output"}, {"op", "concat"}, {"inputs", {"blended", "state"}}});
+            output = "output";
+        }
         return {{"name", "temporal"},
                 {"input_channels", 3 + history + 4},
                 {"input_colour",
@@ -363,7 +383,7 @@ nlohmann::json Model::builtinArchitecture(const std::string& name, const ModelOp
                 {"normalisation", "[0, 1]"},
                 {"init", "he_normal"},
                 {"nodes", nodes},
-                {"output", "output"},
+                {"output", output},
                 {"family", {{"width", w}, {"depth", levels}, {"state", state}}}};
     }
     throw Error("unknown built-in architecture '" + name + "' (seed2020, fast, kpn, temporal)");

@@ -16,8 +16,9 @@
 //   concat            inputs along channels
 //   upsample          mode ("nearest" | "bilinear"), factor (2)
 //   pixel_shuffle     factor (2)
-//   kernel_filter     inputs [image, logits with kernel^2 channels]; kernel (3), centre_bias (0): each
-//                     pixel a softmax-weighted average of the image's kernel x kernel neighbourhood
+//   kernel_filter     inputs [image, logits with kernel^2 channels] or [image, logits with kernel^2 + 1,
+//                     history]; kernel (3), centre_bias (0): each pixel a softmax-weighted average of the
+//                     image's kernel x kernel neighbourhood (and the history's own pixel)
 //   slice             from (0), to (the input's channels): channels [from, to)
 //   warp              inputs [image, motion (2 channels: x right, y down)]; filter ("bilinear" |
 //                     "catmull-rom" | "bicubic"): the image read at each pixel minus its motion
@@ -87,7 +88,7 @@ struct GraphNode {
     ConvTranspose2dDesc convTransposeDesc(const Shape& in) const;
     MaxPool2dDesc poolDesc(const Shape& in) const;
     ResampleDesc resampleDesc(const Shape& in) const;
-    KernelFilterDesc kernelFilterDesc(const Shape& in) const;
+    KernelFilterDesc kernelFilterDesc(const Shape& in, bool history = false) const;
     WarpDesc warpDesc(const Shape& in) const;
 };
 

@@ -42,8 +42,8 @@ std::optional<ResidualOutput> fuseResidualOutput(const PlanGraph& g) {
 
 std::optional<KernelOutput> fuseKernelOutput(const PlanGraph& g) {
     const GraphNode& out = g.node(g.output);
-    if (out.op != GraphOp::KernelFilter || out.inputs[0] >= 0 || out.inputs[1] < 0 ||
-        g.input[1] > kKernelMaxChannels)
+    if (out.op != GraphOp::KernelFilter || out.inputs.size() != 2 || out.inputs[0] >= 0 ||
+        out.inputs[1] < 0 || g.input[1] > kKernelMaxChannels)
         return std::nullopt;
     const int shuffle = out.inputs[1];
     if (g.opOf(shuffle) != GraphOp::PixelShuffle || g.node(shuffle).inputs[0] < 0 ||

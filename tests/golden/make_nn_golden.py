@@ -118,21 +118,30 @@ def resample_case(name, kind, factor, n, c, h, w):
                    "height": h, "width": w})
 
 
-def kernel_filter_case(name, n, c, h, w, k, centre_bias, logit_scale=2.0):
-    """dejag's kernel_filter: a softmax-weighted average of each pixel's k x k neighbourhood, edges repeated."""
-    inputs = {"input": f32(n, c, h, w), "logits": f32(n, k * k, h, w, low=-logit_scale, high=logit_scale)}
+def kernel_filter_case(name, n, c, h, w, k, centre_bias, logit_scale=2.0, history=False):
+    """dejag's kernel_filter: a softmax-weighted average of each pixel's k x k neighbourhood, edges repeated;
+    with a history, one more weight (the last logit) takes the history's own pixel."""
+    count = k * k + (1 if history else 0)
+    inputs = {"input": f32(n, c, h, w), "logits": f32(n, count, h, w, low=-logit_scale, high=logit_scale)}
+    if history:
+        inputs["history"] = f32(n, c, h, w)
 
-    def fn(input, logits):
-        bias = torch.zeros(k * k, dtype=logits.dtype)
+    def fn(input, logits, history=None):
+        bias = torch.zeros(count, dtype=logits.dtype)
         bias[k * k // 2] = centre_bias
-        weights = torch.softmax(logits + bias.view(1, k * k, 1, 1), dim=1)  # (N, k^2, H, W)
+        weights = torch.softmax(logits + bias.view(1, count, 1, 1), dim=1)  # (N, k^2 (+1), H, W)
         r = k // 2
         padded = F.pad(input, (r, r, r, r), mode="replicate")
         taps = F.unfold(padded, k).view(n, c, k * k, h, w)  # tap j = (dy + r) k + (dx + r)
+        if history is not None:
+            taps = torch.cat([taps, history.unsqueeze(2)], dim=2)
         return (taps * weights.unsqueeze(1)).sum(dim=2)
 
-    cases[name] = (run(fn, inputs, {}), {"layer": "kernel_filter", "batch": n, "channels": c, "height": h,
-                   "width": w, "kernel": k, "centre_bias": centre_bias})
+    config = {"layer": "kernel_filter", "batch": n, "channels": c, "height": h, "width": w, "kernel": k,
+              "centre_bias": centre_bias}
+    if history:
+        config["history"] = True
+    cases[name] = (run(fn, inputs, {}), config)
 
 
 def warp_case(name, n, c, h, w, mode, reach):
@@ -314,6 +323,10 @@ def main():
     warp_case("warp_bilinear", 2, 3, 7, 9, "bilinear", 3.0)
     warp_case("warp_bicubic", 2, 3, 7, 9, "bicubic", 3.0)
     warp_case("warp_bicubic_small_image", 1, 2, 3, 2, "bicubic", 1.5)
+    # The kernel filter with a history tap (the temporal network's blend of frame and history).
+    kernel_filter_case("kernel_filter_k3_history", 2, 3, 6, 7, 3, 0.0, history=True)
+    kernel_filter_case("kernel_filter_k1_history_large_logits", 1, 2, 4, 5, 1, 1.0, logit_scale=60.0,
+                       history=True)
 
     for name, (tensors, config) in cases.items():
         write_safetensors(os.path.join(HERE, name + ".safetensors"), tensors, config)

@@ -50,9 +50,10 @@ std::string savedModel(const testing::TempDir& dir) {
     options.width = 4, options.depth = 2, options.state = 1;
     nn::Model model = nn::Model::builtin("temporal", options);
     model.initialize(11);
-    // A correction of full size, so that every part of the network shows in the output.
+    // The blend's logits and the state's correction at full size, so that every part of the network
+    // shows in the output.
     for (const nn::ParameterInfo& p : model.parameters())
-        if (p.name.rfind("correction", 0) == 0)
+        if (p.name.rfind("blend_logits", 0) == 0 || p.name.rfind("state_correction", 0) == 0)
             for (int64_t i = 0; i < nn::shapeNumel(p.shape); ++i) model.parameterData()[p.offset + i] *= 10;
     const std::string path = dir.file("temporal.safetensors");
     nn::saveModel(path, model);

@@ -49,7 +49,7 @@ std::string describe(const ResampleDesc& d) {
 std::string describe(const KernelFilterDesc& d) {
     return "N" + std::to_string(d.batch) + " C" + std::to_string(d.channels) + " " +
            std::to_string(d.height) + "x" + std::to_string(d.width) + " k" + std::to_string(d.kernel) +
-           " centre bias " + std::to_string(d.centreBias);
+           " centre bias " + std::to_string(d.centreBias) + (d.history ? " history" : "");
 }
 
 std::string describe(const WarpDesc& d) {
@@ -142,11 +142,19 @@ LayerCase resample(const std::string& label, const std::string& kind, const Resa
 
 LayerCase kernelFilter(const std::string& label, const KernelFilterDesc& d) {
     const size_t image = size_t(d.batch * d.channels * d.height * d.width),
-                 logits = size_t(d.batch * d.taps() * d.height * d.width);
+                 logits = size_t(d.batch * d.weights() * d.height * d.width);
+    std::vector<std::string> names = {"input", "logits"};
+    std::vector<size_t> sizes = {image, logits};
+    if (d.history) names.push_back("history"), sizes.push_back(image);
     LayerCase c = layerCase(
-        "kernel_filter " + label + ": " + describe(d), {"input", "logits"}, {image, logits}, image,
-        [d](const auto& call) { kernelFilterForward(call.out, call.in[0], call.in[1], d); },
-        [d](const auto& g) { kernelFilterBackward(g.dIn[0], g.dIn[1], g.dOut, g.in[0], g.in[1], d); });
+        "kernel_filter " + label + ": " + describe(d), names, sizes, image,
+        [d](const auto& call) {
+            kernelFilterForward(call.out, call.in[0], call.in[1], d, d.history ? call.in[2] : nullptr);
+        },
+        [d](const auto& g) {
+            kernelFilterBackward(g.dIn[0], g.dIn[1], g.dOut, g.in[0], g.in[1], d,
+                                 d.history ? g.dIn[2] : nullptr, d.history ? g.in[2] : nullptr);
+        });
     c.inputLow = -3, c.inputHigh = 3;
     return c;
 }
@@ -222,6 +230,7 @@ void goldenCases(std::vector<LayerCase>& cases) {
             KernelFilterDesc d;
             d.batch = c["batch"], d.channels = c["channels"], d.height = c["height"], d.width = c["width"];
             d.kernel = c["kernel"], d.centreBias = c["centre_bias"];
+            d.history = c.value("history", false);
             lc = kernelFilter(label, d);
         } else if (layer == "warp") {
             WarpDesc d;
@@ -292,6 +301,7 @@ void randomCases(std::vector<LayerCase>& cases) {
         d.height = 1 + int(rng() % 6), d.width = 1 + int(rng() % 7);  // smaller than the kernel too
         d.kernel = 1 + 2 * int(rng() % 3);
         d.centreBias = float(int(rng() % 5) - 1);
+        d.history = trial % 2 == 1;
         cases.push_back(kernelFilter("random " + std::to_string(trial), d));
     }
     rng.seed(10);

@@ -115,6 +115,17 @@ std::vector<OpCase> cases() {
                      json::array({logits, node("op", "kernel_filter", {"input", "logits"},
                                                {{"kernel", k}, {"centre_bias", k == 5 ? 1.0 : 0.0}})})});
     }
+    {
+        // The temporal network's blend: the frame's 3x3 neighbourhood and a history's pixel.
+        const json image = node("image", "slice", {"input"}, {{"from", 0}, {"to", 3}});
+        const json history = node("history", "slice", {"input"}, {{"from", 3}, {"to", 6}});
+        const json logits =
+            node("logits", "conv2d", {"input"}, {{"out_channels", 10}, {"kernel", 3}, {"padding", "same"}});
+        c.push_back(
+            {"kernel_filter 3 with a history", 6,
+             json::array({image, history, logits,
+                          node("op", "kernel_filter", {"image", "logits", "history"}, {{"kernel", 3}})})});
+    }
     single("slice 2..5 of 6", node("op", "slice", {"input"}, {{"from", 2}, {"to", 5}}), false, 6);
     single("slice all", node("op", "slice", {"input"}));
     // A recurrent network's input: an image (3 channels) and its motion (2), split and warped.
