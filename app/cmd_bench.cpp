@@ -2,10 +2,12 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <array>
 #include <cerrno>
 #include <cstdio>
 #include <cstring>
 #include <filesystem>
+#include <map>
 #include <memory>
 #include <nlohmann/json.hpp>
 #include <sstream>
@@ -388,6 +390,9 @@ void registerBenchCommand(CLI::App& app) {
         bool noGhosting = false, noMoving = false, json = false, noUnjitter = false;
         std::string truthSpace = "linear";
         std::vector<std::string> settings, scenes, movingScenes;
+        std::string temporalModel = "models/dejag-temporal.safetensors",
+                    fastModel = "models/dejag-fast.safetensors";
+        double jitterSpread = 1.7;
     };
     auto taaArgs = std::make_shared<TaaBenchArguments>();
     CLI::App* taaBench = bench->add_subcommand(
@@ -433,9 +438,24 @@ void registerBenchCommand(CLI::App& app) {
         ->add_option("--scenes", taaArgs->scenes,
                      "only these scenes (e.g. flowers, or 'pipe tilted'), in every test that has them")
         ->delimiter(',');
+    taaBench
+        ->add_option(
+            "--temporal-model", taaArgs->temporalModel,
+            "the temporal network compared as dejag-temporal ('' or a missing default: not compared)")
+        ->capture_default_str();
+    taaBench
+        ->add_option(
+            "--fast-model", taaArgs->fastModel,
+            "the single-frame network compared as dejag-fast ('' or a missing default: not compared)")
+        ->capture_default_str();
+    taaBench
+        ->add_option("--jitter-spread", taaArgs->jitterSpread,
+                     "the spread of the frames' Halton jitter in pixels (1: within the pixel)")
+        ->check(CLI::Range(0.0, 4.0))
+        ->capture_default_str();
     taaBench->add_option("--out", taaArgs->out, "folder for the static test's SSIM-map PNGs");
     taaBench->add_flag("--json", taaArgs->json, "One JSON object per row");
-    taaBench->callback([taaArgs] {
+    taaBench->callback([taaArgs, taaBench] {
         bench::TaaBenchOptions options;
         const Size size = parseSize(taaArgs->size, "--size"),
                    ghost = parseSize(taaArgs->ghostSize, "--ghost-size");
@@ -454,6 +474,18 @@ void registerBenchCommand(CLI::App& app) {
             options.movingScenes = taaArgs->movingScenes;
         }
         infer::makeFilter("taa-hq", options.taaHq);  // an unknown or out-of-range setting: one line, now
+        // A model named on the command line must be there; the shipped ones are compared when present.
+        auto model = [taaBench](const std::string& path, const char* flag, const char* shipped) {
+            if (path.empty() ||
+                (taaBench->count(flag) == 0 && path == shipped && !std::filesystem::exists(path)))
+                return std::string();
+            if (!std::filesystem::exists(path)) throw Error(std::string(flag) + ": no model file " + path);
+            return path;
+        };
+        options.temporalModel =
+            model(taaArgs->temporalModel, "--temporal-model", "models/dejag-temporal.safetensors");
+        options.fastModel = model(taaArgs->fastModel, "--fast-model", "models/dejag-fast.safetensors");
+        options.jitterSpread = taaArgs->jitterSpread;
         options.ghostWidth = ghost.width, options.ghostHeight = ghost.height;
         options.ghostFrames = taaArgs->ghostFrames, options.ghostTruthSamples = taaArgs->ghostTruth;
         options.ghosting = !taaArgs->noGhosting, options.ssimMapFolder = taaArgs->out,
@@ -503,6 +535,27 @@ void registerBenchCommand(CLI::App& app) {
                 row["psnr"]["best"].get<double>(), row["psnr"]["worst"].get<double>(),
                 row["psnr"]["mean"].get<double>(), row["ssim"]["mean"].get<double>(),
                 row["flicker"].get<double>());
+        }
+        // Each method's mean over the scenes (and motions) of each test.
+        for (const char* test : {"static", "moving", "ghosting"}) {
+            std::vector<std::string> order;
+            std::map<std::string, std::array<double, 3>> sums;  // PSNR, flicker, count
+            for (const nlohmann::json& row : rows) {
+                if (row["test"] != test) continue;
+                const std::string method = row["method"];
+                if (!sums.count(method)) order.push_back(method), sums[method] = {0, 0, 0};
+                auto& sum = sums[method];
+                sum[0] +=
+                    row["psnr"].is_object() ? row["psnr"]["mean"].get<double>() : row["psnr"].get<double>();
+                sum[1] += row.value("flicker", 0.0), sum[2] += 1;
+            }
+            if (order.empty()) continue;
+            std::printf("mean of the %s test:", test);
+            for (const std::string& m : order) {
+                std::printf("  %s %.2f dB", m.c_str(), sums[m][0] / sums[m][2]);
+                if (std::string(test) != "static") std::printf(" (flicker %.5f)", sums[m][1] / sums[m][2]);
+            }
+            std::printf("\n");
         }
     });
 

@@ -31,23 +31,51 @@ nlohmann::json metricsJson(const ImageMetrics& m) {
     return {{"mse", m.mse}, {"rmsd", m.rmse}, {"psnr", m.psnr}, {"snr", m.snr}, {"ssim", m.ssim}};
 }
 
-// U-TAA and T-TAA as specified, both without their final sharpen (which costs several dB on frames
-// dense in edges), and taa-hq.
-constexpr int kTaaCount = 5;
+// The temporal methods: U-TAA and T-TAA as specified and without their final sharpen (which costs several
+// dB on frames dense in edges), taa-hq, and when its model is given the temporal network.
 struct Taas {
-    Taas(const infer::FilterParameters& hq, bool unjitter)
-        : filters{thesis("taa", true, unjitter), thesis("taa-sobel", true, unjitter),
-                  thesis("taa", false, unjitter), thesis("taa-sobel", false, unjitter),
-                  infer::makeFilter("taa-hq", hq)} {}
-    static std::unique_ptr<infer::Filter> thesis(const char* method, bool sharpen, bool unjitter) {
-        return infer::makeFilter(
-            method, {{"sharpen", sharpen ? "true" : "false"}, {"unjitter", unjitter ? "true" : "false"}});
+    Taas(const TaaBenchOptions& options) {
+        auto thesis = [&](const char* name, const char* method, bool sharpen) {
+            add(name, infer::makeFilter(method, {{"sharpen", sharpen ? "true" : "false"},
+                                                 {"unjitter", options.unjitter ? "true" : "false"}}));
+        };
+        thesis("u-taa", "taa", true), thesis("t-taa", "taa-sobel", true);
+        thesis("u-taa unsharpened", "taa", false), thesis("t-taa unsharpened", "taa-sobel", false);
+        add("taa-hq", infer::makeFilter("taa-hq", options.taaHq));
+        if (!options.temporalModel.empty())
+            add("dejag-temporal", infer::makeFilter("cnn-temporal", {{"model", options.temporalModel}}));
+        outputs.resize(filters.size());
     }
-    std::unique_ptr<infer::Filter> filters[kTaaCount];
-    std::vector<float> outputs[kTaaCount];
+    void add(const char* name, std::unique_ptr<infer::Filter> filter) {
+        names.push_back(name), filters.push_back(std::move(filter));
+    }
+    std::vector<std::string> names;
+    std::vector<std::unique_ptr<infer::Filter>> filters;
+    std::vector<std::vector<float>> outputs;
 };
-const char* const kTaaNames[kTaaCount] = {"u-taa", "t-taa", "u-taa unsharpened", "t-taa unsharpened",
-                                          "taa-hq"};
+
+// The single-frame methods, each on the frame no AA shows: FXAA, and when its model is given the
+// single-frame network.
+struct Singles {
+    explicit Singles(const TaaBenchOptions& options) {
+        names.push_back("fxaa"), filters.push_back(infer::makeFilter("fxaa", {}));
+        if (!options.fastModel.empty())
+            names.push_back("dejag-fast"),
+                filters.push_back(infer::makeFilter("cnn", {{"model", options.fastModel}}));
+        outputs.resize(filters.size());
+    }
+    void run(const std::vector<float>& colour, int width, int height) {
+        infer::Frame frame;
+        frame.width = width, frame.height = height, frame.colour = colour.data();
+        for (size_t k = 0; k < filters.size(); ++k) {
+            outputs[k].resize(colour.size());
+            filters[k]->apply(frame, outputs[k].data());
+        }
+    }
+    std::vector<std::string> names;
+    std::vector<std::unique_ptr<infer::Filter>> filters;
+    std::vector<std::vector<float>> outputs;
+};
 
 // The frame's jitter as the filters take it: the image's shift in pixels, +y down.
 std::array<float, 2> imageShift(const render::Vec2& jitter) {
@@ -68,7 +96,7 @@ void runTaas(Taas& taas, const render::Frame& f, float far, const render::Vec2& 
     frame.hasJitter = true;
     const std::array<float, 2> shift = imageShift(jitter);
     frame.jitter[0] = shift[0], frame.jitter[1] = shift[1];
-    for (int k = 0; k < kTaaCount; ++k) {
+    for (size_t k = 0; k < taas.filters.size(); ++k) {
         taas.outputs[k].resize(colour.size());
         taas.filters[k]->apply(frame, taas.outputs[k].data());
     }
@@ -145,11 +173,11 @@ Image displayTruth(render::Renderer& renderer, int samples, double time) {
     return eightBit(mean, W, H);
 }
 
-render::FrameRequest jittered(double time, int index) {
+render::FrameRequest jittered(double time, int index, double spread) {
     render::FrameRequest r;
     r.time = time, r.previousTime = std::max(0.0, time - 1);
-    r.jitter = render::jitterPixels(unsigned(index % 16), 1.7);
-    r.previousJitter = render::jitterPixels(unsigned((index + 15) % 16), 1.7);
+    r.jitter = render::jitterPixels(unsigned(index % 16), spread);
+    r.previousJitter = render::jitterPixels(unsigned((index + 15) % 16), spread);
     r.buffers = render::BufferSet::all();
     return r;
 }
@@ -162,35 +190,32 @@ void runSequence(const render::GlContext& context, const render::Scene& scene, i
                  std::vector<nlohmann::json>& rows) {
     const int W = options.ghostWidth, H = options.ghostHeight;
     render::Renderer renderer(context, scene, W, H);
-    Taas taas(options.taaHq, options.unjitter);
-    // Every TAA, then no AA and FXAA.
-    constexpr int kMethods = kTaaCount + 2;
-    const char* names[kMethods] = {kTaaNames[0], kTaaNames[1], kTaaNames[2], kTaaNames[3],
-                                   kTaaNames[4], "no aa",      "fxaa"};
-    std::vector<double> psnr[kMethods], ssim[kMethods];
-    Flicker flicker[kMethods];
-    const auto fxaa = infer::makeFilter("fxaa", {});
-    std::vector<float> fxaaOut;
+    Taas taas(options);
+    Singles singles(options);
+    // Every TAA, then no AA and the single-frame methods.
+    std::vector<std::string> names = taas.names;
+    names.push_back("no aa");
+    names.insert(names.end(), singles.names.begin(), singles.names.end());
+    const size_t methods = names.size(), taaCount = taas.filters.size();
+    std::vector<std::vector<double>> psnr(methods), ssim(methods);
+    std::vector<Flicker> flicker(methods);
     render::TruthOptions truthOptions;
     truthOptions.samples = options.ghostTruthSamples, truthOptions.adaptive = true;
     for (int t = 0; t < frames; ++t) {
-        const render::FrameRequest request = jittered(t, t);
+        const render::FrameRequest request = jittered(t, t, options.jitterSpread);
         const render::Frame rendered = renderer.render(request);
         runTaas(taas, rendered, float(scene.far), request.jitter);
         if (t < skip) continue;
         const std::vector<float> noAa = frameChannels(rendered, 0, 3, true);
-        infer::Frame still;
-        still.width = W, still.height = H, still.colour = noAa.data();
-        fxaaOut.resize(noAa.size());
-        fxaa->apply(still, fxaaOut.data());
+        singles.run(noAa, W, H);
         const Image truth =
             options.displayTruth
                 ? displayTruth(renderer, options.ghostTruthSamples, t)
                 : eightBit(frameChannels(renderer.renderTruth(t, truthOptions), 0, 3, true), W, H);
-        for (int k = 0; k < kMethods; ++k) {
-            const Image out = eightBit(k < kTaaCount    ? taas.outputs[k]
-                                       : k == kTaaCount ? noAa
-                                                        : fxaaOut,
+        for (size_t k = 0; k < methods; ++k) {
+            const Image out = eightBit(k < taaCount    ? taas.outputs[k]
+                                       : k == taaCount ? noAa
+                                                       : singles.outputs[k - taaCount - 1],
                                        W, H);
             const ImageMetrics m = compareImages(truth, out);
             psnr[k].push_back(m.psnr), ssim[k].push_back(m.ssim);
@@ -204,7 +229,7 @@ void runSequence(const render::GlContext& context, const render::Scene& scene, i
                               {"worst", *std::min_element(v.begin(), v.end())},
                               {"mean", sum / double(v.size())}};
     };
-    for (int k = 0; k < kMethods; ++k) {
+    for (size_t k = 0; k < methods; ++k) {
         nlohmann::json row = labels;
         row.update({{"method", names[k]},
                     {"flicker", flicker[k].value()},
@@ -276,27 +301,22 @@ std::vector<nlohmann::json> benchTaa(const TaaBenchOptions& options) {
         render::FrameRequest still;
         still.buffers = render::BufferSet::parse("color");
         const std::vector<float> noAa = frameChannels(renderer.render(still), 0, 3, true);
-        std::vector<float> fxaaOut(noAa.size());
-        infer::Frame stillFrame;
-        stillFrame.width = W, stillFrame.height = H, stillFrame.colour = noAa.data();
-        infer::makeFilter("fxaa", {})->apply(stillFrame, fxaaOut.data());
-        Taas taas(options.taaHq, options.unjitter);
+        Singles singles(options);
+        singles.run(noAa, W, H);
+        Taas taas(options);
         Oracle oracle;
         for (int i = 0; i < options.historyFrames; ++i) {
-            const render::FrameRequest request = jittered(0, i);
+            const render::FrameRequest request = jittered(0, i, options.jitterSpread);
             const render::Frame frame = renderer.render(request);
             runTaas(taas, frame, float(scene.far), request.jitter);
             if (i >= options.historyFrames - 16) oracle.add(frame, request.jitter);
         }
         const std::vector<float> oracleOut = oracle.srgb();
-        const std::pair<const char*, const std::vector<float>*> methods[] = {{"no aa", &noAa},
-                                                                             {"fxaa", &fxaaOut},
-                                                                             {kTaaNames[0], &taas.outputs[0]},
-                                                                             {kTaaNames[1], &taas.outputs[1]},
-                                                                             {kTaaNames[2], &taas.outputs[2]},
-                                                                             {kTaaNames[3], &taas.outputs[3]},
-                                                                             {kTaaNames[4], &taas.outputs[4]},
-                                                                             {"oracle", &oracleOut}};
+        std::vector<std::pair<std::string, const std::vector<float>*>> methods = {{"no aa", &noAa}};
+        for (size_t k = 0; k < singles.filters.size(); ++k)
+            methods.push_back({singles.names[k], &singles.outputs[k]});
+        for (size_t k = 0; k < taas.filters.size(); ++k) methods.push_back({taas.names[k], &taas.outputs[k]});
+        methods.push_back({"oracle", &oracleOut});
         for (const auto& [method, pixels] : methods) {
             MetricOptions metricOptions;
             metricOptions.wantSsimMap = !options.ssimMapFolder.empty();
