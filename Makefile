@@ -4,6 +4,7 @@
 #   make bench   build and run the benchmarks
 #   make build   configure and build (Release)
 #   make dataset render the default training dataset into out/dataset (resumable: run it again)
+#   make sequences  render the temporal network's sequences into out/sequences (resumable)
 #   make models  train the shipped models on it and export them with their model cards (resumable)
 # PRESET=debug|asan|tsan selects another build; CI=true turns warnings into errors.
 
@@ -15,7 +16,7 @@ ifneq ($(CI),)
 CMAKE_FLAGS += -DDEJAG_WERROR=ON
 endif
 
-.PHONY: all deps configure build demo test test-asan test-asan-fast test-tsan bench fuzz fuzz-seeds dataset models golden format clean
+.PHONY: all deps configure build demo test test-asan test-asan-fast test-tsan bench fuzz fuzz-seeds dataset sequences models golden format clean
 
 all: build
 
@@ -43,6 +44,14 @@ dataset: build
 	$(BUILD_DIR)/dejag data generate --families all --count 2200 --size 256x256 --truth 128 --adaptive \
 		--workers 2 --out $(DATASET)
 	$(BUILD_DIR)/dejag data stats $(DATASET)
+
+# The sequences the temporal network learns from: 640 sequences of 8 jittered frames at 128x128, each
+# frame with a 64-sample adaptive truth (docs/data.md has the measured time, about 40 minutes).
+SEQUENCES ?= out/sequences
+sequences: build
+	$(BUILD_DIR)/dejag data generate --count 640 --size 128x128 --truth 64 --adaptive --sequence-length 8 \
+		--workers 2 --out $(SEQUENCES)
+	$(BUILD_DIR)/dejag data stats $(SEQUENCES)
 
 # The shipped models (models/*.md record each command, its wall time and its scores). Each run is
 # resumable: an interrupted `make models` continues where it stopped and ends with the same weights.

@@ -165,6 +165,7 @@ void registerBenchCommand(CLI::App& app) {
     struct FilterBenchArguments {
         int repeat = 15;
         std::string threads = "1,2", size = "1920x1080";
+        std::string temporalModel = "models/dejag-temporal.safetensors";
         bool json = false;
     };
     auto filterArgs = std::make_shared<FilterBenchArguments>();
@@ -176,13 +177,23 @@ void registerBenchCommand(CLI::App& app) {
     filterBench->add_option("--threads", filterArgs->threads, "Comma-separated thread counts")
         ->capture_default_str();
     filterBench->add_option("--size", filterArgs->size, "Frame size WIDTHxHEIGHT")->capture_default_str();
+    filterBench
+        ->add_option("--temporal-model", filterArgs->temporalModel,
+                     "the temporal network timed as dejag-temporal ('' or a missing default: not timed)")
+        ->capture_default_str();
     filterBench->add_flag("--json", filterArgs->json, "One JSON object per case");
-    filterBench->callback([filterArgs] {
+    filterBench->callback([filterArgs, filterBench] {
         bench::FilterBenchOptions options;
         const Size size = parseSize(filterArgs->size, "--size");
         options.width = size.width, options.height = size.height;
         options.repeat = filterArgs->repeat;
         options.threads = parseThreadList(filterArgs->threads);
+        options.temporalModel = filterArgs->temporalModel;
+        if (!options.temporalModel.empty() && !std::filesystem::exists(options.temporalModel)) {
+            if (filterBench->count("--temporal-model"))
+                throw Error("--temporal-model: no model file " + options.temporalModel);
+            options.temporalModel.clear();  // the shipped model is timed when it is there
+        }
         const std::vector<nlohmann::json> rows = bench::benchFilters(options);
         if (filterArgs->json) {
             for (const nlohmann::json& row : rows) std::printf("%s\n", row.dump().c_str());
@@ -197,11 +208,18 @@ void registerBenchCommand(CLI::App& app) {
             if (row.contains("psnr_after"))
                 std::printf("  %.2f -> %.2f dB", row["psnr_before"].get<double>(),
                             row["psnr_after"].get<double>());
+            if (row.contains("peak_gmacs"))
+                std::printf("  %.0f MACs/px; %.1f of the measured FMA peak's %.1f GMAC/s",
+                            row["macs_per_pixel"].get<double>(),
+                            row["macs_per_pixel"].get<double>() * row["width"].get<double>() *
+                                row["height"].get<double>() / (row["ms"].get<double>() * 1e6),
+                            row["peak_gmacs"].get<double>());
             std::printf("\n");
         }
         std::printf(
             "frame: hard-edges, %s, sRGB-encoded float RGB; floor: the bytes each method must move "
-            "at least, at the memory bandwidth measured in this run\n",
+            "at least, at the memory bandwidth measured in this run (a network: its multiply-adds at the FMA "
+            "peak measured in this run)\n",
             filterArgs->size.c_str());
     });
 

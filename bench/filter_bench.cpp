@@ -4,12 +4,15 @@
 #include <cmath>
 #include <map>
 
+#include "base/peak.h"
 #include "base/random.h"
+#include "base/simd.h"
 #include "base/thread_pool.h"
 #include "base/timer.h"
 #include "bench/bench.h"
 #include "data/frame_image.h"
 #include "infer/filter.h"
+#include "nn/model.h"
 #include "render/renderer.h"
 
 namespace dejag::bench {
@@ -141,6 +144,35 @@ std::vector<nlohmann::json> benchFilters(const FilterBenchOptions& options) {
                                 {"floor_ms", floorMs(c.bytesPerPixel, threads)}});
             }
         }
+    }
+    // The temporal network on the frame with every buffer under the zoom's motion, its history carried
+    // over the timed runs; its floor is its multiply-adds at the FMA peak measured here.
+    if (!options.temporalModel.empty()) {
+        const nn::Model model = nn::loadModel(options.temporalModel);
+        const double macsPerPixel =
+            double(model.macs({1, model.inputChannels(), options.height, options.width})) / pixels;
+        frameBuffers.motion = zoom.data();
+        std::vector<std::pair<std::string, double>> precisions = {{"fp32", 33.0}};
+        if (bf16Available()) precisions.push_back({"bf16", 16.7});
+        for (const auto& [precision, target] : precisions)
+            for (const int threads : options.threads) {
+                setThreadCount(threads);
+                const FmaPeak peak = measureFmaPeak();
+                const auto network = infer::makeFilter(
+                    "cnn-temporal", {{"model", options.temporalModel}, {"precision", precision}});
+                const double ms =
+                    medianMilliseconds(options.repeat, [&] { network->apply(frameBuffers, out.data()); });
+                rows.push_back({{"name", "dejag-temporal " + precision + " zoom"},
+                                {"threads", threads},
+                                {"width", options.width},
+                                {"height", options.height},
+                                {"ms", ms},
+                                {"target_ms", target},
+                                {"processed_fraction", 1.0},
+                                {"macs_per_pixel", macsPerPixel},
+                                {"peak_gmacs", peak.gmacsTotal},
+                                {"floor_ms", pixels * macsPerPixel / (peak.gmacsTotal * 1e6)}});
+            }
     }
     setThreadCount(0);
     return rows;

@@ -327,8 +327,8 @@ nlohmann::json Model::builtinArchitecture(const std::string& name, const ModelOp
         // A recurrent network (docs/train.md, train/temporal.h): its input holds the frame, its own
         // previous output (RGB and `state` channels), the motion and the jitter. The history is warped
         // to where each pixel was (Catmull-Rom, taa-hq's history filter), put beside the frame and the
-        // jitter, and a full-resolution conv and the fast family's U-Net below it (from 1/2 down to
-        // 1/2^depth and back) make per pixel the 10 logits of a blend: the softmax weights of the frame's
+        // jitter, and the fast family's U-Net (from 1/2 down to 1/2^depth and back) makes per pixel the 10
+        // logits of a blend: the softmax weights of the frame's
         // 3x3 neighbourhood and of the warped history (kernel_filter with a history). As in a TAA the output
         // can only mix what the frame and the history hold, and accumulating over frames is one weight.
         // The state channels are the warped state plus a correction.
@@ -349,14 +349,14 @@ nlohmann::json Model::builtinArchitecture(const std::string& name, const ModelOp
                          {"inputs", {"history", "motion"}},
                          {"filter", "catmull-rom"}});
         nodes.push_back({{"name", "seen"}, {"op", "concat"}, {"inputs", {"frame", "warped", "jitter"}}});
-        nodes.push_back(conv("full", "seen", w, 3, "relu"));
-        const std::string previous = unet(nodes, "full", w, levels);
-        // Back to full resolution beside the full-resolution features, then the blend's logits.
-        nodes.push_back(conv("to_full", previous, 2 * w, 3, "relu"));
-        nodes.push_back({{"name", "up1"}, {"op", "pixel_shuffle"}, {"inputs", {"to_full"}}, {"factor", 2}});
-        nodes.push_back({{"name", "cat0"}, {"op", "concat"}, {"inputs", {"up1", "full"}}});
-        nodes.push_back(conv("blend_logits", "cat0", 10, 3, "none"));
+        const std::string previous = unet(nodes, "seen", w, levels);
+        // The head at 1/2, as kpn's: a 1x1 conv makes four full-resolution pixels' worth of the blend's 10
+        // logits and the state's correction, and a pixel shuffle puts them in place. Nothing but the
+        // warp and the blend runs at full resolution.
+        nodes.push_back(conv("head", previous, 4 * (10 + state), 1, "none"));
         nodes.back()["init_scale"] = 0.1;
+        nodes.push_back({{"name", "shuffle"}, {"op", "pixel_shuffle"}, {"inputs", {"head"}}, {"factor", 2}});
+        nodes.push_back(slice("blend_logits", "shuffle", 0, 10));
         std::string colourHistory = "warped";
         if (state > 0) {
             nodes.push_back(slice("warped_rgb", "warped", 0, 3));
@@ -369,8 +369,7 @@ nlohmann::json Model::builtinArchitecture(const std::string& name, const ModelOp
                          {"kernel", 3}});
         std::string output = "blended";
         if (state > 0) {
-            nodes.push_back(conv("state_correction", "cat0", state, 3, "none"));
-            nodes.back()["init_scale"] = 0.1;
+            nodes.push_back(slice("state_correction", "shuffle", 10, 10 + state));
             nodes.push_back(
                 {{"name", "state"}, {"op", "add"}, {"inputs", {"warped_state", "state_correction"}}});
             nodes.push_back({{"name", "output"}, {"op", "concat"}, {"inputs", {"blended", "state"}}});

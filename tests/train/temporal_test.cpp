@@ -188,7 +188,10 @@ class TemporalData : public ::testing::Test {
         return c;
     }
     static std::vector<float> finalWeights(const TrainConfig& c) {
-        return nn::readSafetensors(c.out + "/final.safetensors").tensors.at("full.weight").f32;
+        std::vector<float> all;  // every tensor, in name order
+        for (const auto& [name, tensor] : nn::readSafetensors(c.out + "/final.safetensors").tensors)
+            all.insert(all.end(), tensor.f32.begin(), tensor.f32.end());
+        return all;
     }
     static std::string folder_;
 };
@@ -280,6 +283,7 @@ TEST_F(TemporalData, ResumedTrainingEqualsTheUninterruptedRunBitForBit) {
     faults.stopAfterSteps = 0;
     EXPECT_EQ(trainModel(broken, {}, faults).steps, 12);
     EXPECT_EQ(finalWeights(straight), finalWeights(broken));
+    EXPECT_GT(finalWeights(straight).size(), 1000u);
     // Export: the best model and its card, scored on whole sequences next to the jittered frames and a
     // given baseline (here the frames themselves under another name: the same figures).
     const std::string exported = folder_ + "/models/dejag-temporal-test.safetensors";
