@@ -6,13 +6,26 @@
 #include <string>
 
 #include "base/error.h"
+#include "base/simd.h"
 #include "base/thread_pool.h"
 #include "infer/cnn.h"
 #include "nn/inference.h"
+#include "nn/kernel_filter_kernels.h"
+#include "nn/layers.h"
 #include "nn/model.h"
+
+namespace dejag::nn {
+namespace {
+// The kernel filter's row kernel at the active SIMD level.
+void blendRow(const KernelFilterRowArgs& args) {
+    DEJAG_SIMD_CALL(kernelFilterRow, args);
+}
+}  // namespace
+}  // namespace dejag::nn
 
 namespace dejag::infer {
 namespace {
+using nn::blendRow;
 
 class CnnTemporalFilter final : public Filter {
   public:
@@ -25,21 +38,192 @@ class CnnTemporalFilter final : public Filter {
                         std::to_string(model_.outputChannels()) +
                         " (a recurrent network returning 3 + S takes 3 + (3 + S) + 2 + 2)");
         figures_.settings = {{"model", path}, {"precision", precisionName(precision)}};
+        trunk_ = builtinTrunk(model_);
+        for (const nlohmann::json& node : model_.architecture()["nodes"])
+            if (node.value("name", "") == "blended") centreBias_ = node.value("centre_bias", 0.0f);
     }
     BufferSet needs() const override { return unsigned(Buffer::Motion); }
     bool temporal() const override { return true; }
     void reset() override { fresh_ = true; }
 
   private:
+    // The built-in temporal family (nn/model.cpp, exactly as Model::builtinArchitecture makes it) is run
+    // in three parts: the history's warp on planar planes; the nodes from "seen" to "head" (the U-Net
+    // and its 1x1 head, all at 1/2 but the first conv's input) as an inference plan of their own; and
+    // the head's pixel shuffle, the blend of the frame's 3x3 neighbourhood with the warped history and
+    // the state's correction fused in one row kernel fed as the plan hands over each row of the head.
+    // Nothing but the warp and the blend touches a full-resolution tensor of more than the input's
+    // channels. Other temporal networks (any JSON graph) run as one plan.
+    static std::optional<nn::Model> builtinTrunk(const nn::Model& model) {
+        const nlohmann::json& a = model.architecture();
+        if (a.value("name", "") != "temporal" || !a.contains("family")) return std::nullopt;
+        nn::ModelOptions options;
+        options.width = a["family"].value("width", 0), options.depth = a["family"].value("depth", 0);
+        options.state = a["family"].value("state", -1);
+        nlohmann::json builtin;
+        try {
+            builtin = nn::Model::builtinArchitecture("temporal", options);
+        } catch (const Error&) {
+            return std::nullopt;
+        }
+        if (builtin["nodes"] != a["nodes"] || builtin["output"] != a["output"] || options.state > 1)
+            return std::nullopt;  // (the fused path keeps the history in 4 floats a pixel)
+        nlohmann::json nodes = nlohmann::json::array();
+        bool inside = false;
+        for (nlohmann::json node : a["nodes"]) {
+            if (inside) {
+                for (auto& input : node["inputs"])
+                    if (input == "seen") input = "input";
+                nodes.push_back(node);
+                if (node["name"] == "head") break;
+            }
+            inside = inside || node["name"] == "seen";
+        }
+        nn::Model trunk = nn::Model::fromArchitecture({{"name", "temporal-trunk"},
+                                                       {"input_channels", 3 + (3 + options.state) + 2},
+                                                       {"init", a.value("init", "he_normal")},
+                                                       {"nodes", nodes},
+                                                       {"output", "head"}});
+        for (const nn::ParameterInfo& p : trunk.parameters()) {
+            const nn::ParameterInfo& from = model.parameter(p.name);
+            std::copy_n(model.parameterData() + from.offset, nn::shapeNumel(p.shape),
+                        trunk.parameterData() + p.offset);
+        }
+        return trunk;
+    }
+
+    // The history's row kernel's inputs for one output row y (the head's rows at y / 2 given).
+    struct BlendSink final : nn::OutputRowSink {
+        CnnTemporalFilter* self = nullptr;
+        const Frame* frame = nullptr;
+        float* out = nullptr;
+        void row(int64_t, int64_t y2, const float* const* head) override {
+            CnnTemporalFilter& f = *self;
+            const int64_t W = f.width_, H = f.height_, plane = W * H;
+            const int S = f.history_ - 3, C = frame->channels;
+            thread_local std::vector<float> logits, blended;
+            logits.resize(size_t(10 * W)), blended.resize(size_t(3 * W));
+            for (int dy = 0; dy < 2; ++dy) {
+                const int64_t y = 2 * y2 + dy;
+                if (y >= H) break;
+                // The shuffle: output channel k at (2 y2 + dy, 2 s + dx) is head channel 4 k + 2 dy + dx at
+                // s.
+                for (int k = 0; k < 10; ++k) {
+                    const float* even = head[4 * k + 2 * dy];
+                    const float* odd = head[4 * k + 2 * dy + 1];
+                    float* l = logits.data() + k * W;
+                    for (int64_t s = 0; s < W / 2; ++s) l[2 * s] = even[s], l[2 * s + 1] = odd[s];
+                }
+                const float* in[9];
+                const float* history[3];
+                float* rgb[3];
+                for (int c = 0; c < 3; ++c) {
+                    for (int d = -1; d <= 1; ++d)
+                        in[c * 3 + d + 1] =
+                            f.frame_.data() + c * plane + std::clamp<int64_t>(y + d, 0, H - 1) * W;
+                    history[c] = f.warped_.data() + c * plane + y * W;
+                    rgb[c] = blended.data() + c * W;
+                }
+                nn::KernelFilterRowArgs args;
+                args.out = rgb, args.in = in, args.logits = logits.data(), args.width = W;
+                args.channels = 3, args.kernel = 3, args.centreBias = f.centreBias_, args.history = history;
+                blendRow(args);
+                // The next history, interleaved: the blend's RGB and the warped state plus its correction.
+                float* next = f.previous_.data() + y * W * 4;
+                for (int64_t x = 0; x < W; ++x)
+                    for (int c = 0; c < 3; ++c) next[4 * x + c] = rgb[c][x];
+                if (S == 1) {
+                    const float* even = head[4 * 10 + 2 * dy];
+                    const float* odd = head[4 * 10 + 2 * dy + 1];
+                    const float* warped = f.warped_.data() + 3 * plane + y * W;
+                    for (int64_t x = 0; x < W; ++x)
+                        next[4 * x + 3] = warped[x] + ((x & 1) ? odd : even)[x / 2];
+                }
+                float* o = out + y * W * C;
+                const float* colour = frame->colour + y * W * C;
+                for (int64_t x = 0; x < W; ++x) {
+                    for (int c = 0; c < 3; ++c) o[x * C + c] = std::clamp(rgb[c][x], 0.0f, 1.0f);
+                    for (int c = 3; c < C; ++c) o[x * C + c] = colour[x * C + c];
+                }
+            }
+        }
+    };
+
+    // The trunk's input rows from the frame's and the warped history's planes.
+    struct InputRows final : nn::InputRowSource {
+        CnnTemporalFilter* self = nullptr;
+        float jitter[2] = {0, 0};
+        void row(int64_t, int64_t y, float* const* channels) override {
+            const CnnTemporalFilter& f = *self;
+            const int64_t W = f.width_, plane = W * f.height_;
+            const int S = f.history_;
+            for (int c = 0; c < 3; ++c) std::copy_n(f.frame_.data() + c * plane + y * W, W, channels[c]);
+            for (int c = 0; c < S; ++c) std::copy_n(f.warped_.data() + c * plane + y * W, W, channels[3 + c]);
+            for (int k = 0; k < 2; ++k) std::fill_n(channels[3 + S + k], W, jitter[k]);
+        }
+    };
+
+    void processFused(const Frame& frame, float* out) {
+        const int W = frame.width, H = frame.height, C = frame.channels, S = history_;
+        const int64_t plane = int64_t(W) * H;
+        const nn::Shape shape{1, 3 + S + 2, H, W};
+        if (!fused_ || fused_->inputShape() != shape) {
+            fused_.emplace(*trunk_, shape, precision_);
+            frame_ = nn::Tensor({3, H, W}), warped_ = nn::Tensor({S, H, W});
+        }
+        const bool fresh = fresh_;
+        // The frame as planes.
+        parallelFor(0, H, 16, [&](int64_t first, int64_t last) {
+            for (int64_t y = first; y < last; ++y)
+                for (int64_t x = 0; x < W; ++x) {
+                    const int64_t p = y * W + x;
+                    for (int c = 0; c < 3; ++c) frame_.data()[c * plane + p] = frame.colour[p * C + c];
+                }
+        });
+        // The history (interleaved, 4 floats a pixel) read where each pixel was, as planes; on a fresh start
+        // the frame and zero state.
+        if (fresh) {
+            std::copy_n(frame_.data(), 3 * plane, warped_.data());
+            std::fill_n(warped_.data() + 3 * plane, (S - 3) * plane, 0.0f);
+        } else {
+            float* planes[4];
+            for (int c = 0; c < S; ++c) planes[c] = warped_.data() + c * plane;
+            nn::warpInterleaved(planes, previous_.data(), frame.motion, W, H, S, nn::WarpFilter::CatmullRom);
+        }
+        // The trunk's input: frame, warped history, jitter; streamed a band of rows at a time where the plan
+        // can take it so.
+        InputRows rows;
+        rows.self = this, rows.jitter[0] = frame.hasJitter ? frame.jitter[0] : 0.0f;
+        rows.jitter[1] = frame.hasJitter ? frame.jitter[1] : 0.0f;
+        BlendSink sink;
+        sink.self = this, sink.frame = &frame, sink.out = out;
+        if (fused_->canStreamInput()) {
+            fused_->runStreamed(rows, sink, 0, (H + 1) / 2);
+        } else {
+            parallelFor(0, H, 16, [&](int64_t first, int64_t last) {
+                float* channels[3 + 4 + 2];
+                for (int64_t y = first; y < last; ++y) {
+                    for (int c = 0; c < 3 + S + 2; ++c) channels[c] = fused_->inputRow(0, c, y);
+                    rows.row(0, y, channels);
+                }
+            });
+            fused_->runInPlace(sink, 0, (H + 1) / 2);
+        }
+        fresh_ = false;
+    }
+
     void process(const Frame& frame, float* out) override {
+        if (frame.width != width_ || frame.height != height_) {  // a new size: the history starts over
+            width_ = frame.width, height_ = frame.height, fresh_ = true;
+            previous_ = nn::Tensor({std::max(history_, 4), height_, width_});  // (4: the fused path's pixels)
+        }
+        if (trunk_ && frame.width % 2 == 0 && frame.height % 2 == 0) return processFused(frame, out);
         const int W = frame.width, H = frame.height, C = frame.channels, S = history_;
         const int64_t plane = int64_t(W) * H, channels = 3 + S + 4;
         const nn::Shape shape{1, channels, H, W};
         if (!plan_ || input_.shape() != shape) {
             plan_.emplace(model_, shape, precision_);
             input_ = nn::Tensor(shape);
-            previous_ = nn::Tensor({1, S, H, W});
-            fresh_ = true;
         }
         float* in = input_.data();
         const float* colour = frame.colour;
@@ -86,6 +270,13 @@ class CnnTemporalFilter final : public Filter {
     std::optional<nn::InferencePlan> plan_;
     nn::Tensor input_, previous_;
     bool fresh_ = true;
+    // The fused path (builtinTrunk): the trunk, its plan, and the frame, warped history and motion as
+    // planes (previous_ holds the history).
+    std::optional<nn::Model> trunk_;
+    std::optional<nn::InferencePlan> fused_;
+    nn::Tensor frame_, warped_;
+    int64_t width_ = 0, height_ = 0;
+    float centreBias_ = 0.0f;
 };
 
 }  // namespace

@@ -47,19 +47,20 @@ inline V expNonPositive(V x) {
     return p * bitCast<V>(exponent);
 }
 
-// The pixels from x (as many as V has lanes), all of whose taps x + dx lie in [0, width) unless `clampX`.
-template <class V, class I, int K>
+// The pixels from x (as many as V has lanes), all of whose taps x + dx lie in [0, width) unless `clampX`;
+// with `History`, one more weight on the history's pixel.
+template <class V, class I, int K, bool History = false>
 inline void filterPixels(const KernelFilterRowArgs& a, int64_t x, bool clampX) {
-    constexpr int kTaps = K * K, kRadius = K / 2, kCentre = kTaps / 2;
-    V weight[kTaps];
+    constexpr int kTaps = K * K, kRadius = K / 2, kCentre = kTaps / 2, kWeights = kTaps + (History ? 1 : 0);
+    V weight[kWeights];
     V largest = splat<V>(-3.4e38f);
-    for (int j = 0; j < kTaps; ++j) {
+    for (int j = 0; j < kWeights; ++j) {
         weight[j] = loadu<V>(a.logits + j * a.width + x);
         if (j == kCentre) weight[j] = weight[j] + a.centreBias;
         largest = largest < weight[j] ? weight[j] : largest;
     }
     V sum = splat<V>(0.0f);
-    for (int j = 0; j < kTaps; ++j) sum = sum + (weight[j] = expNonPositive<V, I>(weight[j] - largest));
+    for (int j = 0; j < kWeights; ++j) sum = sum + (weight[j] = expNonPositive<V, I>(weight[j] - largest));
     const V scale = 1.0f / sum;
     int64_t column[K];
     for (int dx = -kRadius; dx <= kRadius; ++dx)
@@ -70,6 +71,7 @@ inline void filterPixels(const KernelFilterRowArgs& a, int64_t x, bool clampX) {
             const float* row = a.in[c * K + dy];
             for (int dx = 0; dx < K; ++dx) value = value + weight[dy * K + dx] * loadu<V>(row + column[dx]);
         }
+        if constexpr (History) value = value + weight[kTaps] * loadu<V>(a.history[c] + x);
         storeu(a.out[c] + x, value * scale);
     }
 }
@@ -400,7 +402,23 @@ void kernelLogitsRow(const KernelLogitsRowArgs& a) {
                 a.logits[j * a.width + s * a.factor + p] = logitAt(a, s, j * a.factor + p);
 }
 
+// A row with a history: every pixel filtered (no pass-through).
+template <int K>
+void filterRowWithHistory(const KernelFilterRowArgs& a) {
+    constexpr int kRadius = K / 2;
+    const int64_t W = a.width;
+    int64_t x = 0;
+    for (; x < std::min<int64_t>(kRadius, W); ++x) filterPixels<float, int32_t, K, true>(a, x, true);
+    for (; x + kFloatLanes + kRadius <= W; x += kFloatLanes) filterPixels<VFloat, VInt, K, true>(a, x, false);
+    for (; x < W; ++x) filterPixels<float, int32_t, K, true>(a, x, true);
+}
+
 void kernelFilterRow(const KernelFilterRowArgs& args) {
+    if (args.history) {
+        if (args.kernel == 3) return filterRowWithHistory<3>(args);
+        if (args.kernel == 1) return filterRowWithHistory<1>(args);
+        return;
+    }
     switch (args.kernel) {
         case 1:
             return filterRow<1>(args);

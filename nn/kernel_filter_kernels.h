@@ -19,6 +19,10 @@ struct KernelFilterRowArgs {
     // Pass-through (null: off): per group of kPassGroup output columns, 1 where the group is passed
     // through — each pixel its centre input, bit for bit — as kernelFlatGroups() marks them.
     const uint8_t* flatGroups = nullptr;
+    // A history (null: none): [C] rows at the output's row. The logits then have kernel^2 + 1 rows, the
+    // last one weighting the history's own pixel (kernel_filter with a history, nn/layers.h). No
+    // pass-through with a history.
+    const float* const* history = nullptr;
 };
 
 // Output columns per pass-through group.

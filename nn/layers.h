@@ -231,6 +231,12 @@ void warpBackward(T* dimage,        // (N, C, H, W) or null
                   const T* image,   // (N, C, H, W)
                   const T* motion,  // (N, 2, H, W)
                   const WarpDesc& d);
+// The forward warp of one image for inference: up to 4 channels stored interleaved in 4 floats a pixel
+// (image[(y W + x) 4 + c]), the motion interleaved in 2 (motion[2 (y W + x) + {0, 1}]), the result as
+// planes (out[c][y W + x]). A tap is one 4-float vector, so a pixel costs the taps' loads and not a
+// gather per channel. The arithmetic, order of sums included, is warpForward's.
+void warpInterleaved(float* const* out, const float* image, const float* motion, int64_t width,
+                     int64_t height, int channels, WarpFilter filter);
 // "bilinear" | "catmull-rom" | "bicubic"; throws dejag::Error naming the choices.
 WarpFilter parseWarpFilter(const std::string& name);
 const char* warpFilterName(WarpFilter filter);
