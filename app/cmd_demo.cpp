@@ -28,6 +28,15 @@ void registerDemoCommand(CLI::App& app) {
                         "comma-separated scenes (default: atrium,hard-edges,flowers,pipe,text-wall,planes)");
     command->add_option("--models", *models, "comma-separated model files")->capture_default_str();
     command->add_option("--repeat", options->repeat, "timing repeats")->capture_default_str();
+    command
+        ->add_option("--temporal-model", options->temporalModel,
+                     "the temporal network of the moving sequence (missing: the sequence is skipped)")
+        ->capture_default_str();
+    command->add_option("--moving-scene", options->movingScene, "the moving sequence's scene")
+        ->capture_default_str();
+    command->add_option("--moving-frames", options->movingFrames, "frames of the moving sequence")
+        ->check(CLI::Range(2, 10000))
+        ->capture_default_str();
     command->add_flag("--json", *json, "print the rows as JSON lines instead of the table");
     command->add_flag("--quiet", options->quiet, "no progress bar");
     addRuntimeOptions(command, *runtime);
@@ -41,8 +50,19 @@ void registerDemoCommand(CLI::App& app) {
         options->width = s.width, options->height = s.height;
         options->scenes = splitList(*scenes);
         options->models = shippedModelPaths(splitList(*models));
-        const std::vector<nlohmann::json> rows = bench::runDemo(*options);
+        std::vector<nlohmann::json> moving;
+        const std::vector<nlohmann::json> rows = bench::runDemo(*options, &moving);
         bench::printQualityRows(rows, *json, false);
+        for (const nlohmann::json& row : moving) {
+            if (*json) {
+                std::printf("%s\n", row.dump().c_str());
+                continue;
+            }
+            std::printf("moving %-10s %-16s PSNR %.2f dB  SSIM %.4f  flicker %.5f  (frames %d-%d)\n",
+                        row["scene"].get<std::string>().c_str(), row["method"].get<std::string>().c_str(),
+                        row["psnr"].get<double>(), row["ssim"].get<double>(), row["flicker"].get<double>(),
+                        row["scored_from"].get<int>(), row["frames"].get<int>() - 1);
+        }
         if (!*json) std::printf("report: %s/report.html\n", options->out.c_str());
     });
 }

@@ -5,13 +5,17 @@
 #include <cstdio>
 #include <filesystem>
 #include <memory>
+#include <sstream>
 
 #include "base/error.h"
 #include "base/progress.h"
 #include "base/timer.h"
 #include "bench/quality.h"
+#include "bench/taa_bench.h"
 #include "data/evaluation.h"
 #include "data/frame_image.h"
+#include "data/metrics.h"
+#include "data/plot.h"
 #include "infer/filter.h"
 #include "render/halton.h"
 #include "render/renderer.h"
@@ -26,7 +30,91 @@ std::vector<std::string> defaultDemoScenes() {
     return {"atrium", "hard-edges", "flowers", "pipe", "text-wall", "planes"};
 }
 
-std::vector<json> runDemo(const DemoOptions& options) {
+namespace {
+
+// The report's "Moving sequence" section: the temporal methods on a camera panning 1 px a frame, every
+// frame against the truth of its own pose. Returns the section's HTML and one row per method.
+std::string movingSection(const render::GlContext& context, const DemoOptions& options,
+                          std::vector<json>& rows) {
+    const int W = options.width, H = options.height, frames = options.movingFrames;
+    const int skip = std::min(8, frames / 2);
+    render::Scene scene = render::buildScene(options.movingScene, {});
+    moveCamera(scene, 1.0, false, H);
+    render::Renderer renderer(context, scene, W, H);
+    render::TruthOptions truthOptions;
+    truthOptions.samples = options.truthSamples, truthOptions.adaptive = true;
+    const std::vector<std::pair<std::string, std::unique_ptr<infer::Filter>>> methods = [&] {
+        std::vector<std::pair<std::string, std::unique_ptr<infer::Filter>>> m;
+        m.emplace_back("no AA", infer::makeFilter("none", {}));
+        m.emplace_back("FXAA", infer::makeFilter("fxaa", {}));
+        m.emplace_back("taa-hq", infer::makeFilter("taa-hq", {}));
+        m.emplace_back("dejag-temporal",
+                       infer::makeFilter("cnn-temporal", {{"model", options.temporalModel}}));
+        return m;
+    }();
+    const size_t count = methods.size();
+    std::vector<double> psnr(count, 0.0), ssim(count, 0.0);
+    std::vector<FlickerMeter> flicker(count);
+    const int shown[3] = {skip, (skip + frames - 1) / 2, frames - 1};
+    std::vector<std::vector<Image>> crops(count + 1);  // the truth, then each method
+    Window window;
+    std::vector<float> output(size_t(W) * size_t(H) * 3);
+    for (int t = 0; t < frames; ++t) {
+        const render::FrameRequest request = jitteredFrame(t, t, options.movingJitterSpread);
+        const FrameBuffers buffers(renderer.render(request), float(scene.far), request.jitter);
+        Image truth(W, H, {"R", "G", "B"}, PixelType::Float);
+        if (t >= skip) truth.pixels = frameChannels(renderer.renderTruth(t, truthOptions), 0, 3, true);
+        const bool show = std::find(std::begin(shown), std::end(shown), t) != std::end(shown);
+        for (size_t k = 0; k < count; ++k) {
+            methods[k].second->apply(buffers.frame, output.data());
+            if (t < skip) continue;
+            Image out(W, H, {"R", "G", "B"}, PixelType::Float);
+            out.pixels = output;
+            const ImageMetrics m = compareImages(truth, out);
+            psnr[k] += m.psnr / (frames - skip), ssim[k] += m.ssim / (frames - skip);
+            flicker[k].add(out.pixels, truth.pixels);
+            if (t == skip && k == 0) window = worstWindow(out, truth, std::min(W, 120), std::min(H, 68));
+            if (show) {
+                if (k == 0) crops[0].push_back(zoomedCrop(truth, window, 2));
+                crops[k + 1].push_back(zoomedCrop(out, window, 2));
+            }
+        }
+    }
+    const fs::path out(options.out);
+    fs::create_directories(out);
+    std::vector<std::string> rowLabels = {"truth"}, columnLabels;
+    for (const auto& [name, filter] : methods) rowLabels.push_back(name);
+    for (int t : shown) columnLabels.push_back("frame " + std::to_string(t));
+    writeMosaicPng((out / "moving.png").string(), crops, rowLabels, columnLabels);
+    std::ostringstream html;
+    html << "<h2>Moving sequence</h2>\n<p>" << options.movingScene << ", " << frames
+         << " jittered frames (Halton, spread " << options.movingJitterSpread
+         << " px) of a camera panning 1 px a frame, each frame against the " << options.truthSamples
+         << "-sample truth of its own pose; scores over frames " << skip << "–" << frames - 1
+         << " (the histories fill first). Flicker: the mean |(X<sub>t</sub> − X<sub>t−1</sub>) − "
+            "(R<sub>t</sub> − R<sub>t−1</sub>)| (docs/metrics.md).</p>\n<table><tr><th>method</th><th>PSNR "
+            "(dB)</th><th>SSIM</th><th>flicker</th></tr>\n";
+    char line[256];
+    for (size_t k = 0; k < count; ++k) {
+        std::snprintf(line, sizeof(line), "<tr><td>%s</td><td>%.2f</td><td>%.4f</td><td>%.5f</td></tr>\n",
+                      methods[k].first.c_str(), psnr[k], ssim[k], flicker[k].value());
+        html << line;
+        rows.push_back({{"test", "moving"},
+                        {"scene", options.movingScene},
+                        {"method", methods[k].first},
+                        {"psnr", psnr[k]},
+                        {"ssim", ssim[k]},
+                        {"flicker", flicker[k].value()},
+                        {"frames", frames},
+                        {"scored_from", skip}});
+    }
+    html << "</table>\n<p><img src=\"moving.png\" style=\"max-width:100%\"></p>\n";
+    return html.str();
+}
+
+}  // namespace
+
+std::vector<json> runDemo(const DemoOptions& options, std::vector<json>* moving) {
     const int W = options.width, H = options.height;
     if (W < 32 || H < 32 || W > 4096 || H > 4096) throw Error("demo size must be 32..4096 on each side");
     if (options.repeat < 1) throw Error("--repeat must be >= 1");
@@ -81,28 +169,11 @@ std::vector<json> runDemo(const DemoOptions& options) {
         std::vector<float> outputs[kTaas];
         std::vector<double> times[kTaas];
         for (int i = 0; i < options.historyFrames; ++i) {
-            render::FrameRequest r;
-            r.time = 0, r.previousTime = 0;
-            r.jitter = render::jitterPixels(unsigned(i % 16), 1.7);
-            r.previousJitter = render::jitterPixels(unsigned((i + 15) % 16), 1.7);
-            r.buffers = render::BufferSet::all();
-            const render::Frame f = renderer.render(r);
-            const float far = float(scene.far);
-            const std::vector<float> colour = frameChannels(f, 0, 3, true),
-                                     albedo = frameChannels(f, 3, 3, true);
-            const std::vector<float> depth = frameChannels(f, 6, 1, false, 1.0f / far),
-                                     motion = frameChannels(f, 7, 2, false);
-            const std::vector<float> ids = frameChannels(f, 9, 1, false),
-                                     previousDepth = frameChannels(f, 10, 1, false, 1.0f / far);
-            infer::Frame frame;
-            frame.width = W, frame.height = H;
-            frame.colour = colour.data(), frame.albedo = albedo.data(), frame.depth = depth.data();
-            frame.motion = motion.data(), frame.ids = ids.data(), frame.previousDepth = previousDepth.data();
-            frame.hasJitter = true;  // the image's shift, +y down
-            frame.jitter[0] = float(r.jitter.x), frame.jitter[1] = float(-r.jitter.y);
+            const render::FrameRequest r = jitteredFrame(0, i, 1.7);
+            const FrameBuffers jittered(renderer.render(r), float(scene.far), r.jitter);
             for (int k = 0; k < kTaas; ++k) {
-                outputs[k].resize(colour.size());
-                taas[k]->apply(frame, outputs[k].data());
+                outputs[k].resize(jittered.colour.size());
+                taas[k]->apply(jittered.frame, outputs[k].data());
                 if (i >= 2) times[k].push_back(taas[k]->figures().ms);
             }
         }
@@ -134,6 +205,13 @@ std::vector<json> runDemo(const DemoOptions& options) {
         " jittered frames. Scores on sRGB values in [0, 1]; edge = within 1 px of a geometric edge, "
         "texture = detailed pixels 3 px or more from one.";
     report.notes = methods.notes();
+    std::vector<json> movingRows;
+    if (options.temporalModel.empty() || !fs::exists(options.temporalModel))
+        report.notes.push_back("no temporal model (" + options.temporalModel +
+                               "): the moving sequence is skipped");
+    else
+        report.extraHtml = movingSection(*context, options, movingRows);
+    if (moving) *moving = movingRows;
     for (const std::string& n : report.notes) std::fprintf(stderr, "demo: %s\n", n.c_str());
     return writeQualityReport(report, cases);
 }

@@ -22,6 +22,13 @@ struct DemoOptions {
     int repeat = 3;                   // timing repeats per method and scene
     std::vector<std::string> scenes;  // empty: the default set
     std::vector<std::string> models;  // model files; missing ones are skipped with a note
+    // The moving sequence: the temporal network ("" or a missing file: the section is skipped with a
+    // note) next to no AA, FXAA and taa-hq on `movingFrames` frames of `movingScene` panning 1 px a frame,
+    // jittered with `movingJitterSpread`.
+    std::string temporalModel = "models/dejag-temporal.safetensors";
+    std::string movingScene = "atrium";
+    int movingFrames = 24;
+    double movingJitterSpread = 1.0;
     bool quiet = false;
 };
 
@@ -29,7 +36,10 @@ struct DemoOptions {
 // trained-on families in new poses (pipe, text-wall, planes).
 std::vector<std::string> defaultDemoScenes();
 
-// Runs the demo; returns one row per (scene, method) plus a "mean" row per method.
-std::vector<nlohmann::json> runDemo(const DemoOptions& options);
+// Runs the demo; returns one row per (scene, method) plus a "mean" row per method, and in `moving` (when
+// given) one row per method of the moving sequence: mean PSNR and SSIM over its frames from the 8th on,
+// and the flicker.
+std::vector<nlohmann::json> runDemo(const DemoOptions& options,
+                                    std::vector<nlohmann::json>* moving = nullptr);
 
 }  // namespace dejag::bench

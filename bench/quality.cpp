@@ -41,10 +41,8 @@ void writePng(const fs::path& path, Image image) {
     writeImage(path.string(), image);
 }
 
-// The window (of the crop's size) where the unfiltered frame is furthest from the truth.
-struct Window {
-    int x = 0, y = 0, width = 0, height = 0;
-};
+}  // namespace
+
 Window worstWindow(const Image& input, const Image& truth, int width, int height) {
     const int W = input.width, H = input.height;
     width = std::clamp(width, 1, W), height = std::clamp(height, 1, H);
@@ -73,6 +71,8 @@ Image zoomedCrop(const Image& image, const Window& w, int zoom) {
             for (int c = 0; c < 3; ++c) out.at(x, y, c) = image.at(w.x + x / zoom, w.y + y / zoom, c);
     return out;
 }
+
+namespace {
 
 std::string slug(std::string text) {
     for (char& c : text)
@@ -372,7 +372,7 @@ std::vector<json> writeQualityReport(const ReportOptions& options, const std::ve
         html << "</table>\n<p><img src=\"pareto.png\" width=720></p>\n"
              << "<p>Crops: where the unfiltered frame is furthest from the truth, zoomed " << kCropZoom
              << "× (click for the full frame); below each, its SSIM map (yellow = 1, dark = 0).</p>\n"
-             << sections.str();
+             << sections.str() << options.extraHtml;
         if (!mosaicRows.empty())
             html << "<h2>Mosaic</h2><p><img src=\"mosaic.png\" style=\"max-width:100%\"></p>\n";
         html << "</body></html>\n";

@@ -65,6 +65,14 @@ class StillMethods {
 // Scores every method of the case on every region.
 void scoreCase(QualityCase& c);
 
+// A crop of a frame: the window (of the crop's size) where `input` is furthest from the truth, and that
+// window of an image enlarged `zoom` times (nearest pixel).
+struct Window {
+    int x = 0, y = 0, width = 0, height = 0;
+};
+Window worstWindow(const Image& input, const Image& truth, int width, int height);
+Image zoomedCrop(const Image& image, const Window& w, int zoom);
+
 struct ReportOptions {
     std::string out;    // folder: report.html, mosaic.png, pareto.png, results.csv, results.json, images/
     std::string title;  // of the report
@@ -74,6 +82,7 @@ struct ReportOptions {
     std::vector<std::pair<std::string, double>> fullHdMs;
     std::vector<std::string> fullHdScenes;
     std::map<std::string, std::vector<double>> fullHdSceneMs;  // method -> ms per scene, in that order
+    std::string extraHtml;                                     // a section of its own, before the mosaic
 };
 // Writes the report from scored cases; returns one JSON row per (case, method) and a "mean" row per
 // method (means over cases, ms a median; plus ms_1080p when given).

@@ -84,21 +84,10 @@ std::array<float, 2> imageShift(const render::Vec2& jitter) {
 
 // Runs every TAA on one rendered frame with every buffer.
 void runTaas(Taas& taas, const render::Frame& f, float far, const render::Vec2& jitter) {
-    const std::vector<float> colour = frameChannels(f, 0, 3, true), albedo = frameChannels(f, 3, 3, true);
-    const std::vector<float> depth = frameChannels(f, 6, 1, false, 1.0f / far),
-                             motion = frameChannels(f, 7, 2, false);
-    const std::vector<float> ids = frameChannels(f, 9, 1, false),
-                             previousDepth = frameChannels(f, 10, 1, false, 1.0f / far);
-    infer::Frame frame;
-    frame.width = f.width, frame.height = f.height;
-    frame.colour = colour.data(), frame.albedo = albedo.data(), frame.depth = depth.data();
-    frame.motion = motion.data(), frame.ids = ids.data(), frame.previousDepth = previousDepth.data();
-    frame.hasJitter = true;
-    const std::array<float, 2> shift = imageShift(jitter);
-    frame.jitter[0] = shift[0], frame.jitter[1] = shift[1];
+    const FrameBuffers buffers(f, far, jitter);
     for (size_t k = 0; k < taas.filters.size(); ++k) {
-        taas.outputs[k].resize(colour.size());
-        taas.filters[k]->apply(frame, taas.outputs[k].data());
+        taas.outputs[k].resize(buffers.colour.size());
+        taas.filters[k]->apply(buffers.frame, taas.outputs[k].data());
     }
 }
 
@@ -131,25 +120,6 @@ struct Oracle {
     }
 };
 
-// Flicker of a sequence against its truth (docs/metrics.md): the mean over pixels and channels of
-// |(X_t - X_t-1) - (R_t - R_t-1)|, in 8-bit sRGB values scaled to [0, 1], averaged over the frame pairs.
-struct Flicker {
-    std::vector<float> previous, previousTruth;
-    double sum = 0;
-    int pairs = 0;
-    void add(const Image& output, const Image& truth) {
-        if (!previous.empty()) {
-            double s = 0;
-            for (size_t i = 0; i < output.pixels.size(); ++i)
-                s += std::abs(double(output.pixels[i] - previous[i]) -
-                              double(truth.pixels[i] - previousTruth[i]));
-            sum += s / double(output.pixels.size()), ++pairs;
-        }
-        previous = output.pixels, previousTruth = truth.pixels;
-    }
-    double value() const { return pairs ? sum / pairs : 0.0; }
-};
-
 // The thesis' reference (its accumulation buffer): `samples` 8-bit renders of the pose, sample i shifted
 // by Halton point i with spread 1 (a box), averaged as the displayed values they are — the sRGB-encoded
 // colour, with no step through linear light.
@@ -173,15 +143,6 @@ Image displayTruth(render::Renderer& renderer, int samples, double time) {
     return eightBit(mean, W, H);
 }
 
-render::FrameRequest jittered(double time, int index, double spread) {
-    render::FrameRequest r;
-    r.time = time, r.previousTime = std::max(0.0, time - 1);
-    r.jitter = render::jitterPixels(unsigned(index % 16), spread);
-    r.previousJitter = render::jitterPixels(unsigned((index + 15) % 16), spread);
-    r.buffers = render::BufferSet::all();
-    return r;
-}
-
 // Every method over `frames` jittered frames of a scene (time 0, 1, ...), each frame against the truth of
 // its own pose (32 samples by default, options.ghostTruthSamples); the first `skip` frames are run but not
 // scored. One row per method: mean, best and worst PSNR and SSIM, and the flicker.
@@ -198,11 +159,11 @@ void runSequence(const render::GlContext& context, const render::Scene& scene, i
     names.insert(names.end(), singles.names.begin(), singles.names.end());
     const size_t methods = names.size(), taaCount = taas.filters.size();
     std::vector<std::vector<double>> psnr(methods), ssim(methods);
-    std::vector<Flicker> flicker(methods);
+    std::vector<FlickerMeter> flicker(methods);
     render::TruthOptions truthOptions;
     truthOptions.samples = options.ghostTruthSamples, truthOptions.adaptive = true;
     for (int t = 0; t < frames; ++t) {
-        const render::FrameRequest request = jittered(t, t, options.jitterSpread);
+        const render::FrameRequest request = jitteredFrame(t, t, options.jitterSpread);
         const render::Frame rendered = renderer.render(request);
         runTaas(taas, rendered, float(scene.far), request.jitter);
         if (t < skip) continue;
@@ -219,7 +180,7 @@ void runSequence(const render::GlContext& context, const render::Scene& scene, i
                                        W, H);
             const ImageMetrics m = compareImages(truth, out);
             psnr[k].push_back(m.psnr), ssim[k].push_back(m.ssim);
-            flicker[k].add(out, truth);
+            flicker[k].add(out.pixels, truth.pixels);
         }
     }
     auto summary = [](const std::vector<double>& v) {
@@ -253,6 +214,49 @@ constexpr Motion kMotions[] = {
     {"pan 0.25 px", 0.25, false}, {"pan 2 px", 2.0, false}, {"orbit 1 px", 1.0, true}};
 
 }  // namespace
+
+FrameBuffers::FrameBuffers(const render::Frame& f, float far, const render::Vec2& jitter)
+    : colour(frameChannels(f, 0, 3, true)),
+      albedo(frameChannels(f, 3, 3, true)),
+      depth(frameChannels(f, 6, 1, false, 1.0f / far)),
+      motion(frameChannels(f, 7, 2, false)),
+      ids(frameChannels(f, 9, 1, false)),
+      previousDepth(frameChannels(f, 10, 1, false, 1.0f / far)) {
+    frame.width = f.width, frame.height = f.height;
+    frame.colour = colour.data(), frame.albedo = albedo.data(), frame.depth = depth.data();
+    frame.motion = motion.data(), frame.ids = ids.data(), frame.previousDepth = previousDepth.data();
+    frame.hasJitter = true;
+    const std::array<float, 2> shift = imageShift(jitter);
+    frame.jitter[0] = shift[0], frame.jitter[1] = shift[1];
+}
+
+void moveCamera(render::Scene& scene, double speed, bool orbit, int height) {
+    const render::CameraPose start = scene.cameraAt(0);
+    const double distance = render::length(start.target - start.eye);
+    const double pixel = 2 * distance * std::tan(start.fovY / 2) / height;
+    const render::Vec3 forward = render::normalize(start.target - start.eye);
+    const render::Vec3 right = render::normalize(render::cross(forward, start.up));
+    scene.camera = [start, speed, orbit, pixel, distance, forward, right](double t) {
+        render::CameraPose pose = start;
+        const double travel = speed * pixel * t;
+        if (!orbit) {
+            pose.eye = start.eye + right * travel, pose.target = start.target + right * travel;
+        } else {  // around the target, in the plane of the view's right and forward vectors
+            const double angle = travel / distance;
+            pose.eye = start.target + (-forward * std::cos(angle) + right * std::sin(angle)) * distance;
+        }
+        return pose;
+    };
+}
+
+render::FrameRequest jitteredFrame(double time, int index, double spread) {
+    render::FrameRequest r;
+    r.time = time, r.previousTime = std::max(0.0, time - 1);
+    r.jitter = render::jitterPixels(unsigned(index % 16), spread);
+    r.previousJitter = render::jitterPixels(unsigned((index + 15) % 16), spread);
+    r.buffers = render::BufferSet::all();
+    return r;
+}
 
 std::vector<nlohmann::json> benchTaa(const TaaBenchOptions& options) {
     std::vector<nlohmann::json> rows;
@@ -306,7 +310,7 @@ std::vector<nlohmann::json> benchTaa(const TaaBenchOptions& options) {
         Taas taas(options);
         Oracle oracle;
         for (int i = 0; i < options.historyFrames; ++i) {
-            const render::FrameRequest request = jittered(0, i, options.jitterSpread);
+            const render::FrameRequest request = jitteredFrame(0, i, options.jitterSpread);
             const render::Frame frame = renderer.render(request);
             runTaas(taas, frame, float(scene.far), request.jitter);
             if (i >= options.historyFrames - 16) oracle.add(frame, request.jitter);
@@ -352,24 +356,7 @@ std::vector<nlohmann::json> benchTaa(const TaaBenchOptions& options) {
             for (const Motion& motion : kMotions) {
                 if (!wanted(name, name)) continue;
                 render::Scene scene = render::buildScene(name);
-                const render::CameraPose start = scene.cameraAt(0);
-                const double distance = render::length(start.target - start.eye);
-                const double pixel = 2 * distance * std::tan(start.fovY / 2) / options.ghostHeight;
-                const render::Vec3 forward = render::normalize(start.target - start.eye);
-                const render::Vec3 right = render::normalize(render::cross(forward, start.up));
-                scene.camera = [start, motion, pixel, distance, forward, right](double t) {
-                    render::CameraPose pose = start;
-                    const double travel = motion.speed * pixel * t;
-                    if (!motion.orbit) {
-                        pose.eye = start.eye + right * travel, pose.target = start.target + right * travel;
-                    } else {  // around the target, in the plane of the view's right and forward vectors
-                        const double angle = travel / distance;
-                        const render::Vec3 back = -forward;
-                        pose.eye =
-                            start.target + (back * std::cos(angle) + right * std::sin(angle)) * distance;
-                    }
-                    return pose;
-                };
+                moveCamera(scene, motion.speed, motion.orbit, options.ghostHeight);
                 runSequence(*context, scene, options.movingFrames, options.movingSkip, options,
                             {{"test", "moving"}, {"scene", name}, {"motion", motion.label}}, rows);
                 progress.advance(1, std::string(name) + " " + motion.label);

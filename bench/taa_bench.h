@@ -9,6 +9,8 @@
 #include <vector>
 
 #include "infer/filter.h"
+#include "render/renderer.h"
+#include "render/scene.h"
 
 namespace dejag::bench {
 
@@ -39,6 +41,23 @@ struct TaaBenchOptions {
     // names it in every test); empty: all.
     std::vector<std::string> scenes;
 };
+
+// A rendered frame's buffers as the filters take them (colour and albedo sRGB-encoded, depth over the
+// far plane, the jitter as the image's shift in pixels, +y down); `frame` points into the vectors.
+struct FrameBuffers {
+    FrameBuffers(const render::Frame& f, float far, const render::Vec2& jitter);
+    FrameBuffers(const FrameBuffers&) = delete;
+    std::vector<float> colour, albedo, depth, motion, ids, previousDepth;
+    infer::Frame frame;
+};
+
+// A still scene seen by a moving camera: a pan to the right (or an orbit around the target) of `speed`
+// pixels a frame at the target's distance, for frames `height` pixels high.
+void moveCamera(render::Scene& scene, double speed, bool orbit, int height);
+
+// Frame `index` of a jittered sequence at scene time `time`: Halton point index mod 16 with `spread`,
+// every buffer.
+render::FrameRequest jitteredFrame(double time, int index, double spread);
 
 // One JSON object per (test, scene, method): metrics on 8-bit sRGB images like the thesis'.
 std::vector<nlohmann::json> benchTaa(const TaaBenchOptions& options);

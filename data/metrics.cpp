@@ -253,4 +253,16 @@ void writeSsimMapPng(const std::string& path, const std::vector<float>& map, int
     writeImage(path, image);
 }
 
+void FlickerMeter::add(const std::vector<float>& output, const std::vector<float>& truth) {
+    if (output.size() != truth.size()) throw Error("flicker: the output and the truth differ in size");
+    if (!previous_.empty()) {
+        if (previous_.size() != output.size()) throw Error("flicker: the frames differ in size");
+        double s = 0;
+        for (size_t i = 0; i < output.size(); ++i)
+            s += std::abs(double(output[i] - previous_[i]) - double(truth[i] - previousTruth_[i]));
+        sum_ += s / double(std::max<size_t>(output.size(), 1)), ++pairs_;
+    }
+    previous_ = output, previousTruth_ = truth;
+}
+
 }  // namespace dejag

@@ -58,4 +58,19 @@ SsimResult structuralSimilarity(const Image& reference, const Image& test, doubl
 // Writes an SSIM map as a colour-mapped PNG (viridis; 1 = yellow, 0 or below = dark purple).
 void writeSsimMapPng(const std::string& path, const std::vector<float>& map, int width, int height);
 
+// Flicker of a sequence against its truth (docs/metrics.md): the mean over pixels and channels of
+// |(X_t - X_t-1) - (R_t - R_t-1)|, averaged over the pairs of frames given one after the other (on the
+// values given: 8-bit sRGB scaled to [0, 1] in dejag's benchmarks).
+class FlickerMeter {
+  public:
+    void add(const std::vector<float>& output, const std::vector<float>& truth);
+    double value() const { return pairs_ ? sum_ / pairs_ : 0.0; }
+    int pairs() const { return pairs_; }
+
+  private:
+    std::vector<float> previous_, previousTruth_;
+    double sum_ = 0;
+    int pairs_ = 0;
+};
+
 }  // namespace dejag

@@ -877,17 +877,28 @@ TEST(Cli, DemoRunsEveryMethodAndWritesTheReport) {
     // A second model of the same file name (a new version, say): its rows stay apart, named by folder.
     std::filesystem::create_directories(dir.file("v2"));
     const std::string version2 = writeTinyModel(dir.file("v2/tiny.safetensors"), 2);
+    // The moving sequence's temporal network: an untrained one of the built-in family.
+    nn::Model temporal = nn::Model::builtin("temporal", {4, 2, 3, 1});
+    temporal.initialize(3);
+    nn::saveModel(dir.file("temporal.safetensors"), temporal);
     const std::string out = dir.file("demo");
     const RunResult r =
         run("demo --out '" + out +
                 "' --size 96x64 --truth 8 --scenes pipe,flowers --repeat 1 --quiet --json --models '" +
-                model + "," + version2 + "," + dir.file("missing.safetensors") + "'",
+                model + "," + version2 + "," + dir.file("missing.safetensors") + "' --temporal-model '" +
+                dir.file("temporal.safetensors") + "' --moving-frames 4",
             dir);
     ASSERT_EQ(r.exitCode, 0) << r.err;
     EXPECT_NE(r.err.find("missing.safetensors not found"), std::string::npos) << r.err;
-    std::set<std::string> methods;
+    std::set<std::string> methods, moving;
     int rows = 0;
     for (const nlohmann::json& j : jsonLines(r.out)) {
+        if (j.value("test", "") == "moving") {
+            moving.insert(j["method"].get<std::string>());
+            EXPECT_EQ(j["scored_from"], 2);
+            EXPECT_GT(j["psnr"].get<double>(), 10.0);
+            continue;
+        }
         methods.insert(j["method"].get<std::string>());
         ++rows;
         if (j["method"] == "no AA" && j["scene"] != "mean") {
@@ -910,8 +921,9 @@ TEST(Cli, DemoRunsEveryMethodAndWritesTheReport) {
             {first + " bf16", first + " bf16 (ungated)", "v2/tiny bf16", "v2/tiny bf16 (ungated)"});
     EXPECT_EQ(methods, expected);
     EXPECT_EQ(rows, 3 * int(expected.size()));
+    EXPECT_EQ(moving, (std::set<std::string>{"no AA", "FXAA", "taa-hq", "dejag-temporal"}));
     for (const char* f : {"report.html", "mosaic.png", "pareto.png", "results.csv", "results.json",
-                          "images/pipe_FXAA_crop.png", "images/flowers_v2-tiny_ssim.png"})
+                          "images/pipe_FXAA_crop.png", "images/flowers_v2-tiny_ssim.png", "moving.png"})
         EXPECT_TRUE(std::filesystem::exists(out + "/" + f)) << f;
     expectOneLineError(run("demo --out '" + dir.file("d2") + "' --scenes teapot", dir), "teapot");
     std::ofstream(dir.file("bad.safetensors")) << "garbage";
