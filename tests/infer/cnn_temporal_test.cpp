@@ -45,9 +45,9 @@ Sequence makeSequence() {
     return s;
 }
 
-std::string savedModel(const testing::TempDir& dir) {
+std::string savedModel(const testing::TempDir& dir, int state = 1) {
     nn::ModelOptions options;
-    options.width = 4, options.depth = 2, options.state = 1;
+    options.width = 4, options.depth = 2, options.state = state;
     nn::Model model = nn::Model::builtin("temporal", options);
     model.initialize(11);
     // The blend's logits and the state's correction at full size, so that every part of the network
@@ -55,7 +55,7 @@ std::string savedModel(const testing::TempDir& dir) {
     for (const nn::ParameterInfo& p : model.parameters())
         if (p.name.rfind("blend_logits", 0) == 0 || p.name.rfind("state_correction", 0) == 0)
             for (int64_t i = 0; i < nn::shapeNumel(p.shape); ++i) model.parameterData()[p.offset + i] *= 10;
-    const std::string path = dir.file("temporal.safetensors");
+    const std::string path = dir.file("temporal" + std::to_string(state) + ".safetensors");
     nn::saveModel(path, model);
     return path;
 }
@@ -74,45 +74,54 @@ std::vector<std::vector<float>> runFilter(Filter& filter, const Sequence& s, int
     return outputs;
 }
 
-TEST(CnnTemporal, TheFilterIsTrainingsUnrolledForward) {
-    testing::TempDir dir;
-    const std::string path = savedModel(dir);
-    const Sequence s = makeSequence();
-    const auto filter = makeFilter("cnn-temporal", {{"model", path}, {"precision", "fp32"}});
-    EXPECT_TRUE(filter->temporal());
-    const auto outputs = runFilter(*filter, s);
-    // Training's view of the same frames: a batch of one whole sequence.
-    data::SequenceBatch batch;
-    for (int t = 0; t < K; ++t) {
-        data::SequenceFrame f;
-        f.colour = nn::Tensor({1, 3, H, W}), f.truth = nn::Tensor({1, 3, H, W}),
-        f.motion = nn::Tensor({1, 2, H, W});
-        for (int p = 0; p < W * H; ++p) {
-            for (int c = 0; c < 3; ++c)
-                f.colour.data()[c * W * H + p] = s.colour[size_t(t)][size_t(p * 3 + c)];
-            if (t > 0)
-                for (int c = 0; c < 2; ++c)
-                    f.motion.data()[c * W * H + p] = s.motion[size_t(t)][size_t(p * 2 + c)];
-        }
-        f.fresh = {uint8_t(t == 0)};
-        f.jitter = {s.jitter[size_t(t)][0], s.jitter[size_t(t)][1]};
-        batch.frames.push_back(std::move(f));
-    }
-    nn::Model model = nn::loadModel(path);
-    train::Unroller unroller(model);
-    unroller.run(batch, false);
-    double worst = 0, moved = 0;
-    for (int t = 0; t < K; ++t) {
-        const nn::Tensor& expected = unroller.output(t);
-        for (int p = 0; p < W * H; ++p)
-            for (int c = 0; c < 3; ++c) {
-                const float want = std::clamp(expected.data()[c * W * H + p], 0.0f, 1.0f);
-                worst = std::max(worst, double(std::abs(outputs[size_t(t)][size_t(p * 3 + c)] - want)));
-                moved = std::max(moved, double(std::abs(want - s.colour[size_t(t)][size_t(p * 3 + c)])));
+// At every SIMD level; with one state channel the built-in family runs fused (the warp on 4 floats a
+// pixel, the trunk's plan, the blend's row kernel), with two as one plan of the whole graph.
+class CnnTemporalLevels : public testing::SimdLevelTest {};
+INSTANTIATE_TEST_SUITE_P(SimdLevels, CnnTemporalLevels, ::testing::ValuesIn(testing::availableSimdLevels()),
+                         testing::simdTestName);
+
+TEST_P(CnnTemporalLevels, TheFilterIsTrainingsUnrolledForward) {
+    for (int state : {1, 2}) {
+        SCOPED_TRACE("state " + std::to_string(state));
+        testing::TempDir dir;
+        const std::string path = savedModel(dir, state);
+        const Sequence s = makeSequence();
+        const auto filter = makeFilter("cnn-temporal", {{"model", path}, {"precision", "fp32"}});
+        EXPECT_TRUE(filter->temporal());
+        const auto outputs = runFilter(*filter, s);
+        // Training's view of the same frames: a batch of one whole sequence.
+        data::SequenceBatch batch;
+        for (int t = 0; t < K; ++t) {
+            data::SequenceFrame f;
+            f.colour = nn::Tensor({1, 3, H, W}), f.truth = nn::Tensor({1, 3, H, W}),
+            f.motion = nn::Tensor({1, 2, H, W});
+            for (int p = 0; p < W * H; ++p) {
+                for (int c = 0; c < 3; ++c)
+                    f.colour.data()[c * W * H + p] = s.colour[size_t(t)][size_t(p * 3 + c)];
+                if (t > 0)
+                    for (int c = 0; c < 2; ++c)
+                        f.motion.data()[c * W * H + p] = s.motion[size_t(t)][size_t(p * 2 + c)];
             }
+            f.fresh = {uint8_t(t == 0)};
+            f.jitter = {s.jitter[size_t(t)][0], s.jitter[size_t(t)][1]};
+            batch.frames.push_back(std::move(f));
+        }
+        nn::Model model = nn::loadModel(path);
+        train::Unroller unroller(model);
+        unroller.run(batch, false);
+        double worst = 0, moved = 0;
+        for (int t = 0; t < K; ++t) {
+            const nn::Tensor& expected = unroller.output(t);
+            for (int p = 0; p < W * H; ++p)
+                for (int c = 0; c < 3; ++c) {
+                    const float want = std::clamp(expected.data()[c * W * H + p], 0.0f, 1.0f);
+                    worst = std::max(worst, double(std::abs(outputs[size_t(t)][size_t(p * 3 + c)] - want)));
+                    moved = std::max(moved, double(std::abs(want - s.colour[size_t(t)][size_t(p * 3 + c)])));
+                }
+        }
+        EXPECT_LE(worst, 1e-5);
+        EXPECT_GT(moved, 1e-2);  // the network does something to the frames
     }
-    EXPECT_LE(worst, 1e-5);
-    EXPECT_GT(moved, 1e-2);  // the network does something to the frames
 }
 
 TEST(CnnTemporal, ACutStartsTheHistoryOverAndThreadsChangeNothing) {

@@ -482,6 +482,39 @@ TEST(Warp, WholePixelsCopyConstantsStayAndRampsAreExact) {
     EXPECT_THROW(parseWarpFilter("lanczos"), Error);
 }
 
+// The inference warp (4 floats a pixel in, planes out) is the layer's forward on the same image: every
+// filter, motion reaching across the borders, a NaN and a huge motion among it; 1 to 4 channels.
+TEST(Warp, TheInterleavedWarpIsTheLayersForward) {
+    const int H = 13, W = 17;
+    std::mt19937 rng(8);
+    std::uniform_real_distribution<float> u(-1, 1), m(-6, 6);
+    std::vector<float> interleaved(size_t(H * W * 4)), motionPairs(size_t(H * W * 2));
+    for (float& v : interleaved) v = u(rng);
+    for (float& v : motionPairs) v = m(rng);
+    motionPairs[10] = std::nanf(""), motionPairs[23] = 1e9f;
+    std::vector<float> motionPlanes(motionPairs.size());
+    for (int p = 0; p < H * W; ++p)
+        motionPlanes[size_t(p)] = motionPairs[size_t(2 * p)],
+        motionPlanes[size_t(H * W + p)] = motionPairs[size_t(2 * p + 1)];
+    for (WarpFilter filter : {WarpFilter::Bilinear, WarpFilter::CatmullRom, WarpFilter::Bicubic})
+        for (int channels = 1; channels <= 4; ++channels) {
+            SCOPED_TRACE(std::string(warpFilterName(filter)) + " " + std::to_string(channels));
+            std::vector<float> planes(size_t(channels * H * W)), expected(planes.size()), out(planes.size());
+            for (int c = 0; c < channels; ++c)
+                for (int p = 0; p < H * W; ++p) planes[size_t(c * H * W + p)] = interleaved[size_t(4 * p + c)];
+            WarpDesc d;
+            d.channels = channels, d.height = H, d.width = W, d.filter = filter;
+            warpForward(expected.data(), planes.data(), motionPlanes.data(), d);
+            float* rows[4];
+            for (int c = 0; c < channels; ++c) rows[c] = out.data() + c * H * W;
+            warpInterleaved(rows, interleaved.data(), motionPairs.data(), W, H, channels, filter);
+            for (size_t i = 0; i < out.size(); ++i) ASSERT_NEAR(out[i], expected[i], 1e-6f) << i;
+        }
+    float* none[1] = {nullptr};
+    EXPECT_THROW(warpInterleaved(none, interleaved.data(), motionPairs.data(), W, H, 5, WarpFilter::Bilinear),
+                 Error);
+}
+
 TEST(OpTable, EveryOpHasItsEntryAndItsName) {
     for (int i = 0; i < int(GraphOp::Count); ++i) {
         const OpDef& d = opDef(GraphOp(i));
