@@ -39,6 +39,7 @@ class CnnTemporalFilter final : public Filter {
                         " (a recurrent network returning 3 + S takes 3 + (3 + S) + 2 + 2)");
         figures_.settings = {{"model", path}, {"precision", precisionName(precision)}};
         trunk_ = builtinTrunk(model_);
+        if (trunk_) multiple_ = int64_t(1) << model_.architecture()["family"]["depth"].get<int>();
         for (const nlohmann::json& node : model_.architecture()["nodes"])
             if (node.value("name", "") == "blended") centreBias_ = node.value("centre_bias", 0.0f);
     }
@@ -99,13 +100,14 @@ class CnnTemporalFilter final : public Filter {
         float* out = nullptr;
         void row(int64_t, int64_t y2, const float* const* head) override {
             CnnTemporalFilter& f = *self;
-            const int64_t W = f.width_, H = f.height_, plane = W * H;
+            // The planes are of the padded size (W, H); the frame's own size is (frameW, frameH).
+            const int64_t W = f.paddedWidth_, H = f.paddedHeight_, plane = W * H;
+            const int64_t frameW = f.width_, frameH = f.height_;
             const int S = f.history_ - 3, C = frame->channels;
             thread_local std::vector<float> logits, blended;
             logits.resize(size_t(10 * W)), blended.resize(size_t(3 * W));
             for (int dy = 0; dy < 2; ++dy) {
                 const int64_t y = 2 * y2 + dy;
-                if (y >= H) break;
                 // The shuffle: output channel k at (2 y2 + dy, 2 s + dx) is head channel 4 k + 2 dy + dx at
                 // s.
                 for (int k = 0; k < 10; ++k) {
@@ -139,9 +141,10 @@ class CnnTemporalFilter final : public Filter {
                     for (int64_t x = 0; x < W; ++x)
                         next[4 * x + 3] = warped[x] + ((x & 1) ? odd : even)[x / 2];
                 }
-                float* o = out + y * W * C;
-                const float* colour = frame->colour + y * W * C;
-                for (int64_t x = 0; x < W; ++x) {
+                if (y >= frameH) continue;
+                float* o = out + y * frameW * C;
+                const float* colour = frame->colour + y * frameW * C;
+                for (int64_t x = 0; x < frameW; ++x) {
                     for (int c = 0; c < 3; ++c) o[x * C + c] = std::clamp(rgb[c][x], 0.0f, 1.0f);
                     for (int c = 3; c < C; ++c) o[x * C + c] = colour[x * C + c];
                 }
@@ -155,7 +158,7 @@ class CnnTemporalFilter final : public Filter {
         float jitter[2] = {0, 0};
         void row(int64_t, int64_t y, float* const* channels) override {
             const CnnTemporalFilter& f = *self;
-            const int64_t W = f.width_, plane = W * f.height_;
+            const int64_t W = f.paddedWidth_, plane = W * f.paddedHeight_;
             const int S = f.history_;
             for (int c = 0; c < 3; ++c) std::copy_n(f.frame_.data() + c * plane + y * W, W, channels[c]);
             for (int c = 0; c < S; ++c) std::copy_n(f.warped_.data() + c * plane + y * W, W, channels[3 + c]);
@@ -163,21 +166,30 @@ class CnnTemporalFilter final : public Filter {
         }
     };
 
+    // The fused path works on planes of the frame padded (edges repeated) to a multiple of the trunk's
+    // coarsest scale: the frame, the motion and so the history.
     void processFused(const Frame& frame, float* out) {
-        const int W = frame.width, H = frame.height, C = frame.channels, S = history_;
-        const int64_t plane = int64_t(W) * H;
+        const int64_t W = paddedWidth_, H = paddedHeight_, frameW = frame.width, frameH = frame.height;
+        const int C = frame.channels, S = history_;
+        const int64_t plane = W * H;
         const nn::Shape shape{1, 3 + S + 2, H, W};
+        const bool padded = W != frameW || H != frameH;
         if (!fused_ || fused_->inputShape() != shape) {
             fused_.emplace(*trunk_, shape, precision_);
             frame_ = nn::Tensor({3, H, W}), warped_ = nn::Tensor({S, H, W});
+            motion_ = padded ? nn::Tensor({H, W, 2}) : nn::Tensor();
         }
         const bool fresh = fresh_;
-        // The frame as planes.
+        // The frame as planes (and the motion padded).
         parallelFor(0, H, 16, [&](int64_t first, int64_t last) {
             for (int64_t y = first; y < last; ++y)
                 for (int64_t x = 0; x < W; ++x) {
-                    const int64_t p = y * W + x;
-                    for (int c = 0; c < 3; ++c) frame_.data()[c * plane + p] = frame.colour[p * C + c];
+                    const int64_t p = y * W + x,
+                                  q = std::min(y, frameH - 1) * frameW + std::min(x, frameW - 1);
+                    for (int c = 0; c < 3; ++c) frame_.data()[c * plane + p] = frame.colour[q * C + c];
+                    if (padded)
+                        motion_.data()[2 * p] = frame.motion[2 * q],
+                                           motion_.data()[2 * p + 1] = frame.motion[2 * q + 1];
                 }
         });
         // The history (interleaved, 4 floats a pixel) read where each pixel was, as planes; on a fresh start
@@ -188,7 +200,8 @@ class CnnTemporalFilter final : public Filter {
         } else {
             float* planes[4];
             for (int c = 0; c < S; ++c) planes[c] = warped_.data() + c * plane;
-            nn::warpInterleaved(planes, previous_.data(), frame.motion, W, H, S, nn::WarpFilter::CatmullRom);
+            nn::warpInterleaved(planes, previous_.data(), padded ? motion_.data() : frame.motion, W, H, S,
+                                nn::WarpFilter::CatmullRom);
         }
         // The trunk's input: frame, warped history, jitter; streamed a band of rows at a time where the plan
         // can take it so.
@@ -215,9 +228,12 @@ class CnnTemporalFilter final : public Filter {
     void process(const Frame& frame, float* out) override {
         if (frame.width != width_ || frame.height != height_) {  // a new size: the history starts over
             width_ = frame.width, height_ = frame.height, fresh_ = true;
-            previous_ = nn::Tensor({std::max(history_, 4), height_, width_});  // (4: the fused path's pixels)
+            paddedWidth_ = (width_ + multiple_ - 1) / multiple_ * multiple_;
+            paddedHeight_ = (height_ + multiple_ - 1) / multiple_ * multiple_;
+            // 4 floats a pixel of the padded size for the fused path; planes of the frame's size otherwise.
+            previous_ = nn::Tensor({std::max(history_, 4), paddedHeight_, paddedWidth_});
         }
-        if (trunk_ && frame.width % 2 == 0 && frame.height % 2 == 0) return processFused(frame, out);
+        if (trunk_) return processFused(frame, out);
         const int W = frame.width, H = frame.height, C = frame.channels, S = history_;
         const int64_t plane = int64_t(W) * H, channels = 3 + S + 4;
         const nn::Shape shape{1, channels, H, W};
@@ -274,8 +290,9 @@ class CnnTemporalFilter final : public Filter {
     // planes (previous_ holds the history).
     std::optional<nn::Model> trunk_;
     std::optional<nn::InferencePlan> fused_;
-    nn::Tensor frame_, warped_;
-    int64_t width_ = 0, height_ = 0;
+    nn::Tensor frame_, warped_, motion_;
+    int64_t width_ = 0, height_ = 0, paddedWidth_ = 0, paddedHeight_ = 0;
+    int64_t multiple_ = 1;  // the fused path's sizes: multiples of 2^depth
     float centreBias_ = 0.0f;
 };
 

@@ -124,6 +124,52 @@ TEST_P(CnnTemporalLevels, TheFilterIsTrainingsUnrolledForward) {
     }
 }
 
+// A frame whose size is no multiple of the network's coarsest scale (37 x 21 for 2 levels) is filtered as
+// the frame padded by repeating its edges (to 40 x 24), cropped: the same bytes as filtering that padded
+// sequence.
+TEST(CnnTemporal, AnySizeIsTheEdgePaddedFrameCropped) {
+    testing::TempDir dir;
+    const std::string path = savedModel(dir);
+    const Sequence s = makeSequence();
+    constexpr int w = 37, h = 21;
+    Sequence cropped, padded = s;
+    for (int t = 0; t < K; ++t) {
+        std::vector<float> c(size_t(w * h * 3)), m(size_t(w * h * 2));
+        for (int y = 0; y < H; ++y)
+            for (int x = 0; x < W; ++x) {
+                const int sy = std::min(y, h - 1), sx = std::min(x, w - 1);
+                for (int k = 0; k < 3; ++k) {
+                    padded.colour[size_t(t)][size_t((y * W + x) * 3 + k)] =
+                        s.colour[size_t(t)][size_t((sy * W + sx) * 3 + k)];
+                    if (y < h && x < w)
+                        c[size_t((y * w + x) * 3 + k)] = s.colour[size_t(t)][size_t((y * W + x) * 3 + k)];
+                }
+                if (y < h && x < w)
+                    for (int k = 0; k < 2; ++k)
+                        m[size_t((y * w + x) * 2 + k)] = s.motion[size_t(t)][size_t((y * W + x) * 2 + k)];
+            }
+        cropped.colour.push_back(c), cropped.motion.push_back(m),
+            cropped.jitter.push_back(s.jitter[size_t(t)]);
+    }
+    const auto reference =
+        runFilter(*makeFilter("cnn-temporal", {{"model", path}, {"precision", "fp32"}}), padded);
+    const auto filter = makeFilter("cnn-temporal", {{"model", path}, {"precision", "fp32"}});
+    for (int t = 0; t < K; ++t) {
+        Frame f;
+        f.width = w, f.height = h, f.colour = cropped.colour[size_t(t)].data(),
+        f.motion = cropped.motion[size_t(t)].data();
+        f.hasJitter = true, f.jitter[0] = s.jitter[size_t(t)][0], f.jitter[1] = s.jitter[size_t(t)][1];
+        std::vector<float> out(size_t(w * h * 3));
+        filter->apply(f, out.data());
+        for (int y = 0; y < h; ++y)
+            for (int x = 0; x < w; ++x)
+                for (int k = 0; k < 3; ++k)
+                    ASSERT_EQ(out[size_t((y * w + x) * 3 + k)],
+                              reference[size_t(t)][size_t((y * W + x) * 3 + k)])
+                        << "frame " << t << " at " << x << ", " << y;
+    }
+}
+
 TEST(CnnTemporal, ACutStartsTheHistoryOverAndThreadsChangeNothing) {
     testing::TempDir dir;
     const std::string path = savedModel(dir);
