@@ -21,22 +21,9 @@
 namespace dejag::infer {
 namespace {
 
-// The shipped models by their models/... paths. The temporal network's file is made by `make models`;
-// until the tree holds one, a small temporal network (untrained) stands in for it here, so that the
-// method is still made from its defaults.
+// The shipped models by their models/... paths.
 std::string modelPath(const std::string& path) {
-    const std::string shipped = std::string(DEJAG_SOURCE_DIR) + "/" + path;
-    if (path != "models/dejag-temporal.safetensors" || std::filesystem::exists(shipped)) return shipped;
-    static const testing::TempDir dir;
-    const std::string standIn = dir.file("dejag-temporal.safetensors");
-    if (!std::filesystem::exists(standIn)) {
-        nn::ModelOptions options;
-        options.width = 4, options.depth = 2;
-        nn::Model model = nn::Model::builtin("temporal", options);
-        model.initialize(1);
-        nn::saveModel(standIn, model);
-    }
-    return standIn;
+    return std::string(DEJAG_SOURCE_DIR) + "/" + path;
 }
 
 FilterParameters withModels() {
