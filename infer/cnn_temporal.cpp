@@ -138,8 +138,10 @@ class CnnTemporalFilter final : public Filter {
                     const float* even = head[4 * 10 + 2 * dy];
                     const float* odd = head[4 * 10 + 2 * dy + 1];
                     const float* warped = f.warped_.data() + 3 * plane + y * W;
-                    for (int64_t x = 0; x < W; ++x)
-                        next[4 * x + 3] = warped[x] + ((x & 1) ? odd : even)[x / 2];
+                    for (int64_t s2 = 0; s2 < W / 2; ++s2) {  // (W is even: a multiple of the coarsest scale)
+                        next[8 * s2 + 3] = warped[2 * s2] + even[s2];
+                        next[8 * s2 + 7] = warped[2 * s2 + 1] + odd[s2];
+                    }
                 }
                 if (y >= frameH) continue;
                 float* o = out + y * frameW * C;
