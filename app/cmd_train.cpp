@@ -95,7 +95,8 @@ void registerTrainCommand(CLI::App& app) {
         ->add_option("--arch", config->arch,
                      "seed2020 | fast | fast:WIDTHxDEPTH (the fast family at another size, e.g. fast:12x3) | "
                      "kpn | kpn:WIDTHxDEPTH (fast's trunk predicting a 3x3 kernel per pixel) | temporal | "
-                     "temporal:WIDTHxDEPTH (recurrent; trains on a dataset of sequences) | FILE.json")
+                     "temporal:WIDTHxDEPTH (recurrent; trains on a dataset of sequences) | accumulate | "
+                     "accumulate:WIDTHxDEPTH (recurrent, blending as a TAA's running mean) | FILE.json")
         ->capture_default_str();
     trainCommand->add_option("--out", config->out, "run folder (checkpoints, logs, plots)");
     trainCommand

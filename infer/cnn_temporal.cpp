@@ -38,8 +38,11 @@ class CnnTemporalFilter final : public Filter {
                         std::to_string(model_.outputChannels()) +
                         " (a recurrent network returning 3 + S takes 3 + (3 + S) + 2 + 2)");
         figures_.settings = {{"model", path}, {"precision", precisionName(precision)}};
+        accumulate_ = model_.architecture().value("name", "") == "accumulate";
         trunk_ = builtinTrunk(model_);
         if (trunk_) multiple_ = int64_t(1) << model_.architecture()["family"]["depth"].get<int>();
+        warpedChannels_ = accumulate_ ? 4 : history_;
+        if (accumulate_ && trunk_) maxCount_ = model_.architecture()["family"].value("max_count", 32.0f);
         for (const nlohmann::json& node : model_.architecture()["nodes"])
             if (node.value("name", "") == "blended") centreBias_ = node.value("centre_bias", 0.0f);
     }
@@ -54,16 +57,20 @@ class CnnTemporalFilter final : public Filter {
     // the head's pixel shuffle, the blend of the frame's 3x3 neighbourhood with the warped history and
     // the state's correction fused in one row kernel fed as the plan hands over each row of the head.
     // Nothing but the warp and the blend touches a full-resolution tensor of more than the input's
-    // channels. Other temporal networks (any JSON graph) run as one plan.
+    // channels. The accumulate family runs the same way: its warped history is the kept mean and its
+    // confidence (4 floats a pixel), and its sink blends them with accumulatePixel. Other temporal
+    // networks (any JSON graph) run as one plan.
     static std::optional<nn::Model> builtinTrunk(const nn::Model& model) {
         const nlohmann::json& a = model.architecture();
-        if (a.value("name", "") != "temporal" || !a.contains("family")) return std::nullopt;
+        const std::string family = a.value("name", "");
+        if ((family != "temporal" && family != "accumulate") || !a.contains("family")) return std::nullopt;
         nn::ModelOptions options;
         options.width = a["family"].value("width", 0), options.depth = a["family"].value("depth", 0);
-        options.state = a["family"].value("state", -1);
+        options.state = family == "accumulate" ? 1 : a["family"].value("state", -1);
+        options.maxCount = a["family"].value("max_count", 32.0f);
         nlohmann::json builtin;
         try {
-            builtin = nn::Model::builtinArchitecture("temporal", options);
+            builtin = nn::Model::builtinArchitecture(family, options);
         } catch (const Error&) {
             return std::nullopt;
         }
@@ -128,13 +135,28 @@ class CnnTemporalFilter final : public Filter {
                 }
                 nn::KernelFilterRowArgs args;
                 args.out = rgb, args.in = in, args.logits = logits.data(), args.width = W;
-                args.channels = 3, args.kernel = 3, args.centreBias = f.centreBias_, args.history = history;
-                blendRow(args);
-                // The next history, interleaved: the blend's RGB and the warped state plus its correction.
+                args.channels = 3, args.kernel = 3, args.centreBias = f.centreBias_;
+                args.history = f.accumulate_ ? nullptr : history;
+                blendRow(args);  // accumulate: the frame's filtered neighbourhood only
+                // The next history, interleaved: the blend's RGB and the warped state plus its correction;
+                // accumulate's: the kept mean and its confidence (and the frame shown in rgb).
                 float* next = f.previous_.data() + y * W * 4;
-                for (int64_t x = 0; x < W; ++x)
-                    for (int c = 0; c < 3; ++c) next[4 * x + c] = rgb[c][x];
-                if (S == 1) {
+                if (f.accumulate_) {
+                    const float* confidence = f.warped_.data() + 3 * plane + y * W;
+                    const float* trust = logits.data() + 9 * W;
+                    for (int64_t x = 0; x < W; ++x) {
+                        float spatial[3], sample[3], hist[3], shown[3];
+                        for (int c = 0; c < 3; ++c)
+                            spatial[c] = rgb[c][x], sample[c] = in[c * 3 + 1][x], hist[c] = history[c][x];
+                        next[4 * x + 3] = nn::accumulatePixel(shown, next + 4 * x, spatial, sample, hist, 3,
+                                                              trust[x], confidence[x], f.maxCount_);
+                        for (int c = 0; c < 3; ++c) rgb[c][x] = shown[c];
+                    }
+                } else {
+                    for (int64_t x = 0; x < W; ++x)
+                        for (int c = 0; c < 3; ++c) next[4 * x + c] = rgb[c][x];
+                }
+                if (S == 1 && !f.accumulate_) {
                     const float* even = head[4 * 10 + 2 * dy];
                     const float* odd = head[4 * 10 + 2 * dy + 1];
                     const float* warped = f.warped_.data() + 3 * plane + y * W;
@@ -161,7 +183,7 @@ class CnnTemporalFilter final : public Filter {
         void row(int64_t, int64_t y, float* const* channels) override {
             const CnnTemporalFilter& f = *self;
             const int64_t W = f.paddedWidth_, plane = W * f.paddedHeight_;
-            const int S = f.history_;
+            const int S = f.warpedChannels_;
             for (int c = 0; c < 3; ++c) std::copy_n(f.frame_.data() + c * plane + y * W, W, channels[c]);
             for (int c = 0; c < S; ++c) std::copy_n(f.warped_.data() + c * plane + y * W, W, channels[3 + c]);
             for (int k = 0; k < 2; ++k) std::fill_n(channels[3 + S + k], W, jitter[k]);
@@ -172,7 +194,7 @@ class CnnTemporalFilter final : public Filter {
     // coarsest scale: the frame, the motion and so the history.
     void processFused(const Frame& frame, float* out) {
         const int64_t W = paddedWidth_, H = paddedHeight_, frameW = frame.width, frameH = frame.height;
-        const int C = frame.channels, S = history_;
+        const int C = frame.channels, S = warpedChannels_;
         const int64_t plane = W * H;
         const nn::Shape shape{1, 3 + S + 2, H, W};
         const bool padded = W != frameW || H != frameH;
@@ -195,9 +217,12 @@ class CnnTemporalFilter final : public Filter {
                 }
         });
         // The history (interleaved, 4 floats a pixel) read where each pixel was, as planes; on a fresh start
-        // the frame and zero state.
+        // the frame and zero state (accumulate's: nothing kept, as training's fresh history).
         if (fresh) {
-            std::copy_n(frame_.data(), 3 * plane, warped_.data());
+            if (accumulate_)
+                std::fill_n(warped_.data(), S * plane, 0.0f);
+            else
+                std::copy_n(frame_.data(), 3 * plane, warped_.data());
             std::fill_n(warped_.data() + 3 * plane, (S - 3) * plane, 0.0f);
         } else {
             float* planes[4];
@@ -296,6 +321,9 @@ class CnnTemporalFilter final : public Filter {
     int64_t width_ = 0, height_ = 0, paddedWidth_ = 0, paddedHeight_ = 0;
     int64_t multiple_ = 1;  // the fused path's sizes: multiples of 2^depth
     float centreBias_ = 0.0f;
+    bool accumulate_ = false;  // the accumulate family (nn/model.cpp)
+    int warpedChannels_ = 3;   // what the fused path warps: the history's, or accumulate's kept mean and s
+    float maxCount_ = 32.0f;
 };
 
 }  // namespace

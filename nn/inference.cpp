@@ -164,6 +164,45 @@ void blockedKernelFilter(float* out, const BlockedShape& os, const float* in, co
     });
 }
 
+// The accumulate blend (nn/layers.h) between blocked tensors, a pixel at a time.
+void blockedAccumulate(float* out, const BlockedShape& os, const float* in, const BlockedShape& is,
+                       const float* logits, const BlockedShape& ls, const float* history,
+                       const BlockedShape& hs, int kernel, float maxCount) {
+    const int r = kernel / 2, taps = kernel * kernel;
+    const int64_t C = is.channels;
+    parallelFor(0, os.batch * os.height, 0, [&](int64_t first, int64_t last) {
+        float w[50], spatial[64], sample[64], hist[64], shown[64], kept[64];
+        for (int64_t row = first; row < last; ++row) {
+            const int64_t n = row / os.height, y = row % os.height;
+            for (int64_t x = 0; x < os.width; ++x) {
+                float largest = -INFINITY, sum = 0;
+                for (int j = 0; j < taps; ++j)
+                    largest = std::max(largest, w[j] = element(logits, ls, n, j, y, x));
+                for (int j = 0; j < taps; ++j) sum += (w[j] = std::exp(w[j] - largest));
+                for (int j = 0; j < taps; ++j) w[j] /= sum;
+                for (int64_t c = 0; c < C; ++c) {
+                    float value = 0;
+                    for (int dy = -r, j = 0; dy <= r; ++dy)
+                        for (int dx = -r; dx <= r; ++dx, ++j)
+                            value +=
+                                w[j] * element(in, is, n, c, std::clamp<int64_t>(y + dy, 0, is.height - 1),
+                                               std::clamp<int64_t>(x + dx, 0, is.width - 1));
+                    spatial[c] = value;
+                    sample[c] = element(in, is, n, c, y, x);
+                    hist[c] = element(history, hs, n, c, y, x);
+                }
+                const float s =
+                    accumulatePixel(shown, kept, spatial, sample, hist, C, element(logits, ls, n, taps, y, x),
+                                    element(history, hs, n, C, y, x), maxCount);
+                for (int64_t c = 0; c < os.channelBlocks() * os.block; ++c)
+                    element(out, os, n, c, y, x) = c < C       ? shown[c]
+                                                   : c < 2 * C ? kept[c - C]
+                                                               : (c == 2 * C ? s : 0.0f);
+            }
+        }
+    });
+}
+
 template <class F>
 void forEachOutputElement(const BlockedShape& os, const F& body) {
     parallelFor(0, os.batch * os.channels * os.height, 0, [&](int64_t first, int64_t last) {
@@ -881,6 +920,10 @@ void InferencePlan::Impl::runSteps(InputRowSource* streamed) {
                 break;
             case GraphOp::Warp:
                 blockedWarp(out, os, in, is, m.data(n.inputs[1]), m.shape(n.inputs[1]), n.warpFilter);
+                break;
+            case GraphOp::Accumulate:
+                blockedAccumulate(out, os, in, is, m.data(n.inputs[1]), m.shape(n.inputs[1]),
+                                  m.data(n.inputs[2]), m.shape(n.inputs[2]), n.kernel, n.maxCount);
                 break;
             case GraphOp::Count:
                 break;

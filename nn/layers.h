@@ -13,6 +13,8 @@
 // These are the oracle the fast kernels of nn/ are tested against; keep them simple and correct.
 #pragma once
 
+#include <algorithm>
+#include <cmath>
 #include <cstdint>
 #include <string>
 #include <vector>
@@ -200,6 +202,60 @@ void kernelFilterBackward(T* dinput,                    // (N, C, H, W) or null
                           const KernelFilterDesc& d,    //
                           T* dhistory = nullptr,        // (N, C, H, W) or null, when d.history
                           const T* history = nullptr);  // (N, C, H, W) when d.history
+
+// ---- Accumulate (a TAA's blend with a sample count, the recurrent network's output) ---------------------
+// The history holds the running mean of the frames' own samples (colour) and a confidence s = n / (n + 1)
+// of the n samples in it (0: none). Per pixel, k^2 logits weigh the frame's k x k neighbourhood (a
+// softmax, as the kernel filter) and one more, the trust, keeps rho = min(1, 2 sigmoid(logit)) of the
+// history's samples (all of them from logit 0 up, so that a still view keeps every sample without a logit
+// driven to infinity). The frame shown is the mean of the kept samples with the filtered neighbourhood;
+// the next history is their mean with the frame's own sample, so what is kept is never blurred by the
+// filter, and a still view converges to the mean of its jittered samples as a TAA's history does:
+//   spatial_c = sum_j softmax_j(logits) image_c(tap j)          n = s / (1 - s), s clamped to [0, N/(N+1)]
+//   m = rho n,  a = m / (1 + m)                                  (the history's weight)
+//   shown_c = spatial_c + a (history_c - spatial_c)
+//   kept_c  = image_c + a (history_c - image_c)                 (the pixel's own sample)
+//   s' = n' / (n' + 1),  n' = min(1 + m, N)
+// The output has 2 C + 1 channels: shown, kept and s' (the next frame's history is kept and s'). N is
+// `max_count`. docs/train.md derives it.
+struct AccumulateDesc {
+    int64_t batch = 1, channels = 3, height = 1, width = 1;  // channels: the image's (C)
+    int kernel = 3;                                          // odd
+    float maxCount = 32.0f;                                  // N >= 1
+
+    int64_t taps() const { return int64_t(kernel) * kernel; }
+    void validate() const;
+};
+template <class T>
+void accumulateForward(T* out,            // (N, 2 C + 1, H, W)
+                       const T* image,    // (N, C, H, W)
+                       const T* logits,   // (N, k^2 + 1, H, W)
+                       const T* history,  // (N, C + 1, H, W)
+                       const AccumulateDesc& d);
+template <class T>
+void accumulateBackward(T* dimage,      // (N, C, H, W) or null
+                        T* dlogits,     // (N, k^2 + 1, H, W) or null
+                        T* dhistory,    // (N, C + 1, H, W) or null
+                        const T* dout,  // (N, 2 C + 1, H, W)
+                        const T* image, const T* logits, const T* history, const AccumulateDesc& d);
+// One pixel's blend: from the spatial filter's colours (summed with the softmax weights of the k^2
+// logits), the pixel's own sample, the history's colour and confidence and the trust logit, writes
+// shown[0 .. C) and kept[0 .. C) and returns s'. Shared by the reference, the inference plan and
+// cnn-temporal.
+template <class T>
+inline T accumulatePixel(T* shown, T* kept, const T* spatial, const T* sample, const T* history,
+                         int64_t channels, T trustLogit, T confidence, T maxCount) {
+    const T maxConfidence = maxCount / (maxCount + T(1));
+    const T s = confidence < T(0) ? T(0) : (confidence > maxConfidence ? maxConfidence : confidence);
+    const T n = s / (T(1) - s), rho = std::min(T(1), T(2) / (T(1) + std::exp(-trustLogit))), m = rho * n;
+    const T a = m / (T(1) + m);
+    for (int64_t c = 0; c < channels; ++c) {
+        shown[c] = spatial[c] + a * (history[c] - spatial[c]);
+        kept[c] = sample[c] + a * (history[c] - sample[c]);
+    }
+    const T next = std::min(T(1) + m, maxCount);
+    return next / (next + T(1));
+}
 
 // ---- Motion warp (a recurrent network's history read where each pixel was) -------------------------------
 // out(n, c, y, x) = image(n, c) read at (x - motion(n, 0, y, x), y - motion(n, 1, y, x)) in pixel indices:

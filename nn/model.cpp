@@ -323,6 +323,51 @@ nlohmann::json Model::builtinArchitecture(const std::string& name, const ModelOp
                 {"output", output},
                 {"family", {{"width", w}, {"depth", levels}}}};
     }
+    if (name == "accumulate") {
+        // The temporal family's trunk with a TAA's running mean for its blend (docs/train.md). The output,
+        // and so the next frame's history, is the frame shown (RGB), the mean of the samples kept (RGB)
+        // and their confidence s = n / (n + 1); only the last four are warped and read. The head's 10
+        // logits are the frame's 3x3 kernel and the trust in the history's samples, and `accumulate`
+        // shows the kept mean blended with the filtered frame and keeps it blended with the frame's own
+        // sample (up to max_count samples): a still view converges to the mean of its jittered samples
+        // for any length of sequence, with nothing the network must learn to keep bounded.
+        const int w = options.width, levels = options.depth;
+        if (w < 2 || w % 2 != 0 || w > kMaxChannels || levels < 1 || levels > 6)
+            throw Error("the accumulate family needs an even width from 2 to " +
+                        std::to_string(kMaxChannels) + " and a depth (levels) in 1..6");
+        auto slice = [](const std::string& n, const std::string& in, int from, int to) {
+            return json{{"name", n}, {"op", "slice"}, {"inputs", {in}}, {"from", from}, {"to", to}};
+        };
+        json nodes = json::array();
+        nodes.push_back(slice("frame", "input", 0, 3));
+        nodes.push_back(slice("history", "input", 6, 10));  // the kept mean and its confidence
+        nodes.push_back(slice("motion", "input", 10, 12));
+        nodes.push_back(slice("jitter", "input", 12, 14));
+        nodes.push_back({{"name", "warped"},
+                         {"op", "warp"},
+                         {"inputs", {"history", "motion"}},
+                         {"filter", "catmull-rom"}});
+        nodes.push_back({{"name", "seen"}, {"op", "concat"}, {"inputs", {"frame", "warped", "jitter"}}});
+        const std::string previous = unet(nodes, "seen", w, levels);
+        nodes.push_back(conv("head", previous, 4 * 10, 1, "none"));
+        nodes.back()["init_scale"] = 0.1;
+        nodes.push_back({{"name", "shuffle"}, {"op", "pixel_shuffle"}, {"inputs", {"head"}}, {"factor", 2}});
+        nodes.push_back({{"name", "output"},
+                         {"op", "accumulate"},
+                         {"inputs", {"frame", "shuffle", "warped"}},
+                         {"kernel", 3},
+                         {"max_count", options.maxCount}});
+        return {{"name", "accumulate"},
+                {"input_channels", 14},
+                {"input_colour",
+                 "sRGB-encoded RGB frame, previous output (RGB shown, RGB kept, confidence), motion (px), "
+                 "jitter (px)"},
+                {"normalisation", "[0, 1]"},
+                {"init", "he_normal"},
+                {"nodes", nodes},
+                {"output", "output"},
+                {"family", {{"width", w}, {"depth", levels}, {"max_count", options.maxCount}}}};
+    }
     if (name == "temporal") {
         // A recurrent network (docs/train.md, train/temporal.h): its input holds the frame, its own
         // previous output (RGB and `state` channels), the motion and the jitter. The history is warped
@@ -385,7 +430,7 @@ nlohmann::json Model::builtinArchitecture(const std::string& name, const ModelOp
                 {"output", output},
                 {"family", {{"width", w}, {"depth", levels}, {"state", state}}}};
     }
-    throw Error("unknown built-in architecture '" + name + "' (seed2020, fast, kpn, temporal)");
+    throw Error("unknown built-in architecture '" + name + "' (seed2020, fast, kpn, temporal, accumulate)");
 }
 
 Model Model::builtin(const std::string& name, const ModelOptions& options) {

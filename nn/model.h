@@ -61,6 +61,7 @@ enum class GraphOp {
     KernelFilter,
     Slice,
     Warp,
+    Accumulate,
     Count
 };
 const char* graphOpName(GraphOp op);
@@ -81,6 +82,7 @@ struct GraphNode {
     float centreBias = 0.0f;                       // kernel_filter
     int sliceFrom = 0, sliceTo = 0;                // slice: channels [from, to)
     WarpFilter warpFilter = WarpFilter::Bilinear;  // warp
+    float maxCount = 32.0f;                        // accumulate
     int64_t weightOffset = -1, biasOffset = -1;    // into the flat parameter buffer
 
     // Layer descriptors for an input of shape (N, C, H, W).
@@ -96,6 +98,7 @@ struct ModelOptions {
     int width = 16, depth = 3;  // the "fast" residual U-Net: first width (even), levels
     int channels = 3;
     int state = 1;  // temporal: channels a frame passes to the next besides its RGB
+    float maxCount = 32.0f;  // accumulate: the most samples its history's mean holds
 };
 
 class Model {

@@ -13,7 +13,7 @@ namespace {
 constexpr std::array kOrder = {
     GraphOp::Conv2d,       GraphOp::ConvTranspose2d, GraphOp::MaxPool2d, GraphOp::Activation,
     GraphOp::Add,          GraphOp::Concat,          GraphOp::Upsample,  GraphOp::PixelShuffle,
-    GraphOp::KernelFilter, GraphOp::Slice,           GraphOp::Warp};
+    GraphOp::KernelFilter, GraphOp::Slice,           GraphOp::Warp,      GraphOp::Accumulate};
 static_assert(kOrder.size() == size_t(GraphOp::Count), "every GraphOp needs its line in the op table");
 constexpr bool inEnumOrder() {
     for (size_t i = 0; i < kOrder.size(); ++i)
@@ -25,7 +25,7 @@ static_assert(inEnumOrder(), "the op table lists the ops in GraphOp's order");
 std::vector<OpDef> makeTable() {
     std::vector<OpDef> table = {conv2dOp(),       convTranspose2dOp(), maxPool2dOp(), activationOp(),
                                 addOp(),          concatOp(),          upsampleOp(),  pixelShuffleOp(),
-                                kernelFilterOp(), sliceOp(),           warpOp()};
+                                kernelFilterOp(), sliceOp(),           warpOp(),      accumulateOp()};
     for (size_t i = 0; i < table.size(); ++i) {
         const OpDef& d = table[i];
         if (d.op != kOrder[i] || !d.name || !d.parse || !d.outputShape || !d.forward || !d.forwardDouble ||

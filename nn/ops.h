@@ -113,5 +113,6 @@ OpDef pixelShuffleOp();
 OpDef kernelFilterOp();
 OpDef sliceOp();
 OpDef warpOp();
+OpDef accumulateOp();
 
 }  // namespace dejag::nn

@@ -60,12 +60,13 @@ json readJsonFile(const std::string& path) {
 }  // namespace
 
 nlohmann::json architectureFor(const std::string& arch) {
-    if (arch == "seed2020" || arch == "fast" || arch == "kpn" || arch == "temporal")
+    if (arch == "seed2020" || arch == "fast" || arch == "kpn" || arch == "temporal" || arch == "accumulate")
         return nn::Model::builtinArchitecture(arch);
-    // fast:W, fast:WxD, kpn:W, kpn:WxD, temporal:W, temporal:WxD: the family with first width W and D
-    // levels (default 16 and 3).
+    // fast:W, fast:WxD, kpn:W, kpn:WxD, temporal:W, temporal:WxD, accumulate:W, accumulate:WxD: the
+    // family with first width W and D levels (default 16 and 3).
     const std::string family = arch.substr(0, arch.find(':'));
-    if ((family == "fast" || family == "kpn" || family == "temporal") && arch.size() > family.size()) {
+    if ((family == "fast" || family == "kpn" || family == "temporal" || family == "accumulate") &&
+        arch.size() > family.size()) {
         nn::ModelOptions options;
         const std::string spec = arch.substr(family.size() + 1);
         size_t used = 0, usedDepth = 0;
@@ -86,7 +87,8 @@ nlohmann::json architectureFor(const std::string& arch) {
     if (!fs::exists(arch))
         throw Error(
             "--arch '" + arch +
-            "' is neither seed2020, fast, fast:WxD, kpn, kpn:WxD, temporal, temporal:WxD nor an existing "
+            "' is neither seed2020, fast, fast:WxD, kpn, kpn:WxD, temporal, temporal:WxD, accumulate, "
+            "accumulate:WxD nor an existing "
             "JSON file");
     try {
         return json::parse(readText(arch));

@@ -144,6 +144,35 @@ def kernel_filter_case(name, n, c, h, w, k, centre_bias, logit_scale=2.0, histor
     cases[name] = (run(fn, inputs, {}), config)
 
 
+def accumulate_case(name, n, c, h, w, k, max_count, confidence_high=1.0):
+    """dejag's accumulate: the frame's k x k neighbourhood by the softmax of k^2 logits, blended with the
+    history's colour by a = m / (1 + m), m = min(1, 2 sigmoid(last logit)) n, n = s / (1 - s) from the history's last
+    channel s (clamped to [0, N / (N + 1)]); the history is blended the same way with the pixel's own
+    sample (the kept colour); the output is the shown colour, the kept colour and n' / (n' + 1),
+    n' = min(1 + m, N)."""
+    inputs = {"input": f32(n, c, h, w, low=0.0, high=1.0),
+              "logits": f32(n, k * k + 1, h, w, low=-2.0, high=2.0),
+              "history": torch.cat([f32(n, c, h, w, low=0.0, high=1.0),
+                                    f32(n, 1, h, w, low=0.0, high=confidence_high)], dim=1)}
+
+    def fn(input, logits, history):
+        weights = torch.softmax(logits[:, :k * k], dim=1)
+        r = k // 2
+        padded = F.pad(input, (r, r, r, r), mode="replicate")
+        taps = F.unfold(padded, k).view(n, c, k * k, h, w)
+        spatial = (taps * weights.unsqueeze(1)).sum(dim=2)
+        s = history[:, c:].clamp(0.0, max_count / (max_count + 1.0))
+        m = torch.clamp(2 * torch.sigmoid(logits[:, k * k:]), max=1.0) * s / (1 - s)
+        a = m / (1 + m)
+        shown = spatial + a * (history[:, :c] - spatial)
+        kept = input + a * (history[:, :c] - input)
+        count = torch.clamp(1 + m, max=max_count)
+        return torch.cat([shown, kept, count / (count + 1)], dim=1)
+
+    cases[name] = (run(fn, inputs, {}), {"layer": "accumulate", "batch": n, "channels": c, "height": h,
+                                         "width": w, "kernel": k, "max_count": max_count})
+
+
 def warp_case(name, n, c, h, w, mode, reach):
     """dejag's warp: each pixel reads the image at (x - motion_x, y - motion_y) in pixel indices, edge
     pixels repeated: grid_sample with align_corners=False and border padding (bicubic: a = -0.75)."""
@@ -327,6 +356,10 @@ def main():
     kernel_filter_case("kernel_filter_k3_history", 2, 3, 6, 7, 3, 0.0, history=True)
     kernel_filter_case("kernel_filter_k1_history_large_logits", 1, 2, 4, 5, 1, 1.0, logit_scale=60.0,
                        history=True)
+    # The accumulate blend (the accumulate family's output): uncapped, and with a cap of 3 samples that
+    # confidences up to 0.95 reach and pass.
+    accumulate_case("accumulate_k3", 2, 3, 6, 7, 3, 1000.0, confidence_high=0.97)
+    accumulate_case("accumulate_k1_capped", 1, 2, 5, 4, 1, 3.0, confidence_high=0.95)
 
     for name, (tensors, config) in cases.items():
         write_safetensors(os.path.join(HERE, name + ".safetensors"), tensors, config)

@@ -45,15 +45,16 @@ Sequence makeSequence() {
     return s;
 }
 
+// The temporal family with `state` state channels, or (state 0) the accumulate family.
 std::string savedModel(const testing::TempDir& dir, int state = 1) {
     nn::ModelOptions options;
-    options.width = 4, options.depth = 2, options.state = state;
-    nn::Model model = nn::Model::builtin("temporal", options);
+    options.width = 4, options.depth = 2, options.state = state, options.maxCount = 3;
+    nn::Model model = nn::Model::builtin(state == 0 ? "accumulate" : "temporal", options);
     model.initialize(11);
-    // The blend's logits and the state's correction at full size, so that every part of the network
-    // shows in the output.
+    // The head at full size, so that every part of the network shows in the output (accumulate's trust
+    // both below and above its kink, its cap of 3 samples reached).
     for (const nn::ParameterInfo& p : model.parameters())
-        if (p.name.rfind("blend_logits", 0) == 0 || p.name.rfind("state_correction", 0) == 0)
+        if (p.name.rfind("head", 0) == 0)
             for (int64_t i = 0; i < nn::shapeNumel(p.shape); ++i) model.parameterData()[p.offset + i] *= 10;
     const std::string path = dir.file("temporal" + std::to_string(state) + ".safetensors");
     nn::saveModel(path, model);
@@ -75,14 +76,15 @@ std::vector<std::vector<float>> runFilter(Filter& filter, const Sequence& s, int
 }
 
 // At every SIMD level; with one state channel the built-in family runs fused (the warp on 4 floats a
-// pixel, the trunk's plan, the blend's row kernel), with two as one plan of the whole graph.
+// pixel, the trunk's plan, the blend's row kernel), with two as one plan of the whole graph; the
+// accumulate family (state 0 here) fused too.
 class CnnTemporalLevels : public testing::SimdLevelTest {};
 INSTANTIATE_TEST_SUITE_P(SimdLevels, CnnTemporalLevels, ::testing::ValuesIn(testing::availableSimdLevels()),
                          testing::simdTestName);
 
 TEST_P(CnnTemporalLevels, TheFilterIsTrainingsUnrolledForward) {
-    for (int state : {1, 2}) {
-        SCOPED_TRACE("state " + std::to_string(state));
+    for (int state : {1, 2, 0}) {
+        SCOPED_TRACE(state == 0 ? std::string("accumulate") : "state " + std::to_string(state));
         testing::TempDir dir;
         const std::string path = savedModel(dir, state);
         const Sequence s = makeSequence();
@@ -128,45 +130,48 @@ TEST_P(CnnTemporalLevels, TheFilterIsTrainingsUnrolledForward) {
 // the frame padded by repeating its edges (to 40 x 24), cropped: the same bytes as filtering that padded
 // sequence.
 TEST(CnnTemporal, AnySizeIsTheEdgePaddedFrameCropped) {
-    testing::TempDir dir;
-    const std::string path = savedModel(dir);
-    const Sequence s = makeSequence();
-    constexpr int w = 37, h = 21;
-    Sequence cropped, padded = s;
-    for (int t = 0; t < K; ++t) {
-        std::vector<float> c(size_t(w * h * 3)), m(size_t(w * h * 2));
-        for (int y = 0; y < H; ++y)
-            for (int x = 0; x < W; ++x) {
-                const int sy = std::min(y, h - 1), sx = std::min(x, w - 1);
-                for (int k = 0; k < 3; ++k) {
-                    padded.colour[size_t(t)][size_t((y * W + x) * 3 + k)] =
-                        s.colour[size_t(t)][size_t((sy * W + sx) * 3 + k)];
+    for (int state : {1, 0}) {
+        SCOPED_TRACE(state == 0 ? "accumulate" : "temporal");
+        testing::TempDir dir;
+        const std::string path = savedModel(dir, state);
+        const Sequence s = makeSequence();
+        constexpr int w = 37, h = 21;
+        Sequence cropped, padded = s;
+        for (int t = 0; t < K; ++t) {
+            std::vector<float> c(size_t(w * h * 3)), m(size_t(w * h * 2));
+            for (int y = 0; y < H; ++y)
+                for (int x = 0; x < W; ++x) {
+                    const int sy = std::min(y, h - 1), sx = std::min(x, w - 1);
+                    for (int k = 0; k < 3; ++k) {
+                        padded.colour[size_t(t)][size_t((y * W + x) * 3 + k)] =
+                            s.colour[size_t(t)][size_t((sy * W + sx) * 3 + k)];
+                        if (y < h && x < w)
+                            c[size_t((y * w + x) * 3 + k)] = s.colour[size_t(t)][size_t((y * W + x) * 3 + k)];
+                    }
                     if (y < h && x < w)
-                        c[size_t((y * w + x) * 3 + k)] = s.colour[size_t(t)][size_t((y * W + x) * 3 + k)];
+                        for (int k = 0; k < 2; ++k)
+                            m[size_t((y * w + x) * 2 + k)] = s.motion[size_t(t)][size_t((y * W + x) * 2 + k)];
                 }
-                if (y < h && x < w)
-                    for (int k = 0; k < 2; ++k)
-                        m[size_t((y * w + x) * 2 + k)] = s.motion[size_t(t)][size_t((y * W + x) * 2 + k)];
-            }
-        cropped.colour.push_back(c), cropped.motion.push_back(m),
-            cropped.jitter.push_back(s.jitter[size_t(t)]);
-    }
-    const auto reference =
-        runFilter(*makeFilter("cnn-temporal", {{"model", path}, {"precision", "fp32"}}), padded);
-    const auto filter = makeFilter("cnn-temporal", {{"model", path}, {"precision", "fp32"}});
-    for (int t = 0; t < K; ++t) {
-        Frame f;
-        f.width = w, f.height = h, f.colour = cropped.colour[size_t(t)].data(),
-        f.motion = cropped.motion[size_t(t)].data();
-        f.hasJitter = true, f.jitter[0] = s.jitter[size_t(t)][0], f.jitter[1] = s.jitter[size_t(t)][1];
-        std::vector<float> out(size_t(w * h * 3));
-        filter->apply(f, out.data());
-        for (int y = 0; y < h; ++y)
-            for (int x = 0; x < w; ++x)
-                for (int k = 0; k < 3; ++k)
-                    ASSERT_EQ(out[size_t((y * w + x) * 3 + k)],
-                              reference[size_t(t)][size_t((y * W + x) * 3 + k)])
-                        << "frame " << t << " at " << x << ", " << y;
+            cropped.colour.push_back(c), cropped.motion.push_back(m),
+                cropped.jitter.push_back(s.jitter[size_t(t)]);
+        }
+        const auto reference =
+            runFilter(*makeFilter("cnn-temporal", {{"model", path}, {"precision", "fp32"}}), padded);
+        const auto filter = makeFilter("cnn-temporal", {{"model", path}, {"precision", "fp32"}});
+        for (int t = 0; t < K; ++t) {
+            Frame f;
+            f.width = w, f.height = h, f.colour = cropped.colour[size_t(t)].data(),
+            f.motion = cropped.motion[size_t(t)].data();
+            f.hasJitter = true, f.jitter[0] = s.jitter[size_t(t)][0], f.jitter[1] = s.jitter[size_t(t)][1];
+            std::vector<float> out(size_t(w * h * 3));
+            filter->apply(f, out.data());
+            for (int y = 0; y < h; ++y)
+                for (int x = 0; x < w; ++x)
+                    for (int k = 0; k < 3; ++k)
+                        ASSERT_EQ(out[size_t((y * w + x) * 3 + k)],
+                                  reference[size_t(t)][size_t((y * W + x) * 3 + k)])
+                            << "frame " << t << " at " << x << ", " << y;
+        }
     }
 }
 

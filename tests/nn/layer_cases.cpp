@@ -159,6 +159,28 @@ LayerCase kernelFilter(const std::string& label, const KernelFilterDesc& d) {
     return c;
 }
 
+// The accumulate blend: image, logits and history (colour and confidence) drawn from [0, 1), the
+// history's confidence inside the clamp but for the capped cases' largest.
+LayerCase accumulate(const std::string& label, const AccumulateDesc& d) {
+    const int64_t plane = d.height * d.width;
+    const size_t image = size_t(d.batch * d.channels * plane),
+                 logits = size_t(d.batch * (d.taps() + 1) * plane),
+                 history = size_t(d.batch * (d.channels + 1) * plane);
+    LayerCase c = layerCase(
+        "accumulate " + label + ": N" + std::to_string(d.batch) + " C" + std::to_string(d.channels) + " " +
+            std::to_string(d.height) + "x" + std::to_string(d.width) + " k" + std::to_string(d.kernel) +
+            " max count " + std::to_string(d.maxCount),
+        {"input", "logits", "history"}, {image, logits, history},
+        image * 2 + history / size_t(d.channels + 1),
+        [d](const auto& call) { accumulateForward(call.out, call.in[0], call.in[1], call.in[2], d); },
+        [d](const auto& g) {
+            accumulateBackward(g.dIn[0], g.dIn[1], g.dIn[2], g.dOut, g.in[0], g.in[1], g.in[2], d);
+        });
+    c.inputLow = 0, c.inputHigh = 0.97;
+    c.piecewise = d.maxCount < 100;  // the clamp and the cap
+    return c;
+}
+
 // The motion warp: input and motion (up to `reach` pixels, so that reads leave the image at its borders).
 LayerCase warp(const std::string& label, const WarpDesc& d, double reach) {
     const size_t image = size_t(d.batch * d.channels * d.height * d.width),
@@ -232,6 +254,11 @@ void goldenCases(std::vector<LayerCase>& cases) {
             d.kernel = c["kernel"], d.centreBias = c["centre_bias"];
             d.history = c.value("history", false);
             lc = kernelFilter(label, d);
+        } else if (layer == "accumulate") {
+            AccumulateDesc d;
+            d.batch = c["batch"], d.channels = c["channels"], d.height = c["height"], d.width = c["width"];
+            d.kernel = c["kernel"], d.maxCount = c["max_count"];
+            lc = accumulate(label, d);
         } else if (layer == "warp") {
             WarpDesc d;
             d.batch = c["batch"], d.channels = c["channels"], d.height = c["height"], d.width = c["width"];
@@ -303,6 +330,15 @@ void randomCases(std::vector<LayerCase>& cases) {
         d.centreBias = float(int(rng() % 5) - 1);
         d.history = trial % 2 == 1;
         cases.push_back(kernelFilter("random " + std::to_string(trial), d));
+    }
+    rng.seed(11);
+    for (int trial = 0; trial < 6; ++trial) {
+        AccumulateDesc d;
+        d.batch = 1 + int(rng() % 2), d.channels = 1 + int(rng() % 3);
+        d.height = 1 + int(rng() % 6), d.width = 1 + int(rng() % 7);
+        d.kernel = 1 + 2 * int(rng() % 2);
+        d.maxCount = trial % 3 == 2 ? 4.0f : 1000.0f;
+        cases.push_back(accumulate("random " + std::to_string(trial), d));
     }
     rng.seed(10);
     for (int trial = 0; trial < 9; ++trial) {

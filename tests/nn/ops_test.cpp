@@ -126,6 +126,21 @@ std::vector<OpCase> cases() {
              json::array({image, history, logits,
                           node("op", "kernel_filter", {"image", "logits", "history"}, {{"kernel", 3}})})});
     }
+    for (double maxCount : {1000.0, 3.0}) {
+        // The accumulate family's blend: a history of colour and a confidence in (0, 1) (a sigmoid).
+        const json image = node("image", "slice", {"input"}, {{"from", 0}, {"to", 3}});
+        const json colour = node("colour", "slice", {"input"}, {{"from", 3}, {"to", 6}});
+        const json raw = node("raw", "slice", {"input"}, {{"from", 6}, {"to", 7}});
+        const json confidence = node("confidence", "activation", {"raw"}, {{"activation", "sigmoid"}});
+        const json history = node("history", "concat", {"colour", "confidence"});
+        const json logits =
+            node("logits", "conv2d", {"input"}, {{"out_channels", 10}, {"kernel", 3}, {"padding", "same"}});
+        c.push_back({"accumulate max_count " + std::to_string(int(maxCount)), 7,
+                     json::array({image, colour, raw, confidence, history, logits,
+                                  node("op", "accumulate", {"image", "logits", "history"},
+                                       {{"kernel", 3}, {"max_count", maxCount}})}),
+                     12, 16, maxCount < 100});
+    }
     single("slice 2..5 of 6", node("op", "slice", {"input"}, {{"from", 2}, {"to", 5}}), false, 6);
     single("slice all", node("op", "slice", {"input"}));
     // A recurrent network's input: an image (3 channels) and its motion (2), split and warped.
@@ -403,11 +418,49 @@ TEST(LayerHarness, EveryLayerFixtureIsACase) {
         const auto layer = json::parse(readSafetensors(entry.path().string()).metadata.at("config"))["layer"]
                                .get<std::string>();
         for (const char* name : {"conv2d", "conv_transpose2d", "maxpool2d", "activation", "nearest",
-                                 "bilinear", "pixel_shuffle", "kernel_filter", "warp"})
+                                 "bilinear", "pixel_shuffle", "kernel_filter", "warp", "accumulate"})
             layers += layer == name;
     }
     EXPECT_EQ(int(harness::goldenLayerCases().size()), layers);
     EXPECT_GE(layers, 30);
+}
+
+// The accumulate blend's invariants: on a still view with full trust the kept colour is the mean of every
+// sample so far (up to the cap, then a running mean with weight 1 / (N + 1)), the confidence counts them,
+// and no trust drops the history.
+TEST(Accumulate, AStillViewWithFullTrustKeepsTheMeanOfItsSamples) {
+    AccumulateDesc d;
+    d.batch = 1, d.channels = 2, d.height = 3, d.width = 4, d.kernel = 3, d.maxCount = 8;
+    const int64_t plane = 12;
+    std::mt19937 rng(5);
+    std::uniform_real_distribution<double> u(0, 1);
+    for (double trust : {20.0, -40.0}) {
+        std::vector<double> history(size_t(3 * plane), 0.0), out(size_t(5 * plane)),
+            logits(size_t(10 * plane));
+        for (size_t i = 0; i < logits.size(); ++i) logits[i] = i >= size_t(9 * plane) ? trust : u(rng);
+        std::vector<double> sum(size_t(2 * plane), 0.0), image(size_t(2 * plane));
+        for (int t = 1; t <= 12; ++t) {
+            for (double& v : image) v = u(rng);
+            accumulateForward(out.data(), image.data(), logits.data(), history.data(), d);
+            for (int64_t i = 0; i < 2 * plane; ++i) {
+                const double kept = out[size_t(2 * plane + i)];
+                if (trust < 0) {
+                    EXPECT_NEAR(kept, image[size_t(i)], 1e-12);  // nothing kept but the new sample
+                    continue;
+                }
+                // Up to 8 samples the plain mean; after, each new one weighs 1 / 9 of what was kept.
+                sum[size_t(i)] = t <= 8 ? sum[size_t(i)] + image[size_t(i)]
+                                        : sum[size_t(i)] * 8.0 / 9.0 + image[size_t(i)] * 8.0 / 9.0;
+                EXPECT_NEAR(kept, sum[size_t(i)] / std::min(t, 8), 1e-12) << "frame " << t;
+            }
+            const double count = trust < 0 ? 1.0 : std::min(t, 8);
+            for (int64_t i = 0; i < plane; ++i)
+                EXPECT_NEAR(out[size_t(4 * plane + i)], count / (count + 1), 1e-12);
+            for (int64_t c = 0; c < 2; ++c)
+                std::copy_n(out.data() + (2 + c) * plane, plane, history.data() + c * plane);
+            std::copy_n(out.data() + 4 * plane, plane, history.data() + 2 * plane);
+        }
+    }
 }
 
 // A pixel changed at the centre of the input changes no output pixel further than the receptive field's
@@ -501,7 +554,8 @@ TEST(Warp, TheInterleavedWarpIsTheLayersForward) {
             SCOPED_TRACE(std::string(warpFilterName(filter)) + " " + std::to_string(channels));
             std::vector<float> planes(size_t(channels * H * W)), expected(planes.size()), out(planes.size());
             for (int c = 0; c < channels; ++c)
-                for (int p = 0; p < H * W; ++p) planes[size_t(c * H * W + p)] = interleaved[size_t(4 * p + c)];
+                for (int p = 0; p < H * W; ++p)
+                    planes[size_t(c * H * W + p)] = interleaved[size_t(4 * p + c)];
             WarpDesc d;
             d.channels = channels, d.height = H, d.width = W, d.filter = filter;
             warpForward(expected.data(), planes.data(), motionPlanes.data(), d);
