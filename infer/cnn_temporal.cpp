@@ -111,8 +111,8 @@ class CnnTemporalFilter final : public Filter {
             const int64_t W = f.paddedWidth_, H = f.paddedHeight_, plane = W * H;
             const int64_t frameW = f.width_, frameH = f.height_;
             const int S = f.history_ - 3, C = frame->channels;
-            thread_local std::vector<float> logits, blended;
-            logits.resize(size_t(10 * W)), blended.resize(size_t(3 * W));
+            thread_local std::vector<float> logits, blended, kept;
+            logits.resize(size_t(10 * W)), blended.resize(size_t(3 * W)), kept.resize(size_t(4 * W));
             for (int dy = 0; dy < 2; ++dy) {
                 const int64_t y = 2 * y2 + dy;
                 // The shuffle: output channel k at (2 y2 + dy, 2 s + dx) is head channel 4 k + 2 dy + dx at
@@ -136,22 +136,20 @@ class CnnTemporalFilter final : public Filter {
                 nn::KernelFilterRowArgs args;
                 args.out = rgb, args.in = in, args.logits = logits.data(), args.width = W;
                 args.channels = 3, args.kernel = 3, args.centreBias = f.centreBias_;
-                args.history = f.accumulate_ ? nullptr : history;
-                blendRow(args);  // accumulate: the frame's filtered neighbourhood only
+                args.history = history;
+                float* keptRows[3];
+                if (f.accumulate_) {  // the frame shown in rgb, the kept mean and its confidence
+                    for (int c = 0; c < 3; ++c) keptRows[c] = kept.data() + c * W;
+                    args.kept = keptRows, args.confidence = f.warped_.data() + 3 * plane + y * W;
+                    args.nextConfidence = kept.data() + 3 * W, args.maxCount = f.maxCount_;
+                }
+                blendRow(args);
                 // The next history, interleaved: the blend's RGB and the warped state plus its correction;
-                // accumulate's: the kept mean and its confidence (and the frame shown in rgb).
+                // accumulate's: the kept mean and its confidence.
                 float* next = f.previous_.data() + y * W * 4;
                 if (f.accumulate_) {
-                    const float* confidence = f.warped_.data() + 3 * plane + y * W;
-                    const float* trust = logits.data() + 9 * W;
-                    for (int64_t x = 0; x < W; ++x) {
-                        float spatial[3], sample[3], hist[3], shown[3];
-                        for (int c = 0; c < 3; ++c)
-                            spatial[c] = rgb[c][x], sample[c] = in[c * 3 + 1][x], hist[c] = history[c][x];
-                        next[4 * x + 3] = nn::accumulatePixel(shown, next + 4 * x, spatial, sample, hist, 3,
-                                                              trust[x], confidence[x], f.maxCount_);
-                        for (int c = 0; c < 3; ++c) rgb[c][x] = shown[c];
-                    }
+                    for (int64_t x = 0; x < W; ++x)
+                        for (int c = 0; c < 4; ++c) next[4 * x + c] = kept[size_t(c * W + x)];
                 } else {
                     for (int64_t x = 0; x < W; ++x)
                         for (int c = 0; c < 3; ++c) next[4 * x + c] = rgb[c][x];

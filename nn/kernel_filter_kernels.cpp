@@ -48,10 +48,12 @@ inline V expNonPositive(V x) {
 }
 
 // The pixels from x (as many as V has lanes), all of whose taps x + dx lie in [0, width) unless `clampX`;
-// with `History`, one more weight on the history's pixel.
-template <class V, class I, int K, bool History = false>
+// with `History`, one more weight on the history's pixel; with `Accumulate` (and History), accumulate's
+// blend of the filtered pixels with the history's kept mean.
+template <class V, class I, int K, bool History = false, bool Accumulate = false>
 inline void filterPixels(const KernelFilterRowArgs& a, int64_t x, bool clampX) {
-    constexpr int kTaps = K * K, kRadius = K / 2, kCentre = kTaps / 2, kWeights = kTaps + (History ? 1 : 0);
+    constexpr int kTaps = K * K, kRadius = K / 2, kCentre = kTaps / 2,
+                  kWeights = kTaps + (History && !Accumulate ? 1 : 0);
     V weight[kWeights];
     V largest = splat<V>(-3.4e38f);
     for (int j = 0; j < kWeights; ++j) {
@@ -65,6 +67,35 @@ inline void filterPixels(const KernelFilterRowArgs& a, int64_t x, bool clampX) {
     int64_t column[K];
     for (int dx = -kRadius; dx <= kRadius; ++dx)
         column[dx + kRadius] = clampX ? std::clamp<int64_t>(x + dx, 0, a.width - 1) : x + dx;
+    if constexpr (Accumulate) {
+        // a = m / (1 + m), m = rho n, n = s / (1 - s), rho = min(1, 2 sigmoid(trust)) = 1 from trust 0 up
+        // and 2 e^t / (1 + e^t) below; s' = n' / (n' + 1), n' = min(1 + m, N).
+        const float maxConfidence = a.maxCount / (a.maxCount + 1.0f);
+        V s = loadu<V>(a.confidence + x);
+        s = s < 0.0f ? splat<V>(0.0f) : s;
+        s = s > maxConfidence ? splat<V>(maxConfidence) : s;
+        const V trust = loadu<V>(a.logits + kTaps * a.width + x);
+        const V e = expNonPositive<V, I>(trust < 0.0f ? trust : splat<V>(0.0f));
+        const V rho = trust < 0.0f ? 2.0f * e / (1.0f + e) : splat<V>(1.0f);
+        const V m = rho * (s / (1.0f - s));
+        const V historyWeight = m / (1.0f + m);
+        V next = 1.0f + m;
+        next = next < a.maxCount ? next : splat<V>(a.maxCount);
+        storeu(a.nextConfidence + x, next / (next + 1.0f));
+        for (int c = 0; c < a.channels; ++c) {
+            V value = splat<V>(0.0f);
+            for (int dy = 0; dy < K; ++dy) {
+                const float* row = a.in[c * K + dy];
+                for (int dx = 0; dx < K; ++dx)
+                    value = value + weight[dy * K + dx] * loadu<V>(row + column[dx]);
+            }
+            const V spatial = value * scale, history = loadu<V>(a.history[c] + x);
+            const V sample = loadu<V>(a.in[c * K + kRadius] + x);
+            storeu(a.out[c] + x, spatial + historyWeight * (history - spatial));
+            storeu(a.kept[c] + x, sample + historyWeight * (history - sample));
+        }
+        return;
+    }
     for (int c = 0; c < a.channels; ++c) {
         V value = splat<V>(0.0f);
         for (int dy = 0; dy < K; ++dy) {
@@ -402,21 +433,28 @@ void kernelLogitsRow(const KernelLogitsRowArgs& a) {
                 a.logits[j * a.width + s * a.factor + p] = logitAt(a, s, j * a.factor + p);
 }
 
-// A row with a history: every pixel filtered (no pass-through).
-template <int K>
+// A row with a history (or accumulate's): every pixel filtered (no pass-through).
+template <int K, bool Accumulate>
 void filterRowWithHistory(const KernelFilterRowArgs& a) {
     constexpr int kRadius = K / 2;
     const int64_t W = a.width;
     int64_t x = 0;
-    for (; x < std::min<int64_t>(kRadius, W); ++x) filterPixels<float, int32_t, K, true>(a, x, true);
-    for (; x + kFloatLanes + kRadius <= W; x += kFloatLanes) filterPixels<VFloat, VInt, K, true>(a, x, false);
-    for (; x < W; ++x) filterPixels<float, int32_t, K, true>(a, x, true);
+    for (; x < std::min<int64_t>(kRadius, W); ++x)
+        filterPixels<float, int32_t, K, true, Accumulate>(a, x, true);
+    for (; x + kFloatLanes + kRadius <= W; x += kFloatLanes)
+        filterPixels<VFloat, VInt, K, true, Accumulate>(a, x, false);
+    for (; x < W; ++x) filterPixels<float, int32_t, K, true, Accumulate>(a, x, true);
 }
 
 void kernelFilterRow(const KernelFilterRowArgs& args) {
+    if (args.history && args.kept) {
+        if (args.kernel == 3) return filterRowWithHistory<3, true>(args);
+        if (args.kernel == 1) return filterRowWithHistory<1, true>(args);
+        return;
+    }
     if (args.history) {
-        if (args.kernel == 3) return filterRowWithHistory<3>(args);
-        if (args.kernel == 1) return filterRowWithHistory<1>(args);
+        if (args.kernel == 3) return filterRowWithHistory<3, false>(args);
+        if (args.kernel == 1) return filterRowWithHistory<1, false>(args);
         return;
     }
     switch (args.kernel) {

@@ -23,6 +23,13 @@ struct KernelFilterRowArgs {
     // last one weighting the history's own pixel (kernel_filter with a history, nn/layers.h). No
     // pass-through with a history.
     const float* const* history = nullptr;
+    // Accumulate (null: off; needs a history, kernel 1 or 3): the row of accumulate (nn/layers.h). The
+    // logits' last row is then the trust, the softmax spans the kernel^2 taps only, `out` gets the colour
+    // shown, `kept` the colour kept, and `nextConfidence` s' from the history's `confidence`.
+    float* const* kept = nullptr;  // [C] rows
+    const float* confidence = nullptr;
+    float* nextConfidence = nullptr;
+    float maxCount = 32.0f;
 };
 
 // Output columns per pass-through group.

@@ -14,6 +14,7 @@
 #include "base/thread_pool.h"
 #include "nn/init.h"
 #include "nn/kernel_filter_kernels.h"
+#include "nn/layers.h"
 #include "tests/alloc_counter.h"
 #include "tests/test_util.h"
 
@@ -457,6 +458,56 @@ TEST_P(Inference, RowRangesDecideAsTheFlatGroupTest) {
             }
     EXPECT_GT(flatCount, total / 10);  // both decisions well represented
     EXPECT_LT(flatCount, total * 9 / 10);
+}
+
+// The row kernel's accumulate mode is accumulate's reference (nn/layers.h) on the middle row of a 3-row
+// image: confidences below 0, inside and past the clamp, trust logits either side of the kink (and 0),
+// kernels 1 and 3, widths that leave a vector tail.
+TEST_P(Inference, AccumulateRowMatchesTheReference) {
+    Rng rng(43);
+    for (int kernel : {1, 3})
+        for (int64_t width : {1, 7, 37, 70}) {
+            AccumulateDesc d;
+            d.batch = 1, d.channels = 3, d.height = 3, d.width = width, d.kernel = kernel, d.maxCount = 6;
+            const int64_t plane = 3 * width, taps = kernel * kernel;
+            std::vector<float> image(size_t(3 * plane)), logits(size_t((taps + 1) * plane)),
+                history(size_t(4 * plane)), out(size_t(7 * plane));
+            for (float& v : image) v = rng.uniform(0.0f, 1.0f);
+            for (float& v : logits) v = rng.uniform(-4.0f, 4.0f);
+            for (float& v : history) v = rng.uniform(-0.1f, 1.0f);
+            for (int64_t x = 0; x < width; x += 5) logits[size_t(taps * plane + width + x)] = 0.0f;
+            accumulateForward(out.data(), image.data(), logits.data(), history.data(), d);
+            const float* in[9];
+            const float* hist[3];
+            std::vector<float> rowLogits(size_t((taps + 1) * width)), shown(size_t(3 * width)),
+                kept(size_t(3 * width)), next(static_cast<size_t>(width));
+            float* shownRows[3];
+            float* keptRows[3];
+            for (int c = 0; c < 3; ++c) {
+                for (int dy = 0; dy < kernel; ++dy)
+                    in[c * kernel + dy] = image.data() + c * plane + (dy + 1 - kernel / 2) * width;
+                hist[c] = history.data() + c * plane + width;
+                shownRows[c] = shown.data() + c * width, keptRows[c] = kept.data() + c * width;
+            }
+            for (int64_t j = 0; j <= taps; ++j)
+                std::copy_n(logits.data() + j * plane + width, width, rowLogits.data() + j * width);
+            KernelFilterRowArgs args;
+            args.out = shownRows, args.in = in, args.logits = rowLogits.data(), args.width = width;
+            args.channels = 3, args.kernel = kernel, args.history = hist, args.kept = keptRows;
+            args.confidence = history.data() + 3 * plane + width, args.nextConfidence = next.data();
+            args.maxCount = d.maxCount;
+            DEJAG_SIMD_CALL(kernelFilterRow, args);
+            for (int64_t x = 0; x < width; ++x) {
+                for (int c = 0; c < 3; ++c) {
+                    ASSERT_NEAR(shown[size_t(c * width + x)], out[size_t(c * plane + width + x)], 2e-6)
+                        << "kernel " << kernel << " width " << width << " x " << x;
+                    ASSERT_NEAR(kept[size_t(c * width + x)], out[size_t((3 + c) * plane + width + x)], 2e-6)
+                        << "kernel " << kernel << " width " << width << " x " << x;
+                }
+                ASSERT_NEAR(next[size_t(x)], out[size_t(6 * plane + width + x)], 2e-6)
+                    << "kernel " << kernel << " width " << width << " x " << x;
+            }
+        }
 }
 
 // An input the plan holds blocked (more than 4 channels): inputRow() writes a staging tensor.
