@@ -92,11 +92,13 @@ void registerTrainCommand(CLI::App& app) {
     auto poison = std::make_shared<std::string>();
     trainCommand->add_option("--data", config->data, "dataset folder (dejag data generate)");
     trainCommand
-        ->add_option("--arch", config->arch,
-                     "seed2020 | fast | fast:WIDTHxDEPTH (the fast family at another size, e.g. fast:12x3) | "
-                     "kpn | kpn:WIDTHxDEPTH (fast's trunk predicting a 3x3 kernel per pixel) | temporal | "
-                     "temporal:WIDTHxDEPTH (recurrent; trains on a dataset of sequences) | accumulate | "
-                     "accumulate:WIDTHxDEPTH (recurrent, blending as a TAA's running mean) | FILE.json")
+        ->add_option(
+            "--arch", config->arch,
+            "seed2020 | fast | fast:WIDTHxDEPTH (the fast family at another size, e.g. fast:12x3) | "
+            "kpn | kpn:WIDTHxDEPTH (fast's trunk predicting a 3x3 kernel per pixel) | temporal | "
+            "temporal:WIDTHxDEPTH (recurrent; trains on a dataset of sequences) | accumulate | "
+            "accumulate:WIDTHxDEPTH[+depth] (recurrent, blending as a TAA's running mean; +depth: the "
+            "depth buffers as inputs) | FILE.json")
         ->capture_default_str();
     trainCommand->add_option("--out", config->out, "run folder (checkpoints, logs, plots)");
     trainCommand

@@ -32,11 +32,13 @@ class CnnTemporalFilter final : public Filter {
     CnnTemporalFilter(nn::Model model, nn::InferencePrecision precision, const std::string& path)
         : Filter("cnn-temporal"), model_(std::move(model)), precision_(precision) {
         history_ = model_.outputChannels();
-        if (history_ < 3 || model_.inputChannels() != 3 + history_ + 4)
+        depthInput_ = model_.inputChannels() == 3 + history_ + 6;
+        if (history_ < 3 || (model_.inputChannels() != 3 + history_ + 4 && !depthInput_))
             throw Error("model '" + model_.name() + "' is not a temporal network: it takes " +
                         std::to_string(model_.inputChannels()) + " channels and returns " +
                         std::to_string(model_.outputChannels()) +
-                        " (a recurrent network returning 3 + S takes 3 + (3 + S) + 2 + 2)");
+                        " (a recurrent network returning 3 + S takes 3 + (3 + S) + 2 + 2, or 2 more with "
+                        "depth)");
         figures_.settings = {{"model", path}, {"precision", precisionName(precision)}};
         accumulate_ = model_.architecture().value("name", "") == "accumulate";
         trunk_ = builtinTrunk(model_);
@@ -46,7 +48,10 @@ class CnnTemporalFilter final : public Filter {
         for (const nlohmann::json& node : model_.architecture()["nodes"])
             if (node.value("name", "") == "blended") centreBias_ = node.value("centre_bias", 0.0f);
     }
-    BufferSet needs() const override { return unsigned(Buffer::Motion); }
+    BufferSet needs() const override {
+        return depthInput_ ? Buffer::Motion | Buffer::Depth | Buffer::PreviousDepth
+                           : unsigned(Buffer::Motion);
+    }
     bool temporal() const override { return true; }
     void reset() override { fresh_ = true; }
 
@@ -68,6 +73,7 @@ class CnnTemporalFilter final : public Filter {
         options.width = a["family"].value("width", 0), options.depth = a["family"].value("depth", 0);
         options.state = family == "accumulate" ? 1 : a["family"].value("state", -1);
         options.maxCount = a["family"].value("max_count", 32.0f);
+        options.depthInput = a["family"].value("depth_input", false);
         nlohmann::json builtin;
         try {
             builtin = nn::Model::builtinArchitecture(family, options);
@@ -87,11 +93,12 @@ class CnnTemporalFilter final : public Filter {
             }
             inside = inside || node["name"] == "seen";
         }
-        nn::Model trunk = nn::Model::fromArchitecture({{"name", "temporal-trunk"},
-                                                       {"input_channels", 3 + (3 + options.state) + 2},
-                                                       {"init", a.value("init", "he_normal")},
-                                                       {"nodes", nodes},
-                                                       {"output", "head"}});
+        nn::Model trunk = nn::Model::fromArchitecture(
+            {{"name", "temporal-trunk"},
+             {"input_channels", 3 + (3 + options.state) + 2 + (options.depthInput ? 2 : 0)},
+             {"init", a.value("init", "he_normal")},
+             {"nodes", nodes},
+             {"output", "head"}});
         for (const nn::ParameterInfo& p : trunk.parameters()) {
             const nn::ParameterInfo& from = model.parameter(p.name);
             std::copy_n(model.parameterData() + from.offset, nn::shapeNumel(p.shape),
@@ -185,6 +192,9 @@ class CnnTemporalFilter final : public Filter {
             for (int c = 0; c < 3; ++c) std::copy_n(f.frame_.data() + c * plane + y * W, W, channels[c]);
             for (int c = 0; c < S; ++c) std::copy_n(f.warped_.data() + c * plane + y * W, W, channels[3 + c]);
             for (int k = 0; k < 2; ++k) std::fill_n(channels[3 + S + k], W, jitter[k]);
+            if (f.depthInput_)  // the frame's depth and the previous frame's, warped
+                for (int k = 0; k < 2; ++k)
+                    std::copy_n(f.depth_.data() + k * plane + y * W, W, channels[5 + S + k]);
         }
     };
 
@@ -194,12 +204,17 @@ class CnnTemporalFilter final : public Filter {
         const int64_t W = paddedWidth_, H = paddedHeight_, frameW = frame.width, frameH = frame.height;
         const int C = frame.channels, S = warpedChannels_;
         const int64_t plane = W * H;
-        const nn::Shape shape{1, 3 + S + 2, H, W};
+        const int inputs = 3 + S + 2 + (depthInput_ ? 2 : 0);
+        const nn::Shape shape{1, inputs, H, W};
         const bool padded = W != frameW || H != frameH;
         if (!fused_ || fused_->inputShape() != shape) {
             fused_.emplace(*trunk_, shape, precision_);
             frame_ = nn::Tensor({3, H, W}), warped_ = nn::Tensor({S, H, W});
             motion_ = padded ? nn::Tensor({H, W, 2}) : nn::Tensor();
+            // Depth: the frame's and the previous frame's warped as planes; the previous frame's as it came,
+            // 4 floats a pixel for the interleaved warp.
+            depth_ = depthInput_ ? nn::Tensor({2, H, W}) : nn::Tensor();
+            previousDepth_ = depthInput_ ? nn::Tensor({H, W, 4}) : nn::Tensor();
         }
         const bool fresh = fresh_;
         // The frame as planes (and the motion padded).
@@ -212,8 +227,21 @@ class CnnTemporalFilter final : public Filter {
                     if (padded)
                         motion_.data()[2 * p] = frame.motion[2 * q],
                                            motion_.data()[2 * p + 1] = frame.motion[2 * q + 1];
+                    if (depthInput_)
+                        depth_.data()[p] = frame.depth[q],
+                        previousDepth_.data()[4 * p] = frame.previousDepth[q];
                 }
         });
+        if (depthInput_) {  // the previous frame's depth where each pixel was (where the history restarts,
+                            // this one's)
+            if (fresh) {
+                std::copy_n(depth_.data(), plane, depth_.data() + plane);
+            } else {
+                float* planes[1] = {depth_.data() + plane};
+                nn::warpInterleaved(planes, previousDepth_.data(), padded ? motion_.data() : frame.motion, W,
+                                    H, 1, nn::WarpFilter::Bilinear);
+            }
+        }
         // The history (interleaved, 4 floats a pixel) read where each pixel was, as planes; on a fresh start
         // the frame and zero state (accumulate's: nothing kept, as training's fresh history).
         if (fresh) {
@@ -239,9 +267,9 @@ class CnnTemporalFilter final : public Filter {
             fused_->runStreamed(rows, sink, 0, (H + 1) / 2);
         } else {
             parallelFor(0, H, 16, [&](int64_t first, int64_t last) {
-                float* channels[3 + 4 + 2];
+                float* channels[3 + 4 + 2 + 2];
                 for (int64_t y = first; y < last; ++y) {
-                    for (int c = 0; c < 3 + S + 2; ++c) channels[c] = fused_->inputRow(0, c, y);
+                    for (int c = 0; c < inputs; ++c) channels[c] = fused_->inputRow(0, c, y);
                     rows.row(0, y, channels);
                 }
             });
@@ -260,7 +288,7 @@ class CnnTemporalFilter final : public Filter {
         }
         if (trunk_) return processFused(frame, out);
         const int W = frame.width, H = frame.height, C = frame.channels, S = history_;
-        const int64_t plane = int64_t(W) * H, channels = 3 + S + 4;
+        const int64_t plane = int64_t(W) * H, channels = 3 + S + 4 + (depthInput_ ? 2 : 0);
         const nn::Shape shape{1, channels, H, W};
         if (!plan_ || input_.shape() != shape) {
             plan_.emplace(model_, shape, precision_);
@@ -289,6 +317,10 @@ class CnnTemporalFilter final : public Filter {
                     in[(4 + S) * plane + p] = fresh ? 0.0f : motion[2 * p + 1];
                     in[(5 + S) * plane + p] = frame.hasJitter ? frame.jitter[0] : 0.0f;
                     in[(6 + S) * plane + p] = frame.hasJitter ? frame.jitter[1] : 0.0f;
+                    if (depthInput_)
+                        in[(7 + S) * plane + p] = frame.depth[p],
+                                             in[(8 + S) * plane + p] =
+                                                 fresh ? frame.depth[p] : frame.previousDepth[p];
                 }
         });
         const nn::Tensor& result = plan_->run(input_);
@@ -322,6 +354,8 @@ class CnnTemporalFilter final : public Filter {
     bool accumulate_ = false;  // the accumulate family (nn/model.cpp)
     int warpedChannels_ = 3;   // what the fused path warps: the history's, or accumulate's kept mean and s
     float maxCount_ = 32.0f;
+    bool depthInput_ = false;           // the model takes depth and previous depth (accumulate +depth)
+    nn::Tensor depth_, previousDepth_;  // the fused path's (padded)
 };
 
 }  // namespace

@@ -347,7 +347,19 @@ nlohmann::json Model::builtinArchitecture(const std::string& name, const ModelOp
                          {"op", "warp"},
                          {"inputs", {"history", "motion"}},
                          {"filter", "catmull-rom"}});
-        nodes.push_back({{"name", "seen"}, {"op", "concat"}, {"inputs", {"frame", "warped", "jitter"}}});
+        json seen = {"frame", "warped", "jitter"};
+        if (options.depthInput) {
+            // The frame's depth, and the previous frame's read where each pixel was (bilinear: no
+            // overshoot across a silhouette): where they differ, the history saw another surface.
+            nodes.push_back(slice("depth", "input", 14, 15));
+            nodes.push_back(slice("previous_depth", "input", 15, 16));
+            nodes.push_back({{"name", "warped_depth"},
+                             {"op", "warp"},
+                             {"inputs", {"previous_depth", "motion"}},
+                             {"filter", "bilinear"}});
+            seen.push_back("depth"), seen.push_back("warped_depth");
+        }
+        nodes.push_back({{"name", "seen"}, {"op", "concat"}, {"inputs", seen}});
         const std::string previous = unet(nodes, "seen", w, levels);
         nodes.push_back(conv("head", previous, 4 * 10, 1, "none"));
         nodes.back()["init_scale"] = 0.1;
@@ -357,16 +369,20 @@ nlohmann::json Model::builtinArchitecture(const std::string& name, const ModelOp
                          {"inputs", {"frame", "shuffle", "warped"}},
                          {"kernel", 3},
                          {"max_count", options.maxCount}});
-        return {{"name", "accumulate"},
-                {"input_channels", 14},
-                {"input_colour",
-                 "sRGB-encoded RGB frame, previous output (RGB shown, RGB kept, confidence), motion (px), "
-                 "jitter (px)"},
-                {"normalisation", "[0, 1]"},
-                {"init", "he_normal"},
-                {"nodes", nodes},
-                {"output", "output"},
-                {"family", {{"width", w}, {"depth", levels}, {"max_count", options.maxCount}}}};
+        json family = {{"width", w}, {"depth", levels}, {"max_count", options.maxCount}};
+        if (options.depthInput) family["depth_input"] = true;
+        return {
+            {"name", "accumulate"},
+            {"input_channels", options.depthInput ? 16 : 14},
+            {"input_colour",
+             std::string("sRGB-encoded RGB frame, previous output (RGB shown, RGB kept, confidence), motion "
+                         "(px), jitter (px)") +
+                 (options.depthInput ? ", depth / far, previous frame's depth / far" : "")},
+            {"normalisation", "[0, 1]"},
+            {"init", "he_normal"},
+            {"nodes", nodes},
+            {"output", "output"},
+            {"family", family}};
     }
     if (name == "temporal") {
         // A recurrent network (docs/train.md, train/temporal.h): its input holds the frame, its own

@@ -99,6 +99,7 @@ struct ModelOptions {
     int channels = 3;
     int state = 1;  // temporal: channels a frame passes to the next besides its RGB
     float maxCount = 32.0f;  // accumulate: the most samples its history's mean holds
+    bool depthInput = false;  // accumulate: the frame's depth and the previous frame's, warped, as inputs
 };
 
 class Model {

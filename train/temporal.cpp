@@ -12,12 +12,13 @@ namespace dejag::train {
 TemporalLayout temporalLayout(const nn::Model& model) {
     TemporalLayout layout;
     layout.history = model.outputChannels();
+    layout.depth = model.inputChannels() == layout.inputChannels() + 2;
     if (layout.history < 3 || model.inputChannels() != layout.inputChannels())
         throw Error("model '" + model.name() + "' is not a temporal network: it takes " +
                     std::to_string(model.inputChannels()) + " channels and returns " +
                     std::to_string(model.outputChannels()) +
                     " (one returning 3 + S channels takes 3 + (3 + S) + 2 + 2: colour, history, motion, "
-                    "jitter)");
+                    "jitter; or 2 more: depth, previous depth)");
     return layout;
 }
 
@@ -42,6 +43,15 @@ void makeTemporalInput(nn::Tensor& input, const data::SequenceFrame& frame, cons
                     size_t(2 * plane) * sizeof(float));
         std::fill(in + (5 + H) * plane, in + (6 + H) * plane, frame.jitter[size_t(2 * n)]);
         std::fill(in + (6 + H) * plane, in + (7 + H) * plane, frame.jitter[size_t(2 * n + 1)]);
+        if (layout.depth) {
+            if (frame.depth.numel() == 0 || frame.previousDepth.numel() == 0)
+                throw Error("this temporal network takes depth: the sequences' depth was not loaded");
+            const float* depth = frame.depth.data() + n * plane;
+            std::memcpy(in + (7 + H) * plane, depth, size_t(plane) * sizeof(float));
+            const float* before =
+                previous && !frame.fresh[size_t(n)] ? frame.previousDepth.data() + n * plane : depth;
+            std::memcpy(in + (8 + H) * plane, before, size_t(plane) * sizeof(float));
+        }
     }
 }
 

@@ -8,6 +8,9 @@
 //                       first frame, a cut) the colour and S zeros
 //   motion    2         pixels moved since frame t - 1 (+x right, +y down), 0 where the history restarts
 //   jitter    2         the frame's image shift in pixels (+y down), constant planes
+//   depth     0 or 2    the frame's depth and the previous frame's (divided by the far plane), for a
+//                       network that takes them (2 more input channels); where the history restarts
+//                       the previous depth is the frame's
 // and its output is the frame's RGB and S state channels, the next frame's history. S = outputs - 3.
 #pragma once
 
@@ -21,8 +24,9 @@
 namespace dejag::train {
 
 struct TemporalLayout {
-    int history = 3;  // RGB + state channels
-    int inputChannels() const { return 3 + history + 4; }
+    int history = 3;     // RGB + state channels
+    bool depth = false;  // depth and previous depth after the jitter
+    int inputChannels() const { return 3 + history + 4 + (depth ? 2 : 0); }
     int motionChannel() const { return 3 + history; }
 };
 // The layout a model's channels give; throws dejag::Error when they are not a temporal network's.

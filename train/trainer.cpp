@@ -68,7 +68,10 @@ nlohmann::json architectureFor(const std::string& arch) {
     if ((family == "fast" || family == "kpn" || family == "temporal" || family == "accumulate") &&
         arch.size() > family.size()) {
         nn::ModelOptions options;
-        const std::string spec = arch.substr(family.size() + 1);
+        std::string spec = arch.substr(family.size() + 1);
+        // accumulate:WxD+depth: with the depth inputs.
+        if (family == "accumulate" && spec.size() > 6 && spec.substr(spec.size() - 6) == "+depth")
+            options.depthInput = true, spec.resize(spec.size() - 6);
         size_t used = 0, usedDepth = 0;
         try {
             options.width = std::stoi(spec, &used);
@@ -81,7 +84,8 @@ nlohmann::json architectureFor(const std::string& arch) {
         }
         if (used == 0 || used != spec.size())
             throw Error("--arch '" + arch + "': expected " + family + ":WIDTH or " + family +
-                        ":WIDTHxDEPTH (e.g. " + family + ":12x3)");
+                        ":WIDTHxDEPTH (e.g. " + family + ":12x3" +
+                        (family == "accumulate" ? ", or accumulate:8x2+depth" : "") + ")");
         return nn::Model::builtinArchitecture(family, options);
     }
     if (!fs::exists(arch))
@@ -633,11 +637,14 @@ class RunFolder {
 // test faults injected on their steps. The learning rate follows the clean batches.
 class Batches {
   public:
-    Batches(const TrainConfig& config, const TrainFaults& faults, bool grey, int64_t stepsDone, bool temporal)
+    // depth: a temporal network that takes the depth buffers.
+    Batches(const TrainConfig& config, const TrainFaults& faults, bool grey, int64_t stepsDone, bool temporal,
+            bool depth = false)
         : config_(config), faults_(faults) {
         for (int64_t s = 0; s < stepsDone; ++s) cleanBatches_ += kindAt(s) == AdversarialKind::None;
         if (temporal) {
             data::SequenceOptions options;
+            options.depth = depth;
             options.patchSize = config.patch, options.batchSize = config.batch, options.seed = config.seed;
             options.frames = config.frames, options.families = config.families;
             sequences_.emplace(config.data, options);
@@ -828,12 +835,14 @@ data::ImageScore frameScore(const nn::Tensor& rgb, const nn::Tensor& truth) {
 
 class Validation {
   public:
-    Validation(const TrainConfig& config, const std::vector<Method>& baselines, bool grey, bool temporal)
+    Validation(const TrainConfig& config, const std::vector<Method>& baselines, bool grey, bool temporal,
+               bool depth = false)
         : config_(config), grey_(grey) {
         if (temporal) {
             // Whole validation sequences, every frame after the first scored (the first has no history);
             // the baseline is the jittered frame itself (no AA).
             data::SequenceOptions options;
+            options.depth = depth;
             options.split = data::Split::Validation, options.families = config.families;
             options.patchSize = 8, options.batchSize = 1;
             sequences_.emplace(config.data, options);
@@ -1006,7 +1015,8 @@ TrainResult trainModel(const TrainConfig& config, const std::vector<Method>& bas
         model.initialize(config.seed);
     }
 
-    Batches batches(config, faults, grey, state.step, temporal);
+    const bool depthInput = temporal && temporalLayout(model).depth;
+    Batches batches(config, faults, grey, state.step, temporal, depthInput);
     const int64_t cleanSteps = cleanStepsOf(config), totalSteps = batches.stepsFor(cleanSteps);
     runConfig["total_steps"] = totalSteps;
     nn::LrSchedule schedule;
@@ -1014,7 +1024,7 @@ TrainResult trainModel(const TrainConfig& config, const std::vector<Method>& bas
     schedule.baseRate = config.learningRate, schedule.minRate = 0.05 * config.learningRate;
     schedule.warmupSteps = config.warmupSteps, schedule.totalSteps = cleanSteps;
 
-    const Validation validation(config, baselines, grey, temporal);
+    const Validation validation(config, baselines, grey, temporal, depthInput);
     {
         json run = {
             {"format", "dejag-run-1"},

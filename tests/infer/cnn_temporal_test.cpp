@@ -24,32 +24,36 @@ constexpr int W = 40, H = 24, K = 4;
 
 // A short sequence: a soft pattern moving 0.7 px right and 0.3 px down a frame, exact motion, jitter.
 struct Sequence {
-    std::vector<std::vector<float>> colour, motion;
+    std::vector<std::vector<float>> colour, motion, depth, previousDepth;
     std::vector<std::array<float, 2>> jitter;
 };
 Sequence makeSequence() {
     Sequence s;
     for (int t = 0; t < K; ++t) {
-        std::vector<float> c(size_t(W * H * 3)), m(size_t(W * H * 2));
+        std::vector<float> c(size_t(W * H * 3)), m(size_t(W * H * 2)), d(size_t(W * H));
         for (int y = 0; y < H; ++y)
             for (int x = 0; x < W; ++x) {
                 const double u = x - 0.7 * t, v = y - 0.3 * t;
+                d[size_t(y * W + x)] = float(0.4 + 0.3 * std::sin(0.2 * u - 0.1 * v));
                 for (int k = 0; k < 3; ++k)
                     c[size_t((y * W + x) * 3 + k)] =
                         float(0.5 + 0.4 * std::sin(0.45 * u * (k + 1) + 0.3 * v));
                 m[size_t((y * W + x) * 2)] = 0.7f, m[size_t((y * W + x) * 2 + 1)] = 0.3f;
             }
         s.colour.push_back(c), s.motion.push_back(m);
+        s.previousDepth.push_back(t > 0 ? s.depth.back() : d), s.depth.push_back(d);
         s.jitter.push_back({0.25f - 0.1f * t, -0.2f + 0.15f * t});
     }
     return s;
 }
 
-// The temporal family with `state` state channels, or (state 0) the accumulate family.
+// The temporal family with `state` state channels, or (state 0) the accumulate family, (state -1) with
+// the depth inputs.
 std::string savedModel(const testing::TempDir& dir, int state = 1) {
     nn::ModelOptions options;
     options.width = 4, options.depth = 2, options.state = state, options.maxCount = 3;
-    nn::Model model = nn::Model::builtin(state == 0 ? "accumulate" : "temporal", options);
+    options.depthInput = state < 0;
+    nn::Model model = nn::Model::builtin(state <= 0 ? "accumulate" : "temporal", options);
     model.initialize(11);
     // The head at full size, so that every part of the network shows in the output (accumulate's trust
     // both below and above its kink, its cap of 3 samples reached).
@@ -68,6 +72,7 @@ std::vector<std::vector<float>> runFilter(Filter& filter, const Sequence& s, int
         f.width = W, f.height = H, f.colour = s.colour[size_t(t)].data(),
         f.motion = s.motion[size_t(t)].data();
         f.hasJitter = true, f.jitter[0] = s.jitter[size_t(t)][0], f.jitter[1] = s.jitter[size_t(t)][1];
+        f.depth = s.depth[size_t(t)].data(), f.previousDepth = s.previousDepth[size_t(t)].data();
         if (t == resetAt) filter.reset();
         outputs.emplace_back(size_t(W * H * 3));
         filter.apply(f, outputs.back().data());
@@ -83,8 +88,10 @@ INSTANTIATE_TEST_SUITE_P(SimdLevels, CnnTemporalLevels, ::testing::ValuesIn(test
                          testing::simdTestName);
 
 TEST_P(CnnTemporalLevels, TheFilterIsTrainingsUnrolledForward) {
-    for (int state : {1, 2, 0}) {
-        SCOPED_TRACE(state == 0 ? std::string("accumulate") : "state " + std::to_string(state));
+    for (int state : {1, 2, 0, -1}) {
+        SCOPED_TRACE(state == 0  ? std::string("accumulate")
+                     : state < 0 ? std::string("accumulate with depth")
+                                 : "state " + std::to_string(state));
         testing::TempDir dir;
         const std::string path = savedModel(dir, state);
         const Sequence s = makeSequence();
@@ -97,6 +104,9 @@ TEST_P(CnnTemporalLevels, TheFilterIsTrainingsUnrolledForward) {
             data::SequenceFrame f;
             f.colour = nn::Tensor({1, 3, H, W}), f.truth = nn::Tensor({1, 3, H, W}),
             f.motion = nn::Tensor({1, 2, H, W});
+            f.depth = nn::Tensor({1, 1, H, W}), f.previousDepth = nn::Tensor({1, 1, H, W});
+            std::copy_n(s.depth[size_t(t)].data(), W * H, f.depth.data());
+            std::copy_n(s.previousDepth[size_t(t)].data(), W * H, f.previousDepth.data());
             for (int p = 0; p < W * H; ++p) {
                 for (int c = 0; c < 3; ++c)
                     f.colour.data()[c * W * H + p] = s.colour[size_t(t)][size_t(p * 3 + c)];
@@ -130,18 +140,24 @@ TEST_P(CnnTemporalLevels, TheFilterIsTrainingsUnrolledForward) {
 // the frame padded by repeating its edges (to 40 x 24), cropped: the same bytes as filtering that padded
 // sequence.
 TEST(CnnTemporal, AnySizeIsTheEdgePaddedFrameCropped) {
-    for (int state : {1, 0}) {
-        SCOPED_TRACE(state == 0 ? "accumulate" : "temporal");
+    for (int state : {1, 0, -1}) {
+        SCOPED_TRACE(state == 0 ? "accumulate" : state < 0 ? "accumulate with depth" : "temporal");
         testing::TempDir dir;
         const std::string path = savedModel(dir, state);
         const Sequence s = makeSequence();
         constexpr int w = 37, h = 21;
         Sequence cropped, padded = s;
         for (int t = 0; t < K; ++t) {
-            std::vector<float> c(size_t(w * h * 3)), m(size_t(w * h * 2));
+            std::vector<float> c(size_t(w * h * 3)), m(size_t(w * h * 2)), d(size_t(w * h)), e(d.size());
             for (int y = 0; y < H; ++y)
                 for (int x = 0; x < W; ++x) {
                     const int sy = std::min(y, h - 1), sx = std::min(x, w - 1);
+                    padded.depth[size_t(t)][size_t(y * W + x)] = s.depth[size_t(t)][size_t(sy * W + sx)];
+                    padded.previousDepth[size_t(t)][size_t(y * W + x)] =
+                        s.previousDepth[size_t(t)][size_t(sy * W + sx)];
+                    if (y < h && x < w)
+                        d[size_t(y * w + x)] = s.depth[size_t(t)][size_t(y * W + x)],
+                                         e[size_t(y * w + x)] = s.previousDepth[size_t(t)][size_t(y * W + x)];
                     for (int k = 0; k < 3; ++k) {
                         padded.colour[size_t(t)][size_t((y * W + x) * 3 + k)] =
                             s.colour[size_t(t)][size_t((sy * W + sx) * 3 + k)];
@@ -154,6 +170,7 @@ TEST(CnnTemporal, AnySizeIsTheEdgePaddedFrameCropped) {
                 }
             cropped.colour.push_back(c), cropped.motion.push_back(m),
                 cropped.jitter.push_back(s.jitter[size_t(t)]);
+            cropped.depth.push_back(d), cropped.previousDepth.push_back(e);
         }
         const auto reference =
             runFilter(*makeFilter("cnn-temporal", {{"model", path}, {"precision", "fp32"}}), padded);
@@ -162,6 +179,8 @@ TEST(CnnTemporal, AnySizeIsTheEdgePaddedFrameCropped) {
             Frame f;
             f.width = w, f.height = h, f.colour = cropped.colour[size_t(t)].data(),
             f.motion = cropped.motion[size_t(t)].data();
+            f.depth = cropped.depth[size_t(t)].data(),
+            f.previousDepth = cropped.previousDepth[size_t(t)].data();
             f.hasJitter = true, f.jitter[0] = s.jitter[size_t(t)][0], f.jitter[1] = s.jitter[size_t(t)][1];
             std::vector<float> out(size_t(w * h * 3));
             filter->apply(f, out.data());
