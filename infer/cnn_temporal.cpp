@@ -95,7 +95,8 @@ class CnnTemporalFilter final : public Filter {
         }
         nn::Model trunk = nn::Model::fromArchitecture(
             {{"name", "temporal-trunk"},
-             {"input_channels", 3 + (3 + options.state) + 2 + (options.depthInput ? 2 : 0)},
+             {"input_channels",
+              3 + (3 + options.state) + 2 + (family == "accumulate" ? 2 : 0) + (options.depthInput ? 2 : 0)},
              {"init", a.value("init", "he_normal")},
              {"nodes", nodes},
              {"output", "head"}});
@@ -185,6 +186,8 @@ class CnnTemporalFilter final : public Filter {
     struct InputRows final : nn::InputRowSource {
         CnnTemporalFilter* self = nullptr;
         float jitter[2] = {0, 0};
+        const float* motion = nullptr;  // interleaved, of the padded size
+        bool fresh = false;
         void row(int64_t, int64_t y, float* const* channels) override {
             const CnnTemporalFilter& f = *self;
             const int64_t W = f.paddedWidth_, plane = W * f.paddedHeight_;
@@ -192,9 +195,16 @@ class CnnTemporalFilter final : public Filter {
             for (int c = 0; c < 3; ++c) std::copy_n(f.frame_.data() + c * plane + y * W, W, channels[c]);
             for (int c = 0; c < S; ++c) std::copy_n(f.warped_.data() + c * plane + y * W, W, channels[3 + c]);
             for (int k = 0; k < 2; ++k) std::fill_n(channels[3 + S + k], W, jitter[k]);
+            int next = 5 + S;
+            if (f.accumulate_) {  // the motion, clamped to +-4 px (0 where the history restarts)
+                const float* m = motion + y * W * 2;
+                for (int k = 0; k < 2; ++k, ++next)
+                    for (int64_t x = 0; x < W; ++x)
+                        channels[next][x] = fresh ? 0.0f : std::clamp(m[2 * x + k], -4.0f, 4.0f);
+            }
             if (f.depthInput_)  // the frame's depth and the previous frame's, warped
-                for (int k = 0; k < 2; ++k)
-                    std::copy_n(f.depth_.data() + k * plane + y * W, W, channels[5 + S + k]);
+                for (int k = 0; k < 2; ++k, ++next)
+                    std::copy_n(f.depth_.data() + k * plane + y * W, W, channels[next]);
         }
     };
 
@@ -204,7 +214,7 @@ class CnnTemporalFilter final : public Filter {
         const int64_t W = paddedWidth_, H = paddedHeight_, frameW = frame.width, frameH = frame.height;
         const int C = frame.channels, S = warpedChannels_;
         const int64_t plane = W * H;
-        const int inputs = 3 + S + 2 + (depthInput_ ? 2 : 0);
+        const int inputs = 3 + S + 2 + (accumulate_ ? 2 : 0) + (depthInput_ ? 2 : 0);
         const nn::Shape shape{1, inputs, H, W};
         const bool padded = W != frameW || H != frameH;
         if (!fused_ || fused_->inputShape() != shape) {
@@ -261,13 +271,14 @@ class CnnTemporalFilter final : public Filter {
         InputRows rows;
         rows.self = this, rows.jitter[0] = frame.hasJitter ? frame.jitter[0] : 0.0f;
         rows.jitter[1] = frame.hasJitter ? frame.jitter[1] : 0.0f;
+        rows.motion = padded ? motion_.data() : frame.motion, rows.fresh = fresh;
         BlendSink sink;
         sink.self = this, sink.frame = &frame, sink.out = out;
         if (fused_->canStreamInput()) {
             fused_->runStreamed(rows, sink, 0, (H + 1) / 2);
         } else {
             parallelFor(0, H, 16, [&](int64_t first, int64_t last) {
-                float* channels[3 + 4 + 2 + 2];
+                float* channels[3 + 4 + 2 + 2 + 2];
                 for (int64_t y = first; y < last; ++y) {
                     for (int c = 0; c < inputs; ++c) channels[c] = fused_->inputRow(0, c, y);
                     rows.row(0, y, channels);

@@ -347,7 +347,15 @@ nlohmann::json Model::builtinArchitecture(const std::string& name, const ModelOp
                          {"op", "warp"},
                          {"inputs", {"history", "motion"}},
                          {"filter", "catmull-rom"}});
-        json seen = {"frame", "warped", "jitter"};
+        // The motion too, clamped to +-4 px: where it is 0 the history is exact (no resampling), which the
+        // colours alone do not tell.
+        nodes.push_back({{"name", "motion_seen"},
+                         {"op", "activation"},
+                         {"inputs", {"motion"}},
+                         {"activation", "clamp"},
+                         {"low", -4.0},
+                         {"high", 4.0}});
+        json seen = {"frame", "warped", "jitter", "motion_seen"};
         if (options.depthInput) {
             // The frame's depth, and the previous frame's read where each pixel was (bilinear: no
             // overshoot across a silhouette): where they differ, the history saw another surface.
