@@ -105,7 +105,11 @@ void main() {
     outColour = vec4(lit, 1.0);
     outAlbedo = vec4(albedo, 1.0);
     outDepth = vViewDepth;
-    vec2 d = (vClip.xy / vClip.w - vPreviousClip.xy / vPreviousClip.w) * 0.5 * uViewport;
+    // A point that was not in front of the previous camera (a dolly backing past it) was not seen: its
+    // motion points off-screen, bounded (the previous place clamped to 3 half-viewports out), instead of
+    // the blow-up of a division by w near 0.
+    vec2 previous = vPreviousClip.w > 1e-4 ? clamp(vPreviousClip.xy / vPreviousClip.w, -3.0, 3.0) : vec2(3.0);
+    vec2 d = (vClip.xy / vClip.w - previous) * 0.5 * uViewport;
     outMotion = vec2(d.x, -d.y);
     outId = uId;
 }
