@@ -60,7 +60,7 @@ SEED_RECIPE = --arch seed2020 --families shapes --loss ssim --steps 16000 --batc
 	--uniform-patches 0.5 --eval-every 1000 --checkpoint-every 1000 --val-images 0 --threads 2
 FAST_RECIPE = --arch kpn:8x3 --loss '0.84*ssim+0.16*l1' --steps 24000 --batch 12 --patch 128 --lr 2e-3 \
 	--eval-every 1000 --checkpoint-every 1000 --val-images 48 --threads 2
-TEMPORAL_RECIPE = --arch accumulate:8x2+depth --steps 16000 --batch 8 --patch 64 --frames 8 --lr 2e-3 --warmup 300 \
+TEMPORAL_RECIPE = --arch accumulate:8x2+depth --steps 10000 --batch 8 --patch 64 --frames 8 --lr 2e-3 --warmup 300 \
 	--temporal-loss 0.2 --eval-every 1000 --checkpoint-every 1000 --threads 2
 models: dataset sequences
 	$(BUILD_DIR)/dejag train --data $(DATASET) --out $(RUNS)/seed2020-gray $(SEED_RECIPE) --resume

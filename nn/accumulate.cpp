@@ -103,8 +103,9 @@ void accumulateBackward(T* dimage, T* dlogits, T* dhistory, const T* dout, const
     if (dlogits || dhistory)
         forEachPixel(d, logits, [&](int64_t n, int64_t at, const T* w, const int64_t* offset) {
             const Parts p = parts(n, at);
-            // d/da = sum_c g_c (history_c - spatial_c) + k_c (history_c - sample_c), g and k the shown and
-            // kept colours' gradients; the spatial logits see (1 - a) g_c.
+            // With u_c = D(spatial_c) + a (h_c - D(spatial_c)) (shown = E(u)) and g, k the gradients of shown
+            // and kept: d/da = sum_c g_c E'(u_c) (h_c - D(spatial_c)) + k_c (h_c - D(image_c)); the spatial
+            // logits see g_c E'(u_c) (1 - a) D'(spatial_c) per colour.
             T da = 0, g[kMaxTaps] = {}, mean = 0;
             const T* go = dout + n * (2 * C + 1) * plane + at;
             for (int64_t c = 0; c < C; ++c) {
@@ -112,12 +113,13 @@ void accumulateBackward(T* dimage, T* dlogits, T* dhistory, const T* dout, const
                 const T gc = go[c * plane], kc = go[(C + c) * plane];
                 const T h = history[(n * (C + 1) + c) * plane + at];
                 T spatial = 0;
-                for (int64_t j = 0; j < taps; ++j) {
-                    spatial += w[j] * source[offset[j]];
-                    g[j] += (T(1) - p.a) * gc * source[offset[j]];
-                }
-                da += gc * (h - spatial) + kc * (h - source[at]);
-                if (dhistory) dhistory[(n * (C + 1) + c) * plane + at] += p.a * (gc + kc);
+                for (int64_t j = 0; j < taps; ++j) spatial += w[j] * source[offset[j]];
+                const T filtered = srgbDecode(spatial), own = srgbDecode(source[at]);
+                const T gu = gc * srgbEncodeSlope(filtered + p.a * (h - filtered));
+                const T dspatial = gu * (T(1) - p.a) * srgbDecodeSlope(spatial);
+                for (int64_t j = 0; j < taps; ++j) g[j] += dspatial * source[offset[j]];
+                da += gu * (h - filtered) + kc * (h - own);
+                if (dhistory) dhistory[(n * (C + 1) + c) * plane + at] += p.a * (gu + kc);
             }
             const T gs = go[2 * C * plane];
             const T dm =
@@ -134,11 +136,12 @@ void accumulateBackward(T* dimage, T* dlogits, T* dhistory, const T* dout, const
             }
         });
     if (dimage) {
-        // Each tap sends w_j (1 - a) g back to the pixel it read, and the kept colour (1 - a) k to the
-        // pixel's own; one thread per batch item, in a fixed order.
+        // Each tap sends w_j times the spatial colour's gradient back to the pixel it read, and the kept
+        // colour (1 - a) D'(image) k to the pixel's own; one thread per batch item, in a fixed order.
         parallelFor(0, d.batch, 1, [&](int64_t first, int64_t last) {
             for (int64_t n = first; n < last; ++n) {
                 const T* l = logits + n * count * plane;
+                const T* im = image + n * C * plane;
                 T* di = dimage + n * C * plane;
                 const T* go = dout + n * (2 * C + 1) * plane;
                 const int r = d.kernel / 2;
@@ -146,19 +149,27 @@ void accumulateBackward(T* dimage, T* dlogits, T* dhistory, const T* dout, const
                     for (int64_t x = 0; x < d.width; ++x) {
                         const int64_t at = y * d.width + x;
                         T w[kMaxTaps], largest = -INFINITY, sum = 0;
+                        int64_t offset[kMaxTaps];
                         for (int j = 0; j < taps; ++j) largest = std::max(largest, w[j] = l[j * plane + at]);
                         for (int j = 0; j < taps; ++j) sum += (w[j] = std::exp(w[j] - largest));
-                        const Parts p = parts(n, at);
                         for (int dy = -r, j = 0; dy <= r; ++dy)
-                            for (int dx = -r; dx <= r; ++dx, ++j) {
-                                const int64_t o = std::clamp<int64_t>(y + dy, 0, d.height - 1) * d.width +
-                                                  std::clamp<int64_t>(x + dx, 0, d.width - 1);
-                                const T weight = w[j] / sum * (T(1) - p.a);
-                                for (int64_t c = 0; c < C; ++c)
-                                    di[c * plane + o] += weight * go[c * plane + at];
-                            }
-                        for (int64_t c = 0; c < C; ++c)
-                            di[c * plane + at] += (T(1) - p.a) * go[(C + c) * plane + at];
+                            for (int dx = -r; dx <= r; ++dx, ++j)
+                                offset[j] = std::clamp<int64_t>(y + dy, 0, d.height - 1) * d.width +
+                                            std::clamp<int64_t>(x + dx, 0, d.width - 1);
+                        const Parts p = parts(n, at);
+                        for (int64_t c = 0; c < C; ++c) {
+                            const T* source = im + c * plane;
+                            const T h = history[(n * (C + 1) + c) * plane + at];
+                            T spatial = 0;
+                            for (int j = 0; j < taps; ++j) spatial += w[j] / sum * source[offset[j]];
+                            const T filtered = srgbDecode(spatial);
+                            const T gu =
+                                go[c * plane + at] * srgbEncodeSlope(filtered + p.a * (h - filtered));
+                            const T dspatial = gu * (T(1) - p.a) * srgbDecodeSlope(spatial);
+                            for (int j = 0; j < taps; ++j) di[c * plane + offset[j]] += w[j] / sum * dspatial;
+                            di[c * plane + at] +=
+                                (T(1) - p.a) * srgbDecodeSlope(source[at]) * go[(C + c) * plane + at];
+                        }
                     }
             }
         });

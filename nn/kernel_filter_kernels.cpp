@@ -5,6 +5,7 @@
 
 #include <algorithm>
 #include <cstring>
+#include <type_traits>
 
 #include "base/simd_vector.h"
 
@@ -45,6 +46,43 @@ inline V expNonPositive(V x) {
     p = p * r + 1.0f;
     const I exponent = (bitCast<I>(shifted) - bitCast<I>(magic) + 127) << 23;
     return p * bitCast<V>(exponent);
+}
+
+// x^p for x in [0, 1] and p > 0 (0 at 0), relative error about 1e-6: ln x from the exponent and the
+// mantissa m in [1, 2) (ln m = 2 atanh((m - 1) / (m + 1)), odd series to t^11), then expNonPositive.
+template <class V, class I>
+inline V powUnit(V x, float p) {
+    const I bits = bitCast<I>(x);
+    const I exponent = ((bits >> 23) & 0xff) - 127;
+    const V m = bitCast<V>((bits & 0x7fffff) | 0x3f800000);
+    const V t = (m - 1.0f) / (m + 1.0f), t2 = t * t;
+    V series = splat<V>(1.0f / 11.0f);
+    series = series * t2 + 1.0f / 9.0f;
+    series = series * t2 + 1.0f / 7.0f;
+    series = series * t2 + 1.0f / 5.0f;
+    series = series * t2 + 1.0f / 3.0f;
+    series = series * t2 + 1.0f;
+    V e;
+    if constexpr (std::is_same_v<V, float>)
+        e = float(exponent);
+    else
+        e = __builtin_convertvector(exponent, V);
+    const V log = e * 0.693147181f + 2.0f * t * series;
+    const V result = expNonPositive<V, I>(p * log);
+    return x > 0.0f ? result : splat<V>(0.0f);
+}
+// The sRGB curves on [0, 1] (clamped), as srgbDecode and srgbEncode of nn/layers.h.
+template <class V, class I>
+inline V decodeSrgb(V v) {
+    v = v < 0.0f ? splat<V>(0.0f) : v;
+    v = v > 1.0f ? splat<V>(1.0f) : v;
+    return v <= 0.04045f ? v * (1.0f / 12.92f) : powUnit<V, I>((v + 0.055f) * (1.0f / 1.055f), 2.4f);
+}
+template <class V, class I>
+inline V encodeSrgb(V x) {
+    x = x < 0.0f ? splat<V>(0.0f) : x;
+    x = x > 1.0f ? splat<V>(1.0f) : x;
+    return x <= 0.0031308f ? x * 12.92f : 1.055f * powUnit<V, I>(x, 1.0f / 2.4f) - 0.055f;
 }
 
 // The pixels from x (as many as V has lanes), all of whose taps x + dx lie in [0, width) unless `clampX`;
@@ -89,10 +127,10 @@ inline void filterPixels(const KernelFilterRowArgs& a, int64_t x, bool clampX) {
                 for (int dx = 0; dx < K; ++dx)
                     value = value + weight[dy * K + dx] * loadu<V>(row + column[dx]);
             }
-            const V spatial = value * scale, history = loadu<V>(a.history[c] + x);
-            const V sample = loadu<V>(a.in[c * K + kRadius] + x);
-            storeu(a.out[c] + x, spatial + historyWeight * (history - spatial));
-            storeu(a.kept[c] + x, sample + historyWeight * (history - sample));
+            const V filtered = decodeSrgb<V, I>(value * scale), history = loadu<V>(a.history[c] + x);
+            const V own = decodeSrgb<V, I>(loadu<V>(a.in[c * K + kRadius] + x));
+            storeu(a.out[c] + x, encodeSrgb<V, I>(filtered + historyWeight * (history - filtered)));
+            storeu(a.kept[c] + x, own + historyWeight * (history - own));
         }
         return;
     }

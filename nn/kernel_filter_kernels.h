@@ -24,8 +24,10 @@ struct KernelFilterRowArgs {
     // pass-through with a history.
     const float* const* history = nullptr;
     // Accumulate (null: off; needs a history, kernel 1 or 3): the row of accumulate (nn/layers.h). The
-    // logits' last row is then the trust, the softmax spans the kernel^2 taps only, `out` gets the colour
-    // shown, `kept` the colour kept, and `nextConfidence` s' from the history's `confidence`.
+    // logits' last row is then the trust, the softmax spans the kernel^2 taps only, the history's rows
+    // are in linear light, `out` gets the colour shown (sRGB-encoded), `kept` the colour kept (linear),
+    // and `nextConfidence` s' from the history's `confidence`. The sRGB curves by a polynomial logarithm
+    // and exponential: within 1e-6 of the reference.
     float* const* kept = nullptr;  // [C] rows
     const float* confidence = nullptr;
     float* nextConfidence = nullptr;

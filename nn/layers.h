@@ -204,20 +204,21 @@ void kernelFilterBackward(T* dinput,                    // (N, C, H, W) or null
                           const T* history = nullptr);  // (N, C, H, W) when d.history
 
 // ---- Accumulate (a TAA's blend with a sample count, the recurrent network's output) ---------------------
-// The history holds the running mean of the frames' own samples (colour) and a confidence s = n / (n + 1)
-// of the n samples in it (0: none). Per pixel, k^2 logits weigh the frame's k x k neighbourhood (a
-// softmax, as the kernel filter) and one more, the trust, keeps rho = min(1, 2 sigmoid(logit)) of the
-// history's samples (all of them from logit 0 up, so that a still view keeps every sample without a logit
-// driven to infinity). The frame shown is the mean of the kept samples with the filtered neighbourhood;
-// the next history is their mean with the frame's own sample, so what is kept is never blurred by the
-// filter, and a still view converges to the mean of its jittered samples as a TAA's history does:
+// The history holds the running mean of the frames' own samples in linear light (colour) and a confidence
+// s = n / (n + 1) of the n samples in it (0: none). Per pixel, k^2 logits weigh the frame's k x k
+// neighbourhood (a softmax of the sRGB-encoded colours, as the kernel filter) and one more, the trust,
+// keeps rho = min(1, 2 sigmoid(logit)) of the history's samples (all of them from logit 0 up, so that a
+// still view keeps every sample without a logit driven to infinity). The frame shown is the mean of the
+// kept samples with the filtered neighbourhood; the next history is their mean with the frame's own
+// sample, so what is kept is never blurred by the filter; and the means are taken in linear light, as the
+// truth's samples are averaged, so a still view converges to the truth of its jittered samples:
 //   spatial_c = sum_j softmax_j(logits) image_c(tap j)          n = s / (1 - s), s clamped to [0, N/(N+1)]
 //   m = rho n,  a = m / (1 + m)                                  (the history's weight)
-//   shown_c = spatial_c + a (history_c - spatial_c)
-//   kept_c  = image_c + a (history_c - image_c)                 (the pixel's own sample)
-//   s' = n' / (n' + 1),  n' = min(1 + m, N)
-// The output has 2 C + 1 channels: shown, kept and s' (the next frame's history is kept and s'). N is
-// `max_count`. docs/train.md derives it.
+//   shown_c = E(D(spatial_c) + a (history_c - D(spatial_c)))     D, E: sRGB decode, encode (clamped to [0,
+//   1]) kept_c  = D(image_c) + a (history_c - D(image_c))            (the pixel's own sample) s' = n' / (n' +
+//   1),  n' = min(1 + m, N)
+// The output has 2 C + 1 channels: shown (sRGB-encoded), kept (linear) and s' (the next frame's history
+// is kept and s'). N is `max_count`. docs/nn-kernels.md derives it.
 struct AccumulateDesc {
     int64_t batch = 1, channels = 3, height = 1, width = 1;  // channels: the image's (C)
     int kernel = 3;                                          // odd
@@ -238,10 +239,31 @@ void accumulateBackward(T* dimage,      // (N, C, H, W) or null
                         T* dhistory,    // (N, C + 1, H, W) or null
                         const T* dout,  // (N, 2 C + 1, H, W)
                         const T* image, const T* logits, const T* history, const AccumulateDesc& d);
+// The sRGB curves (IEC 61966-2-1) on [0, 1] (clamped) and their derivatives (0 outside).
+template <class T>
+inline T srgbDecode(T v) {
+    v = v < T(0) ? T(0) : (v > T(1) ? T(1) : v);
+    return v <= T(0.04045) ? v / T(12.92) : std::pow((v + T(0.055)) / T(1.055), T(2.4));
+}
+template <class T>
+inline T srgbDecodeSlope(T v) {
+    if (!(v > T(0) && v < T(1))) return T(0);
+    return v <= T(0.04045) ? T(1) / T(12.92)
+                           : T(2.4) / T(1.055) * std::pow((v + T(0.055)) / T(1.055), T(1.4));
+}
+template <class T>
+inline T srgbEncode(T x) {
+    x = x < T(0) ? T(0) : (x > T(1) ? T(1) : x);
+    return x <= T(0.0031308) ? x * T(12.92) : T(1.055) * std::pow(x, T(1) / T(2.4)) - T(0.055);
+}
+template <class T>
+inline T srgbEncodeSlope(T x) {
+    if (!(x > T(0) && x < T(1))) return T(0);
+    return x <= T(0.0031308) ? T(12.92) : T(1.055) / T(2.4) * std::pow(x, T(1) / T(2.4) - T(1));
+}
 // One pixel's blend: from the spatial filter's colours (summed with the softmax weights of the k^2
 // logits), the pixel's own sample, the history's colour and confidence and the trust logit, writes
-// shown[0 .. C) and kept[0 .. C) and returns s'. Shared by the reference, the inference plan and
-// cnn-temporal.
+// shown[0 .. C) and kept[0 .. C) and returns s'. The reference's and the inference plan's.
 template <class T>
 inline T accumulatePixel(T* shown, T* kept, const T* spatial, const T* sample, const T* history,
                          int64_t channels, T trustLogit, T confidence, T maxCount) {
@@ -250,8 +272,9 @@ inline T accumulatePixel(T* shown, T* kept, const T* spatial, const T* sample, c
     const T n = s / (T(1) - s), rho = std::min(T(1), T(2) / (T(1) + std::exp(-trustLogit))), m = rho * n;
     const T a = m / (T(1) + m);
     for (int64_t c = 0; c < channels; ++c) {
-        shown[c] = spatial[c] + a * (history[c] - spatial[c]);
-        kept[c] = sample[c] + a * (history[c] - sample[c]);
+        const T filtered = srgbDecode(spatial[c]), own = srgbDecode(sample[c]);
+        shown[c] = srgbEncode(filtered + a * (history[c] - filtered));
+        kept[c] = own + a * (history[c] - own);
     }
     const T next = std::min(T(1) + m, maxCount);
     return next / (next + T(1));

@@ -97,8 +97,8 @@ struct GraphNode {
 struct ModelOptions {
     int width = 16, depth = 3;  // the "fast" residual U-Net: first width (even), levels
     int channels = 3;
-    int state = 1;  // temporal: channels a frame passes to the next besides its RGB
-    float maxCount = 32.0f;  // accumulate: the most samples its history's mean holds
+    int state = 1;            // temporal: channels a frame passes to the next besides its RGB
+    float maxCount = 32.0f;   // accumulate: the most samples its history's mean holds
     bool depthInput = false;  // accumulate: the frame's depth and the previous frame's, warped, as inputs
 };
 

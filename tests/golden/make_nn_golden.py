@@ -148,8 +148,9 @@ def accumulate_case(name, n, c, h, w, k, max_count, confidence_high=1.0):
     """dejag's accumulate: the frame's k x k neighbourhood by the softmax of k^2 logits, blended with the
     history's colour by a = m / (1 + m), m = min(1, 2 sigmoid(last logit)) n, n = s / (1 - s) from the history's last
     channel s (clamped to [0, N / (N + 1)]); the history is blended the same way with the pixel's own
-    sample (the kept colour); the output is the shown colour, the kept colour and n' / (n' + 1),
-    n' = min(1 + m, N)."""
+    sample (the kept colour); the means in linear light (the history's colour is linear, the frame's
+    sRGB-encoded: decoded, and the shown colour encoded); the output is the shown colour, the kept colour
+    and n' / (n' + 1), n' = min(1 + m, N)."""
     inputs = {"input": f32(n, c, h, w, low=0.0, high=1.0),
               "logits": f32(n, k * k + 1, h, w, low=-2.0, high=2.0),
               "history": torch.cat([f32(n, c, h, w, low=0.0, high=1.0),
@@ -164,8 +165,17 @@ def accumulate_case(name, n, c, h, w, k, max_count, confidence_high=1.0):
         s = history[:, c:].clamp(0.0, max_count / (max_count + 1.0))
         m = torch.clamp(2 * torch.sigmoid(logits[:, k * k:]), max=1.0) * s / (1 - s)
         a = m / (1 + m)
-        shown = spatial + a * (history[:, :c] - spatial)
-        kept = input + a * (history[:, :c] - input)
+        def decode(v):
+            v = v.clamp(0.0, 1.0)
+            return torch.where(v <= 0.04045, v / 12.92, ((v + 0.055) / 1.055) ** 2.4)
+
+        def encode(x):
+            x = x.clamp(0.0, 1.0)
+            return torch.where(x <= 0.0031308, x * 12.92, 1.055 * x.clamp(min=1e-12) ** (1 / 2.4) - 0.055)
+
+        filtered, own = decode(spatial), decode(input)
+        shown = encode(filtered + a * (history[:, :c] - filtered))
+        kept = own + a * (history[:, :c] - own)
         count = torch.clamp(1 + m, max=max_count)
         return torch.cat([shown, kept, count / (count + 1)], dim=1)
 

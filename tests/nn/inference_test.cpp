@@ -462,7 +462,7 @@ TEST_P(Inference, RowRangesDecideAsTheFlatGroupTest) {
 
 // The row kernel's accumulate mode is accumulate's reference (nn/layers.h) on the middle row of a 3-row
 // image: confidences below 0, inside and past the clamp, trust logits either side of the kink (and 0),
-// kernels 1 and 3, widths that leave a vector tail.
+// kernels 1 and 3, widths that leave a vector tail (the sRGB curves within 5e-6).
 TEST_P(Inference, AccumulateRowMatchesTheReference) {
     Rng rng(43);
     for (int kernel : {1, 3})
@@ -499,9 +499,9 @@ TEST_P(Inference, AccumulateRowMatchesTheReference) {
             DEJAG_SIMD_CALL(kernelFilterRow, args);
             for (int64_t x = 0; x < width; ++x) {
                 for (int c = 0; c < 3; ++c) {
-                    ASSERT_NEAR(shown[size_t(c * width + x)], out[size_t(c * plane + width + x)], 2e-6)
+                    ASSERT_NEAR(shown[size_t(c * width + x)], out[size_t(c * plane + width + x)], 5e-6)
                         << "kernel " << kernel << " width " << width << " x " << x;
-                    ASSERT_NEAR(kept[size_t(c * width + x)], out[size_t((3 + c) * plane + width + x)], 2e-6)
+                    ASSERT_NEAR(kept[size_t(c * width + x)], out[size_t((3 + c) * plane + width + x)], 5e-6)
                         << "kernel " << kernel << " width " << width << " x " << x;
                 }
                 ASSERT_NEAR(next[size_t(x)], out[size_t(6 * plane + width + x)], 2e-6)

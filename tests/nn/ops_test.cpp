@@ -426,8 +426,8 @@ TEST(LayerHarness, EveryLayerFixtureIsACase) {
 }
 
 // The accumulate blend's invariants: on a still view with full trust the kept colour is the mean of every
-// sample so far (up to the cap, then a running mean with weight 1 / (N + 1)), the confidence counts them,
-// and no trust drops the history.
+// sample so far in linear light (up to the cap, then a running mean with weight 1 / (N + 1)), the confidence
+// counts them, and no trust drops the history.
 TEST(Accumulate, AStillViewWithFullTrustKeepsTheMeanOfItsSamples) {
     AccumulateDesc d;
     d.batch = 1, d.channels = 2, d.height = 3, d.width = 4, d.kernel = 3, d.maxCount = 8;
@@ -445,12 +445,14 @@ TEST(Accumulate, AStillViewWithFullTrustKeepsTheMeanOfItsSamples) {
             for (int64_t i = 0; i < 2 * plane; ++i) {
                 const double kept = out[size_t(2 * plane + i)];
                 if (trust < 0) {
-                    EXPECT_NEAR(kept, image[size_t(i)], 1e-12);  // nothing kept but the new sample
+                    EXPECT_NEAR(kept, srgbDecode(image[size_t(i)]),
+                                1e-12);  // nothing kept but the new sample
                     continue;
                 }
                 // Up to 8 samples the plain mean; after, each new one weighs 1 / 9 of what was kept.
-                sum[size_t(i)] = t <= 8 ? sum[size_t(i)] + image[size_t(i)]
-                                        : sum[size_t(i)] * 8.0 / 9.0 + image[size_t(i)] * 8.0 / 9.0;
+                const double linear = srgbDecode(image[size_t(i)]);
+                sum[size_t(i)] =
+                    t <= 8 ? sum[size_t(i)] + linear : sum[size_t(i)] * 8.0 / 9.0 + linear * 8.0 / 9.0;
                 EXPECT_NEAR(kept, sum[size_t(i)] / std::min(t, 8), 1e-12) << "frame " << t;
             }
             const double count = trust < 0 ? 1.0 : std::min(t, 8);
