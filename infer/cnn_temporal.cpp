@@ -48,9 +48,12 @@ class CnnTemporalFilter final : public Filter {
         for (const nlohmann::json& node : model_.architecture()["nodes"])
             if (node.value("name", "") == "blended") centreBias_ = node.value("centre_bias", 0.0f);
     }
-    BufferSet needs() const override {
-        return depthInput_ ? Buffer::Motion | Buffer::Depth | Buffer::PreviousDepth
-                           : unsigned(Buffer::Motion);
+    // A network that takes depth reads it where the frames have it (depth and previous depth); without, it
+    // sees both 0: no surface changed, the history judged by its colours alone.
+    BufferSet needs() const override { return unsigned(Buffer::Motion); }
+    BufferSet uses() const override {
+        return depthInput_ ? Buffer::Motion | Buffer::Depth | Buffer::PreviousDepth | Buffer::Jitter
+                           : Buffer::Motion | Buffer::Jitter;
     }
     bool temporal() const override { return true; }
     void reset() override { fresh_ = true; }
@@ -227,6 +230,7 @@ class CnnTemporalFilter final : public Filter {
             previousDepth_ = depthInput_ ? nn::Tensor({H, W, 4}) : nn::Tensor();
         }
         const bool fresh = fresh_;
+        const bool hasDepth = frame.depth && frame.previousDepth;
         // The frame as planes (and the motion padded).
         parallelFor(0, H, 16, [&](int64_t first, int64_t last) {
             for (int64_t y = first; y < last; ++y)
@@ -238,8 +242,8 @@ class CnnTemporalFilter final : public Filter {
                         motion_.data()[2 * p] = frame.motion[2 * q],
                                            motion_.data()[2 * p + 1] = frame.motion[2 * q + 1];
                     if (depthInput_)
-                        depth_.data()[p] = frame.depth[q],
-                        previousDepth_.data()[4 * p] = frame.previousDepth[q];
+                        depth_.data()[p] = hasDepth ? frame.depth[q] : 0.0f,
+                        previousDepth_.data()[4 * p] = hasDepth ? frame.previousDepth[q] : 0.0f;
                 }
         });
         if (depthInput_) {  // the previous frame's depth where each pixel was (where the history restarts,
@@ -309,6 +313,7 @@ class CnnTemporalFilter final : public Filter {
         const float* colour = frame.colour;
         const float* motion = frame.motion;
         const bool fresh = fresh_;
+        const bool hasDepth = frame.depth && frame.previousDepth;
         // The input planes: colour, history (the previous output, or the colour and zeros), motion (0
         // where the history restarts), jitter.
         parallelFor(0, H, 16, [&](int64_t first, int64_t last) {
@@ -329,9 +334,10 @@ class CnnTemporalFilter final : public Filter {
                     in[(5 + S) * plane + p] = frame.hasJitter ? frame.jitter[0] : 0.0f;
                     in[(6 + S) * plane + p] = frame.hasJitter ? frame.jitter[1] : 0.0f;
                     if (depthInput_)
-                        in[(7 + S) * plane + p] = frame.depth[p],
-                                             in[(8 + S) * plane + p] =
-                                                 fresh ? frame.depth[p] : frame.previousDepth[p];
+                        in[(7 + S) * plane + p] = hasDepth ? frame.depth[p] : 0.0f,
+                                             in[(8 + S) * plane + p] = !hasDepth ? 0.0f
+                                                                       : fresh   ? frame.depth[p]
+                                                                                 : frame.previousDepth[p];
                 }
         });
         const nn::Tensor& result = plan_->run(input_);

@@ -72,7 +72,8 @@ std::vector<std::vector<float>> runFilter(Filter& filter, const Sequence& s, int
         f.width = W, f.height = H, f.colour = s.colour[size_t(t)].data(),
         f.motion = s.motion[size_t(t)].data();
         f.hasJitter = true, f.jitter[0] = s.jitter[size_t(t)][0], f.jitter[1] = s.jitter[size_t(t)][1];
-        f.depth = s.depth[size_t(t)].data(), f.previousDepth = s.previousDepth[size_t(t)].data();
+        if (!s.depth[size_t(t)].empty())
+            f.depth = s.depth[size_t(t)].data(), f.previousDepth = s.previousDepth[size_t(t)].data();
         if (t == resetAt) filter.reset();
         outputs.emplace_back(size_t(W * H * 3));
         filter.apply(f, outputs.back().data());
@@ -192,6 +193,24 @@ TEST(CnnTemporal, AnySizeIsTheEdgePaddedFrameCropped) {
                             << "frame " << t << " at " << x << ", " << y;
         }
     }
+}
+
+// A network that takes depth runs on frames without it, as on frames whose depth and previous depth are 0.
+TEST(CnnTemporal, ADepthNetworkWithoutDepthSeesZeros) {
+    testing::TempDir dir;
+    const std::string path = savedModel(dir, -1);
+    Sequence s = makeSequence(), zeros = s;
+    for (auto& d : zeros.depth) std::fill(d.begin(), d.end(), 0.0f);
+    for (auto& d : zeros.previousDepth) std::fill(d.begin(), d.end(), 0.0f);
+    const auto filter = makeFilter("cnn-temporal", {{"model", path}, {"precision", "fp32"}});
+    EXPECT_EQ(filter->needs(), unsigned(Buffer::Motion));
+    EXPECT_TRUE(contains(filter->uses(), Buffer::Depth) && contains(filter->uses(), Buffer::PreviousDepth));
+    for (auto& d : s.depth) d.clear();
+    for (auto& d : s.previousDepth) d.clear();  // no depth
+    const auto without = runFilter(*filter, s);
+    const auto withZeros =
+        runFilter(*makeFilter("cnn-temporal", {{"model", path}, {"precision", "fp32"}}), zeros);
+    EXPECT_EQ(without, withZeros);
 }
 
 TEST(CnnTemporal, ACutStartsTheHistoryOverAndThreadsChangeNothing) {
