@@ -388,6 +388,7 @@ MethodSpec cnnTemporalMethod() {
         {"precision", "auto", "fp32 | bf16 (AVX-512 BF16 CPUs) | auto (bf16 where the CPU has it)"},
     };
     spec.needs = unsigned(Buffer::Motion);
+    spec.optional = Buffer::Depth | Buffer::PreviousDepth | Buffer::Jitter;  // depth: for a network that reads it
     spec.temporal = true;
     spec.make = [](MethodParameters& p) -> std::unique_ptr<Filter> {
         const nn::InferencePrecision precision = cnnPrecision(p.text("precision"));
