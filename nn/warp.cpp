@@ -5,9 +5,11 @@
 #include <string>
 
 #include "base/error.h"
+#include "base/simd.h"
 #include "base/thread_pool.h"
 #include "nn/blocked.h"
 #include "nn/layers.h"
+#include "nn/warp_kernels.h"
 
 namespace dejag::nn {
 namespace {
@@ -271,48 +273,14 @@ void warpInterleaved(float* const* out, const float* image, const float* motion,
                      int64_t height, int channels, WarpFilter filter) {
     if (channels < 1 || channels > 4 || width < 1 || height < 1)
         throw Error("warp: 1..4 interleaved channels");
-    typedef float V4 __attribute__((vector_size(16)));
-    const int k = filter == WarpFilter::Bilinear ? 2 : 4;
-    const float a = filter == WarpFilter::CatmullRom ? -0.5f : -0.75f;
-    // taps() without the derivatives, inlined.
-    struct Weights {
-        int64_t first;
-        float w[4];
-    };
-    auto weights = [filter, a](float s) {
-        Weights t;
-        const float base = std::floor(s), f = s - base;
-        if (filter == WarpFilter::Bilinear) {
-            t.first = int64_t(base), t.w[0] = 1 - f, t.w[1] = f, t.w[2] = t.w[3] = 0;
-            return t;
-        }
-        t.first = int64_t(base) - 1;
-        t.w[0] = cubicFar(1 + f, a), t.w[1] = cubicNear(f, a), t.w[2] = cubicNear(1 - f, a);
-        t.w[3] = cubicFar(2 - f, a);
-        return t;
-    };
+    WarpRowsArgs args;
+    args.out = out, args.image = image, args.motion = motion, args.width = width, args.height = height;
+    args.channels = channels, args.taps = filter == WarpFilter::Bilinear ? 2 : 4;
+    args.a = filter == WarpFilter::CatmullRom ? -0.5f : -0.75f;
     parallelFor(0, height, 4, [&](int64_t first, int64_t last) {
-        for (int64_t y = first; y < last; ++y)
-            for (int64_t x = 0; x < width; ++x) {
-                const int64_t p = y * width + x;
-                float sx = float(x) - motion[2 * p], sy = float(y) - motion[2 * p + 1];
-                clampPlace(sx, sy, width, height);
-                const Weights tx = weights(sx), ty = weights(sy);
-                int64_t column[4];
-                for (int i = 0; i < k; ++i) column[i] = std::clamp<int64_t>(tx.first + i, 0, width - 1) * 4;
-                V4 sum = {0, 0, 0, 0};
-                for (int j = 0; j < k; ++j) {
-                    const float* row = image + std::clamp<int64_t>(ty.first + j, 0, height - 1) * width * 4;
-                    V4 rowSum = {0, 0, 0, 0};
-                    for (int i = 0; i < k; ++i) {
-                        V4 tap;
-                        std::memcpy(&tap, row + column[i], sizeof(tap));
-                        rowSum += tx.w[i] * tap;
-                    }
-                    sum += ty.w[j] * rowSum;
-                }
-                for (int c = 0; c < channels; ++c) out[c][p] = sum[c];
-            }
+        WarpRowsArgs band = args;
+        band.firstRow = first, band.lastRow = last;
+        DEJAG_SIMD_CALL(warpInterleavedRows, band);
     });
 }
 

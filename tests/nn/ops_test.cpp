@@ -537,10 +537,14 @@ TEST(Warp, WholePixelsCopyConstantsStayAndRampsAreExact) {
     EXPECT_THROW(parseWarpFilter("lanczos"), Error);
 }
 
-// The inference warp (4 floats a pixel in, planes out) is the layer's forward on the same image: every
-// filter, motion reaching across the borders, a NaN and a huge motion among it; 1 to 4 channels.
-TEST(Warp, TheInterleavedWarpIsTheLayersForward) {
-    const int H = 13, W = 17;
+// The inference warp (4 floats a pixel in, planes out) is the layer's forward on the same image at every
+// SIMD level: every filter, pixels whose taps lie inside and pixels whose taps cross the borders, a NaN
+// and a huge motion among the motion; 1 to 4 channels.
+class WarpLevels : public testing::SimdLevelTest {};
+INSTANTIATE_TEST_SUITE_P(SimdLevels, WarpLevels, ::testing::ValuesIn(testing::availableSimdLevels()),
+                         testing::simdTestName);
+TEST_P(WarpLevels, TheInterleavedWarpIsTheLayersForward) {
+    const int H = 19, W = 37;
     std::mt19937 rng(8);
     std::uniform_real_distribution<float> u(-1, 1), m(-6, 6);
     std::vector<float> interleaved(size_t(H * W * 4)), motionPairs(size_t(H * W * 2));
