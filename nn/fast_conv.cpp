@@ -179,7 +179,7 @@ void BlockedConv::setInputBlock(int inputBlock, int64_t inChannels) {
     inputBlock_ = inputBlock == 0 ? block_ : inputBlock;
     if (inputBlock_ != block_ && inputBlock_ != 1)
         throw Error("BlockedConv: the input block is the SIMD width or 1, not " + std::to_string(inputBlock));
-    if (inputBlock_ == 1 && block_ != 1 && inChannels > 8)
+    if (inputBlock_ == 1 && block_ != 1 && inChannels > 16)
         throw Error("BlockedConv: a planar (block 1) input is for a few channels, not " +
                     std::to_string(inChannels));
 }

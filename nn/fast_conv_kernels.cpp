@@ -374,7 +374,7 @@ void wideRows(const ConvRowsArgs& a) {
 constexpr int kPlanarOutChannels = 8;
 
 bool planarStride2Applies(const ConvRowsArgs& a) {
-    return !a.pool2x2 && !a.inBf16 && a.inShape.block == 1 && a.inShape.channels <= 4 &&
+    return !a.pool2x2 && !a.inBf16 && a.inShape.block == 1 && a.inShape.channels <= 16 &&
            a.pass.inStepX == 2 && a.outShape.block == B && a.outShape.channels <= kPlanarOutChannels &&
            a.outBlockBegin == 0 && a.outBlockEnd == 1;
 }

@@ -87,7 +87,7 @@ void fuseKernelHead(const PlanGraph& g, KernelOutput& k) {
 
 bool planarInput(const PlanGraph& g, const std::optional<ResidualOutput>& residual,
                  const std::optional<KernelOutput>& kernel) {
-    if (g.input[1] > 4) return false;
+    if (g.input[1] > 16) return false;
     for (int i = 0; i < g.size(); ++i)
         for (int source : g.node(i).inputs)
             if (source < 0 && !g.isConvolution(i) && !(residual && i == residual->add) &&

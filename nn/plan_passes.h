@@ -88,7 +88,7 @@ std::optional<KernelOutput> fuseKernelOutput(const PlanGraph& g);
 void fuseKernelHead(const PlanGraph& g, KernelOutput& kernel);
 
 // ---- Keep the input planar ----------------------------------------------------------------------------
-// True when the input has at most 4 channels and only convolutions and the fused output stages read it.
+// True when the input has at most 16 channels and only convolutions and the fused output stages read it.
 bool planarInput(const PlanGraph& g, const std::optional<ResidualOutput>& residual,
                  const std::optional<KernelOutput>& kernel);
 

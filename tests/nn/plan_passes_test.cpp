@@ -111,6 +111,17 @@ TEST(PlanPasses, TheKernelOutputAndItsHeadAreFusedWithTheHeadsWeightsByRowPhase)
     EXPECT_FALSE(planarInput(PlanGraph(wide, {1, 5, 16, 20}), std::nullopt, std::nullopt));
 }
 
+// An input read by convolutions only is planar up to 16 channels (a temporal network's trunk takes 13 to
+// 15), blocked beyond.
+TEST(PlanPasses, AnInputOfUpTo16ChannelsReadByConvolutionsIsPlanar) {
+    const json nodes = json::array({conv("down", "input", 8, 3, 2), conv("more", "down", 4)});
+    for (int channels : {3, 13, 16})
+        EXPECT_TRUE(planarInput(PlanGraph(modelOf(nodes, channels), {1, channels, 16, 20}), std::nullopt,
+                                std::nullopt))
+            << channels;
+    EXPECT_FALSE(planarInput(PlanGraph(modelOf(nodes, 17), {1, 17, 16, 20}), std::nullopt, std::nullopt));
+}
+
 // A U-Net's last level: concat(encoder, shuffle(coarse)) read by a convolution.
 json concatNodes(bool convFirst, bool encoderAlsoPooled = false) {
     json nodes = json::array({conv("enc", "input", 8), conv("down", "enc", 8, 3, 2),
