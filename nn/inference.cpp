@@ -1190,7 +1190,19 @@ void InferencePlan::Impl::finish(const float* planes, OutputRowSink* sink, int64
         });
         return;
     }
-    fromBlocked(m.output.data(), m.data(m.outputStep), m.steps[size_t(m.outputStep)].shape);
+    const BlockedShape& os = m.steps[size_t(m.outputStep)].shape;
+    if (sink &&
+        sink->takesStridedRows()) {  // the rows as the arena holds them: lane c % block of block c / block
+        const float* out = m.data(m.outputStep);
+        forEachOutputRow([&](int64_t part, int64_t n, int64_t y) {
+            const float** channels = m.rowPointers.data() + part * C;
+            for (int64_t c = 0; c < C; ++c)
+                channels[c] = out + os.offset(n, c / os.block, y, 0) + c % os.block;
+            sink->rowStrided(n, y, channels, os.block);
+        });
+        return;
+    }
+    fromBlocked(m.output.data(), m.data(m.outputStep), os);
     if (sink) forEachOutputRow([&](int64_t part, int64_t n, int64_t y) { deliver(part, n, y, true); });
 }
 

@@ -46,6 +46,14 @@ class OutputRowSink {
         (void)n, (void)y;
         return false;
     }
+    // A sink that takes a network's output rows as the plan holds them (a network whose output stage is a
+    // layer of its own: not a kernel-predicting or residual output) returns true here, and is then
+    // called on rowStrided() and never on row(): channel c's pixel x at channels[c][x * stride], with no
+    // conversion of the whole output first.
+    virtual bool takesStridedRows() const { return false; }
+    virtual void rowStrided(int64_t n, int64_t y, const float* const* channels, int64_t stride) {
+        (void)n, (void)y, (void)channels, (void)stride;
+    }
 
   protected:
     ~OutputRowSink() = default;

@@ -101,6 +101,16 @@ struct CollectedRows final : OutputRowSink {
         for (int64_t c = 0; c < C; ++c) std::copy_n(channels[c], W, rows.data() + ((n * C + c) * H + y) * W);
         ++deliveries[size_t(n * H + y)];  // rows come once each: no two threads share an element
     }
+    // Asks for the rows as the plan holds them (OutputRowSink::takesStridedRows).
+    bool strided = false;
+    bool takesStridedRows() const override { return strided; }
+    void rowStrided(int64_t n, int64_t y, const float* const* channels, int64_t stride) override {
+        const int64_t C = rows.shape()[1], H = rows.shape()[2], W = rows.shape()[3];
+        for (int64_t c = 0; c < C; ++c)
+            for (int64_t x = 0; x < W; ++x)
+                rows.data()[((n * C + c) * H + y) * W + x] = channels[c][x * stride];
+        ++deliveries[size_t(n * H + y)];
+    }
 };
 
 // The rows [first, last) of every image equal want's bit for bit, each delivered once; no other row.
@@ -140,13 +150,23 @@ struct TensorRows final : InputRowSource {
 void expectInPlaceRunMatchesRun(InferencePlan& plan, const Tensor& input, int64_t first, int64_t last) {
     const Tensor want = plan.run(input).clone();
     const Shape& s = input.shape();
-    for (int64_t n = 0; n < s[0]; ++n)
-        for (int64_t c = 0; c < s[1]; ++c)
-            for (int64_t y = 0; y < s[2]; ++y)
-                std::copy_n(input.data() + ((n * s[1] + c) * s[2] + y) * s[3], s[3], plan.inputRow(n, c, y));
+    auto writeInput = [&] {  // (a run may reuse the input's memory)
+        for (int64_t n = 0; n < s[0]; ++n)
+            for (int64_t c = 0; c < s[1]; ++c)
+                for (int64_t y = 0; y < s[2]; ++y)
+                    std::copy_n(input.data() + ((n * s[1] + c) * s[2] + y) * s[3], s[3],
+                                plan.inputRow(n, c, y));
+    };
+    writeInput();
     CollectedRows inPlace(want.shape());
     plan.runInPlace(inPlace, first, last);
     expectRowsMatch(inPlace, want, first, last);
+    // A sink taking the rows as the plan holds them gets the same values.
+    writeInput();
+    CollectedRows stridedRows(want.shape());
+    stridedRows.strided = true;
+    plan.runInPlace(stridedRows, first, last);
+    expectRowsMatch(stridedRows, want, first, last);
     // Streamed (the input's rows asked for as the first layers and the output stage need them).
     TensorRows source(input);
     if (plan.canStreamInput()) {
