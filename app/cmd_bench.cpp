@@ -407,7 +407,7 @@ void registerBenchCommand(CLI::App& app) {
         int truth = 128, frames = 64, ghostFrames = 100, ghostTruth = 32, movingFrames = 40;
         bool noGhosting = false, noMoving = false, json = false, noUnjitter = false;
         std::string truthSpace = "linear";
-        std::vector<std::string> settings, scenes, movingScenes;
+        std::vector<std::string> settings, temporalSettings, scenes, movingScenes;
         std::string temporalModel = "models/dejag-temporal.safetensors",
                     fastModel = "models/dejag-fast.safetensors";
         double jitterSpread = 1.7;
@@ -452,6 +452,8 @@ void registerBenchCommand(CLI::App& app) {
         ->capture_default_str();
     taaBench->add_option("--set", taaArgs->settings,
                          "a parameter of taa-hq, NAME=VALUE (dejag filter --list-methods)");
+    taaBench->add_option("--temporal-set", taaArgs->temporalSettings,
+                         "a parameter of dejag-temporal's cnn-temporal, NAME=VALUE (e.g. gate=off)");
     taaBench
         ->add_option("--scenes", taaArgs->scenes,
                      "only these scenes (e.g. flowers, or 'pipe tilted'), in every test that has them")
@@ -503,6 +505,12 @@ void registerBenchCommand(CLI::App& app) {
         options.temporalModel =
             model(taaArgs->temporalModel, "--temporal-model", "models/dejag-temporal.safetensors");
         options.fastModel = model(taaArgs->fastModel, "--fast-model", "models/dejag-fast.safetensors");
+        for (const std::string& setting : taaArgs->temporalSettings) options.temporal.setAssignment(setting);
+        if (!options.temporalModel.empty()) {  // an unknown or out-of-range setting: one line, now
+            infer::FilterParameters check = options.temporal;
+            check.setAssignment("model=" + options.temporalModel);
+            infer::makeFilter("cnn-temporal", check);
+        }
         options.jitterSpread = taaArgs->jitterSpread;
         options.ghostWidth = ghost.width, options.ghostHeight = ghost.height;
         options.ghostFrames = taaArgs->ghostFrames, options.ghostTruthSamples = taaArgs->ghostTruth;

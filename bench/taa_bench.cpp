@@ -42,8 +42,11 @@ struct Taas {
         thesis("u-taa", "taa", true), thesis("t-taa", "taa-sobel", true);
         thesis("u-taa unsharpened", "taa", false), thesis("t-taa unsharpened", "taa-sobel", false);
         add("taa-hq", infer::makeFilter("taa-hq", options.taaHq));
-        if (!options.temporalModel.empty())
-            add("dejag-temporal", infer::makeFilter("cnn-temporal", {{"model", options.temporalModel}}));
+        if (!options.temporalModel.empty()) {
+            infer::FilterParameters parameters = options.temporal;
+            parameters.setAssignment("model=" + options.temporalModel);
+            add("dejag-temporal", infer::makeFilter("cnn-temporal", parameters));
+        }
         outputs.resize(filters.size());
     }
     void add(const char* name, std::unique_ptr<infer::Filter> filter) {

@@ -36,7 +36,8 @@ struct TaaBenchOptions {
     // The networks, compared when their model files are given: the temporal one (cnn-temporal) as a TAA,
     // the single-frame one (cnn) on each jittered frame.
     std::string temporalModel, fastModel;
-    double jitterSpread = 1.7;  // the frames' Halton jitter: the offsets' spread in pixels
+    infer::FilterParameters temporal;  // cnn-temporal's other parameters (dejag bench taa --temporal-set)
+    double jitterSpread = 1.7;         // the frames' Halton jitter: the offsets' spread in pixels
     // Only these scenes (a static label such as "pipe tilted", or a scene such as "flowers", which
     // names it in every test); empty: all.
     std::vector<std::string> scenes;

@@ -1,9 +1,13 @@
 #include "infer/cnn_temporal.h"
 
 #include <algorithm>
+#include <cmath>
+#include <cstdint>
+#include <cstdlib>
 #include <cstring>
 #include <optional>
 #include <string>
+#include <vector>
 
 #include "base/error.h"
 #include "base/simd.h"
@@ -29,7 +33,10 @@ using nn::blendRow;
 
 class CnnTemporalFilter final : public Filter {
   public:
-    CnnTemporalFilter(nn::Model model, nn::InferencePrecision precision, const std::string& path)
+    // still: the trust at or above which the accumulate family's pixel whose 3x3 neighbourhood does not
+    // move keeps the whole history (a negative value: never).
+    CnnTemporalFilter(nn::Model model, nn::InferencePrecision precision, const std::string& path,
+                      float stillTrust = -1.0f, const std::string& gate = "off")
         : Filter("cnn-temporal"), model_(std::move(model)), precision_(precision) {
         history_ = model_.outputChannels();
         depthInput_ = model_.inputChannels() == 3 + history_ + 6;
@@ -39,7 +46,7 @@ class CnnTemporalFilter final : public Filter {
                         std::to_string(model_.outputChannels()) +
                         " (a recurrent network returning 3 + S takes 3 + (3 + S) + 2 + 2, or 2 more with "
                         "depth)");
-        figures_.settings = {{"model", path}, {"precision", precisionName(precision)}};
+        figures_.settings = {{"model", path}, {"precision", precisionName(precision)}, {"gate", gate}};
         accumulate_ = model_.architecture().value("name", "") == "accumulate";
         trunk_ = builtinTrunk(model_);
         if (trunk_) multiple_ = int64_t(1) << model_.architecture()["family"]["depth"].get<int>();
@@ -47,6 +54,9 @@ class CnnTemporalFilter final : public Filter {
         if (accumulate_ && trunk_) maxCount_ = model_.architecture()["family"].value("max_count", 32.0f);
         for (const nlohmann::json& node : model_.architecture()["nodes"])
             if (node.value("name", "") == "blended") centreBias_ = node.value("centre_bias", 0.0f);
+        // ρ = min(1, 2 σ(l)) >= τ where l >= log(τ / (2 - τ)).
+        if (accumulate_ && trunk_ && stillTrust >= 0.0f)
+            stillLogit_ = stillTrust <= 0.0f ? -INFINITY : std::log(stillTrust / (2.0f - stillTrust));
     }
     // A network that takes depth reads it where the frames have it (depth and previous depth); without, it
     // sees both 0: no surface changed, the history judged by its colours alone.
@@ -116,7 +126,14 @@ class CnnTemporalFilter final : public Filter {
         CnnTemporalFilter* self = nullptr;
         const Frame* frame = nullptr;
         float* out = nullptr;
-        void row(int64_t, int64_t y2, const float* const* head) override {
+        void row(int64_t, int64_t y2, const float* const* head) override { blend(y2, head, 1); }
+        // The head's rows as the plan holds them (blocked): no conversion of the whole head first.
+        bool takesStridedRows() const override { return true; }
+        void rowStrided(int64_t, int64_t y2, const float* const* head, int64_t stride) override {
+            blend(y2, head, stride);
+        }
+        // Head channel c's value at s is head[c][s * stride].
+        void blend(int64_t y2, const float* const* head, int64_t stride) {
             CnnTemporalFilter& f = *self;
             // The planes are of the padded size (W, H); the frame's own size is (frameW, frameH).
             const int64_t W = f.paddedWidth_, H = f.paddedHeight_, plane = W * H;
@@ -132,8 +149,10 @@ class CnnTemporalFilter final : public Filter {
                     const float* even = head[4 * k + 2 * dy];
                     const float* odd = head[4 * k + 2 * dy + 1];
                     float* l = logits.data() + k * W;
-                    for (int64_t s = 0; s < W / 2; ++s) l[2 * s] = even[s], l[2 * s + 1] = odd[s];
+                    for (int64_t s = 0; s < W / 2; ++s)
+                        l[2 * s] = even[s * stride], l[2 * s + 1] = odd[s * stride];
                 }
+                if (f.gateStill_) f.liftStillTrust(y, logits.data() + 9 * W);
                 const float* in[9];
                 const float* history[3];
                 float* rgb[3];
@@ -170,8 +189,8 @@ class CnnTemporalFilter final : public Filter {
                     const float* odd = head[4 * 10 + 2 * dy + 1];
                     const float* warped = f.warped_.data() + 3 * plane + y * W;
                     for (int64_t s2 = 0; s2 < W / 2; ++s2) {  // (W is even: a multiple of the coarsest scale)
-                        next[8 * s2 + 3] = warped[2 * s2] + even[s2];
-                        next[8 * s2 + 7] = warped[2 * s2 + 1] + odd[s2];
+                        next[8 * s2 + 3] = warped[2 * s2] + even[s2 * stride];
+                        next[8 * s2 + 7] = warped[2 * s2 + 1] + odd[s2 * stride];
                     }
                 }
                 if (y >= frameH) continue;
@@ -184,6 +203,24 @@ class CnnTemporalFilter final : public Filter {
             }
         }
     };
+
+    // The still gate (accumulate family): where the pixel and its 8 neighbours do not move and the network
+    // trusts the history at least τ, the trust is lifted to full, so a still view keeps its running mean
+    // of up to max_count samples (training's sequences are too short to teach trust beyond a few frames;
+    // docs/infer.md). moving_ marks the pixels whose motion exceeds kStillMotion.
+    static constexpr float kStillMotion = 1e-3f;
+    void liftStillTrust(int64_t y, float* trust) const {
+        const int64_t W = paddedWidth_, H = paddedHeight_;
+        const uint8_t* rows[3];
+        for (int d = -1; d <= 1; ++d) rows[d + 1] = moving_.data() + std::clamp<int64_t>(y + d, 0, H - 1) * W;
+        for (int64_t x = 0; x < W; ++x) {
+            const int64_t left = std::max<int64_t>(x - 1, 0), right = std::min<int64_t>(x + 1, W - 1);
+            uint8_t moving = 0;
+            for (const uint8_t* r : rows) moving |= r[left] | r[x] | r[right];
+            if (!moving && trust[x] >= *stillLogit_) trust[x] = kFullTrust;
+        }
+    }
+    static constexpr float kFullTrust = 40.0f;  // 2 σ(40) rounds to 2: ρ = 1
 
     // The trunk's input rows from the frame's and the warped history's planes.
     struct InputRows final : nn::InputRowSource {
@@ -228,8 +265,10 @@ class CnnTemporalFilter final : public Filter {
             // 4 floats a pixel for the interleaved warp.
             depth_ = depthInput_ ? nn::Tensor({2, H, W}) : nn::Tensor();
             previousDepth_ = depthInput_ ? nn::Tensor({H, W, 4}) : nn::Tensor();
+            moving_.assign(stillLogit_ ? size_t(plane) : 0, 0);
         }
         const bool fresh = fresh_;
+        gateStill_ = stillLogit_.has_value() && !fresh;
         const bool hasDepth = frame.depth && frame.previousDepth;
         // The frame as planes (and the motion padded).
         parallelFor(0, H, 16, [&](int64_t first, int64_t last) {
@@ -241,6 +280,11 @@ class CnnTemporalFilter final : public Filter {
                     if (padded)
                         motion_.data()[2 * p] = frame.motion[2 * q],
                                            motion_.data()[2 * p + 1] = frame.motion[2 * q + 1];
+                    if (!moving_.empty()) {
+                        const float mx = frame.motion[2 * q], my = frame.motion[2 * q + 1];
+                        moving_[size_t(p)] =
+                            !(std::fabs(mx) <= kStillMotion && std::fabs(my) <= kStillMotion);
+                    }
                     if (depthInput_)
                         depth_.data()[p] = hasDepth ? frame.depth[q] : 0.0f,
                         previousDepth_.data()[4 * p] = hasDepth ? frame.previousDepth[q] : 0.0f;
@@ -373,6 +417,9 @@ class CnnTemporalFilter final : public Filter {
     float maxCount_ = 32.0f;
     bool depthInput_ = false;           // the model takes depth and previous depth (accumulate +depth)
     nn::Tensor depth_, previousDepth_;  // the fused path's (padded)
+    std::optional<float> stillLogit_;   // the still gate's trust logit (none: off)
+    bool gateStill_ = false;            // this frame's
+    std::vector<uint8_t> moving_;       // the still gate's: 1 where a pixel moves (padded)
 };
 
 }  // namespace
@@ -386,16 +433,32 @@ MethodSpec cnnTemporalMethod() {
     spec.parameters = {
         {"model", "models/dejag-temporal.safetensors", "the model file (a temporal network)"},
         {"precision", "auto", "fp32 | bf16 (AVX-512 BF16 CPUs) | auto (bf16 where the CPU has it)"},
+        {"gate", "auto",
+         "off | auto (0.5) | T: where nothing moves in a pixel's 3x3 neighbourhood and the network trusts "
+         "the "
+         "history at least T in [0, 1], keep all of it (accumulate networks)"},
     };
     spec.needs = unsigned(Buffer::Motion);
-    spec.optional = Buffer::Depth | Buffer::PreviousDepth | Buffer::Jitter;  // depth: for a network that reads it
+    spec.optional =
+        Buffer::Depth | Buffer::PreviousDepth | Buffer::Jitter;  // depth: for a network that reads it
     spec.temporal = true;
     spec.make = [](MethodParameters& p) -> std::unique_ptr<Filter> {
         const nn::InferencePrecision precision = cnnPrecision(p.text("precision"));
         const std::string path = p.path("model");
+        const std::string gate = p.text("gate");
+        float stillTrust = -1.0f;
+        if (gate == "auto") {
+            stillTrust = 0.5f;
+        } else if (gate != "off") {
+            char* end = nullptr;
+            const double t = std::strtod(gate.c_str(), &end);
+            if (gate.empty() || *end != '\0' || !(t >= 0 && t <= 1))
+                throw Error(p.origin("gate") + ": '" + gate + "' is not off, auto or a trust in [0, 1]");
+            stillTrust = float(t);
+        }
         nn::Model model = nn::loadModel(path);
         try {
-            return std::make_unique<CnnTemporalFilter>(std::move(model), precision, path);
+            return std::make_unique<CnnTemporalFilter>(std::move(model), precision, path, stillTrust, gate);
         } catch (const Error& e) {
             throw Error("--model '" + path + "': " + e.what());
         }

@@ -6,6 +6,7 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <random>
 #include <string>
@@ -96,7 +97,9 @@ TEST_P(CnnTemporalLevels, TheFilterIsTrainingsUnrolledForward) {
         testing::TempDir dir;
         const std::string path = savedModel(dir, state);
         const Sequence s = makeSequence();
-        const auto filter = makeFilter("cnn-temporal", {{"model", path}, {"precision", "fp32"}});
+        // (The still gate is the filter's own, off here, though nothing here is still.)
+        const auto filter =
+            makeFilter("cnn-temporal", {{"model", path}, {"precision", "fp32"}, {"gate", "off"}});
         EXPECT_TRUE(filter->temporal());
         const auto outputs = runFilter(*filter, s);
         // Training's view of the same frames: a batch of one whole sequence.
@@ -247,6 +250,45 @@ TEST(CnnTemporal, ACutStartsTheHistoryOverAndThreadsChangeNothing) {
     const auto single = runFilter(*makeFilter("cnn-temporal", {{"model", path}, {"precision", "fp32"}}), s);
     setThreadCount(threads);
     EXPECT_EQ(single, whole);
+}
+
+// The still gate: where nothing moves, a network that trusts its history enough keeps all of it. On a
+// still flat view whose colour changes every frame (so the neighbourhood filter is the colour itself),
+// gate 0 shows the exact running mean of the frames in linear light; the network alone does not; and
+// where every pixel moves the gate changes nothing.
+TEST(CnnTemporal, TheStillGateKeepsTheWholeHistoryWhereNothingMoves) {
+    testing::TempDir dir;
+    const std::string path = savedModel(dir, 0);
+    auto decode = [](double v) { return v <= 0.04045 ? v / 12.92 : std::pow((v + 0.055) / 1.055, 2.4); };
+    auto encode = [](double v) { return v <= 0.0031308 ? 12.92 * v : 1.055 * std::pow(v, 1 / 2.4) - 0.055; };
+    Sequence still = makeSequence();
+    for (int t = 0; t < K; ++t) {
+        for (size_t i = 0; i < still.colour[size_t(t)].size(); ++i)
+            still.colour[size_t(t)][i] = float(0.2 + 0.17 * ((t * 5 + int(i % 3) * 3) % 4));
+        std::fill(still.motion[size_t(t)].begin(), still.motion[size_t(t)].end(), 0.0f);
+    }
+    const auto gated = runFilter(
+        *makeFilter("cnn-temporal", {{"model", path}, {"precision", "fp32"}, {"gate", "0"}}), still);
+    const auto ungated = runFilter(
+        *makeFilter("cnn-temporal", {{"model", path}, {"precision", "fp32"}, {"gate", "off"}}), still);
+    double worstGated = 0, worstUngated = 0;
+    for (int t = 0; t < K; ++t)
+        for (size_t i = 0; i < gated[size_t(t)].size(); ++i) {
+            double mean = 0;
+            for (int u = 0; u <= t; ++u) mean += decode(still.colour[size_t(u)][i]) / (t + 1);
+            worstGated = std::max(worstGated, std::fabs(gated[size_t(t)][i] - encode(mean)));
+            worstUngated = std::max(worstUngated, std::fabs(ungated[size_t(t)][i] - encode(mean)));
+        }
+    EXPECT_LT(worstGated, 2e-5);
+    EXPECT_GT(worstUngated, 1e-3);  // the network alone trusts less somewhere
+    const Sequence moving = makeSequence();
+    EXPECT_EQ(
+        runFilter(*makeFilter("cnn-temporal", {{"model", path}, {"precision", "fp32"}, {"gate", "0"}}),
+                  moving),
+        runFilter(*makeFilter("cnn-temporal", {{"model", path}, {"precision", "fp32"}, {"gate", "off"}}),
+                  moving));
+    for (const char* bad : {"1.5", "-0.1", "half", ""})
+        EXPECT_THROW((void)makeFilter("cnn-temporal", {{"model", path}, {"gate", bad}}), Error) << bad;
 }
 
 TEST(CnnTemporal, ASingleFrameModelOrMissingMotionIsOneClearError) {
