@@ -97,8 +97,9 @@ void registerTrainCommand(CLI::App& app) {
             "seed2020 | fast | fast:WIDTHxDEPTH (the fast family at another size, e.g. fast:12x3) | "
             "kpn | kpn:WIDTHxDEPTH (fast's trunk predicting a 3x3 kernel per pixel) | temporal | "
             "temporal:WIDTHxDEPTH (recurrent; trains on a dataset of sequences) | accumulate | "
-            "accumulate:WIDTHxDEPTH[+depth] (recurrent, blending as a TAA's running mean; +depth: the "
-            "depth buffers as inputs) | FILE.json")
+            "accumulate:WIDTHxDEPTH[+depth][+clip] (recurrent, blending as a TAA's running mean; +depth: "
+            "the depth buffers as inputs; +clip: the history clamped to the frame's neighbourhood) | "
+            "FILE.json")
         ->capture_default_str();
     trainCommand->add_option("--out", config->out, "run folder (checkpoints, logs, plots)");
     trainCommand

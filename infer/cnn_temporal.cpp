@@ -33,10 +33,11 @@ using nn::blendRow;
 
 class CnnTemporalFilter final : public Filter {
   public:
-    // still: the trust at or above which the accumulate family's pixel whose 3x3 neighbourhood does not
-    // move keeps the whole history (a negative value: never).
+    // stillTrust: the trust at or above which the accumulate family's pixel whose 3x3 neighbourhood does
+    // not move keeps the whole history (a negative value: never). clip: "auto" (the model's), "on", "off".
     CnnTemporalFilter(nn::Model model, nn::InferencePrecision precision, const std::string& path,
-                      float stillTrust = -1.0f, const std::string& gate = "off")
+                      float stillTrust = -1.0f, const std::string& gate = "off",
+                      const std::string& clip = "auto")
         : Filter("cnn-temporal"), model_(std::move(model)), precision_(precision) {
         history_ = model_.outputChannels();
         depthInput_ = model_.inputChannels() == 3 + history_ + 6;
@@ -57,6 +58,11 @@ class CnnTemporalFilter final : public Filter {
         // ρ = min(1, 2 σ(l)) >= τ where l >= log(τ / (2 - τ)).
         if (accumulate_ && trunk_ && stillTrust >= 0.0f)
             stillLogit_ = stillTrust <= 0.0f ? -INFINITY : std::log(stillTrust / (2.0f - stillTrust));
+        const bool modelClips = accumulate_ && model_.architecture()["family"].value("clip", false);
+        clip_ = clip == "on" || (clip == "auto" && modelClips);
+        if (clip != "auto" && clip_ != modelClips && !(accumulate_ && trunk_))
+            throw Error("clip=" + clip + " is for a network of the built-in accumulate family");
+        figures_.settings.push_back({"clip", clip_ ? "on" : "off"});
     }
     // A network that takes depth reads it where the frames have it (depth and previous depth); without, it
     // sees both 0: no surface changed, the history judged by its colours alone.
@@ -87,6 +93,7 @@ class CnnTemporalFilter final : public Filter {
         options.state = family == "accumulate" ? 1 : a["family"].value("state", -1);
         options.maxCount = a["family"].value("max_count", 32.0f);
         options.depthInput = a["family"].value("depth_input", false);
+        options.clip = a["family"].value("clip", false);
         nlohmann::json builtin;
         try {
             builtin = nn::Model::builtinArchitecture(family, options);
@@ -139,7 +146,7 @@ class CnnTemporalFilter final : public Filter {
             const int64_t W = f.paddedWidth_, H = f.paddedHeight_, plane = W * H;
             const int64_t frameW = f.width_, frameH = f.height_;
             const int S = f.history_ - 3, C = frame->channels;
-            thread_local std::vector<float> logits, blended, kept;
+            thread_local std::vector<float> logits, blended, kept, stillRow;
             logits.resize(size_t(10 * W)), blended.resize(size_t(3 * W)), kept.resize(size_t(4 * W));
             for (int dy = 0; dy < 2; ++dy) {
                 const int64_t y = 2 * y2 + dy;
@@ -152,7 +159,6 @@ class CnnTemporalFilter final : public Filter {
                     for (int64_t s = 0; s < W / 2; ++s)
                         l[2 * s] = even[s * stride], l[2 * s + 1] = odd[s * stride];
                 }
-                if (f.gateStill_) f.liftStillTrust(y, logits.data() + 9 * W);
                 const float* in[9];
                 const float* history[3];
                 float* rgb[3];
@@ -172,6 +178,13 @@ class CnnTemporalFilter final : public Filter {
                     for (int c = 0; c < 3; ++c) keptRows[c] = kept.data() + c * W;
                     args.kept = keptRows, args.confidence = f.warped_.data() + 3 * plane + y * W;
                     args.nextConfidence = kept.data() + 3 * W, args.maxCount = f.maxCount_;
+                    args.clip = f.clip_;
+                    if (f.gateStill_) {
+                        stillRow.resize(size_t(W));
+                        f.stillRow(y, stillRow.data());
+                        args.still = stillRow.data(), args.stillLogit = *f.stillLogit_;
+                        args.stillTolerance = kStillTolerance;
+                    }
                 }
                 blendRow(args);
                 // The next history, interleaved: the blend's RGB and the warped state plus its correction;
@@ -204,12 +217,15 @@ class CnnTemporalFilter final : public Filter {
         }
     };
 
-    // The still gate (accumulate family): where the pixel and its 8 neighbours do not move and the network
-    // trusts the history at least τ, the trust is lifted to full, so a still view keeps its running mean
-    // of up to max_count samples (training's sequences are too short to teach trust beyond a few frames;
-    // docs/infer.md). moving_ marks the pixels whose motion exceeds kStillMotion.
-    static constexpr float kStillMotion = 1e-3f;
-    void liftStillTrust(int64_t y, float* trust) const {
+    // The still gate (accumulate family): where the pixel and its 8 neighbours do not move, the network
+    // trusts the history at least τ and the history's colours lie within the frame's 3x3 range (widened by
+    // kStillTolerance, linear), the pixel keeps its whole history (full trust, no clip), so a still view
+    // keeps its running mean of up to max_count samples (training's sequences are too short to teach trust
+    // beyond a few frames; docs/infer.md). The range test sends back to the network a still pixel whose
+    // light changed. The row kernel decides; this marks the pixels whose neighbourhood does not move
+    // (moving_: the pixels whose motion exceeds kStillMotion).
+    static constexpr float kStillMotion = 1e-3f, kStillTolerance = 2.0f / 255.0f;
+    void stillRow(int64_t y, float* still) const {
         const int64_t W = paddedWidth_, H = paddedHeight_;
         const uint8_t* rows[3];
         for (int d = -1; d <= 1; ++d) rows[d + 1] = moving_.data() + std::clamp<int64_t>(y + d, 0, H - 1) * W;
@@ -217,10 +233,9 @@ class CnnTemporalFilter final : public Filter {
             const int64_t left = std::max<int64_t>(x - 1, 0), right = std::min<int64_t>(x + 1, W - 1);
             uint8_t moving = 0;
             for (const uint8_t* r : rows) moving |= r[left] | r[x] | r[right];
-            if (!moving && trust[x] >= *stillLogit_) trust[x] = kFullTrust;
+            still[x] = moving ? 0.0f : 1.0f;
         }
     }
-    static constexpr float kFullTrust = 40.0f;  // 2 σ(40) rounds to 2: ρ = 1
 
     // The trunk's input rows from the frame's and the warped history's planes.
     struct InputRows final : nn::InputRowSource {
@@ -419,7 +434,8 @@ class CnnTemporalFilter final : public Filter {
     nn::Tensor depth_, previousDepth_;  // the fused path's (padded)
     std::optional<float> stillLogit_;   // the still gate's trust logit (none: off)
     bool gateStill_ = false;            // this frame's
-    std::vector<uint8_t> moving_;       // the still gate's: 1 where a pixel moves (padded)
+    bool clip_ = false;            // the history clamped to the frame's 3x3 range (the model's, or forced)
+    std::vector<uint8_t> moving_;  // the still gate's: 1 where a pixel moves (padded)
 };
 
 }  // namespace
@@ -434,9 +450,12 @@ MethodSpec cnnTemporalMethod() {
         {"model", "models/dejag-temporal.safetensors", "the model file (a temporal network)"},
         {"precision", "auto", "fp32 | bf16 (AVX-512 BF16 CPUs) | auto (bf16 where the CPU has it)"},
         {"gate", "auto",
-         "off | auto (0.5) | T: where nothing moves in a pixel's 3x3 neighbourhood and the network trusts "
-         "the "
-         "history at least T in [0, 1], keep all of it (accumulate networks)"},
+         "off | auto (0.5) | T: where nothing moves in a pixel's 3x3 neighbourhood, the network trusts the "
+         "history at least T in [0, 1] and the history lies within the frame's 3x3 range, keep all of it "
+         "(accumulate networks)"},
+        {"clip", "auto",
+         "auto (as the network was trained) | on | off: clamp the history to the frame's 3x3 range "
+         "(accumulate networks)"},
     };
     spec.needs = unsigned(Buffer::Motion);
     spec.optional =
@@ -456,9 +475,13 @@ MethodSpec cnnTemporalMethod() {
                 throw Error(p.origin("gate") + ": '" + gate + "' is not off, auto or a trust in [0, 1]");
             stillTrust = float(t);
         }
+        const std::string clip = p.text("clip");
+        if (clip != "auto" && clip != "on" && clip != "off")
+            throw Error(p.origin("clip") + ": '" + clip + "' is not auto, on or off");
         nn::Model model = nn::loadModel(path);
         try {
-            return std::make_unique<CnnTemporalFilter>(std::move(model), precision, path, stillTrust, gate);
+            return std::make_unique<CnnTemporalFilter>(std::move(model), precision, path, stillTrust, gate,
+                                                       clip);
         } catch (const Error& e) {
             throw Error("--model '" + path + "': " + e.what());
         }

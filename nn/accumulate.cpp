@@ -40,6 +40,20 @@ void forEachPixel(const AccumulateDesc& d, const T* logits, const F& body) {
     });
 }
 
+// The history's colour h clamped to [D(min), D(max)] of the taps' samples; bound: the tap whose sample
+// bounds it (the first in tap order), -1 inside the range.
+template <class T>
+T clipToTaps(T h, const T* source, const int64_t* offset, int64_t taps, int& bound) {
+    int low = 0, high = 0;
+    for (int j = 1; j < taps; ++j) {
+        if (source[offset[j]] < source[offset[low]]) low = j;
+        if (source[offset[j]] > source[offset[high]]) high = j;
+    }
+    const T lo = srgbDecode(source[offset[low]]), hi = srgbDecode(source[offset[high]]);
+    bound = h < lo ? low : h > hi ? high : -1;
+    return h < lo ? lo : h > hi ? hi : h;
+}
+
 }  // namespace
 
 void AccumulateDesc::validate() const {
@@ -65,6 +79,8 @@ void accumulateForward(T* out, const T* image, const T* logits, const T* history
             spatial[c] = sum;
             sample[c] = source[at];
             hist[c] = history[(n * (C + 1) + c) * plane + at];
+            int bound;
+            if (d.clip) hist[c] = clipToTaps(hist[c], source, offset, taps, bound);
         }
         const T trust = logits[(n * (taps + 1) + taps) * plane + at];
         const T s = accumulatePixel(shown, kept, spatial, sample, hist, C, trust,
@@ -111,7 +127,9 @@ void accumulateBackward(T* dimage, T* dlogits, T* dhistory, const T* dout, const
             for (int64_t c = 0; c < C; ++c) {
                 const T* source = image + (n * C + c) * plane;
                 const T gc = go[c * plane], kc = go[(C + c) * plane];
-                const T h = history[(n * (C + 1) + c) * plane + at];
+                int bound = -1;
+                T h = history[(n * (C + 1) + c) * plane + at];
+                if (d.clip) h = clipToTaps(h, source, offset, taps, bound);
                 T spatial = 0;
                 for (int64_t j = 0; j < taps; ++j) spatial += w[j] * source[offset[j]];
                 const T filtered = srgbDecode(spatial), own = srgbDecode(source[at]);
@@ -119,7 +137,7 @@ void accumulateBackward(T* dimage, T* dlogits, T* dhistory, const T* dout, const
                 const T dspatial = gu * (T(1) - p.a) * srgbDecodeSlope(spatial);
                 for (int64_t j = 0; j < taps; ++j) g[j] += dspatial * source[offset[j]];
                 da += gu * (h - filtered) + kc * (h - own);
-                if (dhistory) dhistory[(n * (C + 1) + c) * plane + at] += p.a * (gu + kc);
+                if (dhistory && bound < 0) dhistory[(n * (C + 1) + c) * plane + at] += p.a * (gu + kc);
             }
             const T gs = go[2 * C * plane];
             const T dm =
@@ -159,7 +177,9 @@ void accumulateBackward(T* dimage, T* dlogits, T* dhistory, const T* dout, const
                         const Parts p = parts(n, at);
                         for (int64_t c = 0; c < C; ++c) {
                             const T* source = im + c * plane;
-                            const T h = history[(n * (C + 1) + c) * plane + at];
+                            int bound = -1;
+                            T h = history[(n * (C + 1) + c) * plane + at];
+                            if (d.clip) h = clipToTaps(h, source, offset, taps, bound);
                             T spatial = 0;
                             for (int j = 0; j < taps; ++j) spatial += w[j] / sum * source[offset[j]];
                             const T filtered = srgbDecode(spatial);
@@ -169,6 +189,9 @@ void accumulateBackward(T* dimage, T* dlogits, T* dhistory, const T* dout, const
                             for (int j = 0; j < taps; ++j) di[c * plane + offset[j]] += w[j] / sum * dspatial;
                             di[c * plane + at] +=
                                 (T(1) - p.a) * srgbDecodeSlope(source[at]) * go[(C + c) * plane + at];
+                            if (bound >= 0)  // the clipped history is the bounding tap's decoded sample
+                                di[c * plane + offset[bound]] += p.a * (gu + go[(C + c) * plane + at]) *
+                                                                 srgbDecodeSlope(source[offset[bound]]);
                         }
                     }
             }

@@ -167,7 +167,7 @@ void blockedKernelFilter(float* out, const BlockedShape& os, const float* in, co
 // The accumulate blend (nn/layers.h) between blocked tensors, a pixel at a time.
 void blockedAccumulate(float* out, const BlockedShape& os, const float* in, const BlockedShape& is,
                        const float* logits, const BlockedShape& ls, const float* history,
-                       const BlockedShape& hs, int kernel, float maxCount) {
+                       const BlockedShape& hs, int kernel, float maxCount, bool clip) {
     const int r = kernel / 2, taps = kernel * kernel;
     const int64_t C = is.channels;
     parallelFor(0, os.batch * os.height, 0, [&](int64_t first, int64_t last) {
@@ -181,15 +181,18 @@ void blockedAccumulate(float* out, const BlockedShape& os, const float* in, cons
                 for (int j = 0; j < taps; ++j) sum += (w[j] = std::exp(w[j] - largest));
                 for (int j = 0; j < taps; ++j) w[j] /= sum;
                 for (int64_t c = 0; c < C; ++c) {
-                    float value = 0;
+                    float value = 0, low = INFINITY, high = -INFINITY;
                     for (int dy = -r, j = 0; dy <= r; ++dy)
-                        for (int dx = -r; dx <= r; ++dx, ++j)
-                            value +=
-                                w[j] * element(in, is, n, c, std::clamp<int64_t>(y + dy, 0, is.height - 1),
-                                               std::clamp<int64_t>(x + dx, 0, is.width - 1));
+                        for (int dx = -r; dx <= r; ++dx, ++j) {
+                            const float tap =
+                                element(in, is, n, c, std::clamp<int64_t>(y + dy, 0, is.height - 1),
+                                        std::clamp<int64_t>(x + dx, 0, is.width - 1));
+                            value += w[j] * tap, low = std::min(low, tap), high = std::max(high, tap);
+                        }
                     spatial[c] = value;
                     sample[c] = element(in, is, n, c, y, x);
                     hist[c] = element(history, hs, n, c, y, x);
+                    if (clip) hist[c] = std::clamp(hist[c], srgbDecode(low), srgbDecode(high));
                 }
                 const float s =
                     accumulatePixel(shown, kept, spatial, sample, hist, C, element(logits, ls, n, taps, y, x),
@@ -923,7 +926,7 @@ void InferencePlan::Impl::runSteps(InputRowSource* streamed) {
                 break;
             case GraphOp::Accumulate:
                 blockedAccumulate(out, os, in, is, m.data(n.inputs[1]), m.shape(n.inputs[1]),
-                                  m.data(n.inputs[2]), m.shape(n.inputs[2]), n.kernel, n.maxCount);
+                                  m.data(n.inputs[2]), m.shape(n.inputs[2]), n.kernel, n.maxCount, n.clip);
                 break;
             case GraphOp::Count:
                 break;

@@ -108,11 +108,47 @@ inline void filterPixels(const KernelFilterRowArgs& a, int64_t x, bool clampX) {
     if constexpr (Accumulate) {
         // a = m / (1 + m), m = rho n, n = s / (1 - s), rho = min(1, 2 sigmoid(trust)) = 1 from trust 0 up
         // and 2 e^t / (1 + e^t) below; s' = n' / (n' + 1), n' = min(1 + m, N).
+        constexpr int kMaxChannels = 4;
         const float maxConfidence = a.maxCount / (a.maxCount + 1.0f);
         V s = loadu<V>(a.confidence + x);
         s = s < 0.0f ? splat<V>(0.0f) : s;
         s = s > maxConfidence ? splat<V>(maxConfidence) : s;
-        const V trust = loadu<V>(a.logits + kTaps * a.width + x);
+        V trust = loadu<V>(a.logits + kTaps * a.width + x);
+        // Per colour: the filtered value, the taps' range decoded (for the clip and the gate) and the
+        // history.
+        V filtered[kMaxChannels], low[kMaxChannels], high[kMaxChannels], history[kMaxChannels];
+        const bool ranges = a.clip || a.still;
+        for (int c = 0; c < a.channels; ++c) {
+            V value = splat<V>(0.0f), lo = splat<V>(3.4e38f), hi = splat<V>(-3.4e38f);
+            for (int dy = 0; dy < K; ++dy) {
+                const float* row = a.in[c * K + dy];
+                for (int dx = 0; dx < K; ++dx) {
+                    const V tap = loadu<V>(row + column[dx]);
+                    value = value + weight[dy * K + dx] * tap;
+                    if (ranges) lo = tap < lo ? tap : lo, hi = tap > hi ? tap : hi;
+                }
+            }
+            filtered[c] = decodeSrgb<V, I>(value * scale), history[c] = loadu<V>(a.history[c] + x);
+            if (ranges) low[c] = decodeSrgb<V, I>(lo), high[c] = decodeSrgb<V, I>(hi);
+        }
+        // The still gate: full trust and the history whole where nothing moves, the network trusts the
+        // history enough and the history's colours lie within the taps' range (widened).
+        V gated = splat<V>(0.0f);
+        if (a.still) {
+            V keep = loadu<V>(a.still + x) > 0.5f && trust >= a.stillLogit ? splat<V>(1.0f) : splat<V>(0.0f);
+            for (int c = 0; c < a.channels; ++c)
+                keep = history[c] >= low[c] - a.stillTolerance && history[c] <= high[c] + a.stillTolerance
+                           ? keep
+                           : splat<V>(0.0f);
+            gated = keep;
+            trust = gated > 0.5f ? splat<V>(0.0f) : trust;  // rho = 1 from 0 up
+        }
+        if (a.clip)
+            for (int c = 0; c < a.channels; ++c) {
+                V clipped = history[c] < low[c] ? low[c] : history[c];
+                clipped = clipped > high[c] ? high[c] : clipped;
+                history[c] = gated > 0.5f ? history[c] : clipped;
+            }
         const V e = expNonPositive<V, I>(trust < 0.0f ? trust : splat<V>(0.0f));
         const V rho = trust < 0.0f ? 2.0f * e / (1.0f + e) : splat<V>(1.0f);
         const V m = rho * (s / (1.0f - s));
@@ -121,16 +157,9 @@ inline void filterPixels(const KernelFilterRowArgs& a, int64_t x, bool clampX) {
         next = next < a.maxCount ? next : splat<V>(a.maxCount);
         storeu(a.nextConfidence + x, next / (next + 1.0f));
         for (int c = 0; c < a.channels; ++c) {
-            V value = splat<V>(0.0f);
-            for (int dy = 0; dy < K; ++dy) {
-                const float* row = a.in[c * K + dy];
-                for (int dx = 0; dx < K; ++dx)
-                    value = value + weight[dy * K + dx] * loadu<V>(row + column[dx]);
-            }
-            const V filtered = decodeSrgb<V, I>(value * scale), history = loadu<V>(a.history[c] + x);
             const V own = decodeSrgb<V, I>(loadu<V>(a.in[c * K + kRadius] + x));
-            storeu(a.out[c] + x, encodeSrgb<V, I>(filtered + historyWeight * (history - filtered)));
-            storeu(a.kept[c] + x, own + historyWeight * (history - own));
+            storeu(a.out[c] + x, encodeSrgb<V, I>(filtered[c] + historyWeight * (history[c] - filtered[c])));
+            storeu(a.kept[c] + x, own + historyWeight * (history[c] - own));
         }
         return;
     }

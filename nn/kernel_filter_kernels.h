@@ -32,6 +32,13 @@ struct KernelFilterRowArgs {
     const float* confidence = nullptr;
     float* nextConfidence = nullptr;
     float maxCount = 32.0f;
+    bool clip = false;  // accumulate's clip: the history clamped to the taps' range (AccumulateDesc::clip)
+    // The still gate (null: off; accumulate, kernel 3, at most 4 channels): where still[x] is 1 (nothing
+    // moves around the pixel), the trust logit is at least stillLogit and the history's every colour lies
+    // within the taps' range widened by stillTolerance (linear), the pixel keeps its whole history: full
+    // trust (rho = 1) and no clip.
+    const float* still = nullptr;
+    float stillLogit = 0.0f, stillTolerance = 0.0f;
 };
 
 // Output columns per pass-through group.

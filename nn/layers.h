@@ -223,6 +223,11 @@ struct AccumulateDesc {
     int64_t batch = 1, channels = 3, height = 1, width = 1;  // channels: the image's (C)
     int kernel = 3;                                          // odd
     float maxCount = 32.0f;                                  // N >= 1
+    // Clip: the history's colour is first clamped to the range of the frame's k x k neighbourhood (per
+    // channel, the taps' own samples decoded: [D(min), D(max)]), a TAA's neighbourhood clamp; what it
+    // removes is a colour the neighbourhood cannot hold. Its gradient goes to the history inside the range
+    // and to the bounding tap's sample (the first in tap order) outside.
+    bool clip = false;
 
     int64_t taps() const { return int64_t(kernel) * kernel; }
     void validate() const;

@@ -377,8 +377,10 @@ nlohmann::json Model::builtinArchitecture(const std::string& name, const ModelOp
                          {"inputs", {"frame", "shuffle", "warped"}},
                          {"kernel", 3},
                          {"max_count", options.maxCount}});
+        if (options.clip) nodes.back()["clip"] = true;
         json family = {{"width", w}, {"depth", levels}, {"max_count", options.maxCount}};
         if (options.depthInput) family["depth_input"] = true;
+        if (options.clip) family["clip"] = true;
         return {
             {"name", "accumulate"},
             {"input_channels", options.depthInput ? 16 : 14},

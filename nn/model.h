@@ -83,6 +83,7 @@ struct GraphNode {
     int sliceFrom = 0, sliceTo = 0;                // slice: channels [from, to)
     WarpFilter warpFilter = WarpFilter::Bilinear;  // warp
     float maxCount = 32.0f;                        // accumulate
+    bool clip = false;                             // accumulate: the history clamped to the neighbourhood
     int64_t weightOffset = -1, biasOffset = -1;    // into the flat parameter buffer
 
     // Layer descriptors for an input of shape (N, C, H, W).
@@ -100,6 +101,7 @@ struct ModelOptions {
     int state = 1;            // temporal: channels a frame passes to the next besides its RGB
     float maxCount = 32.0f;   // accumulate: the most samples its history's mean holds
     bool depthInput = false;  // accumulate: the frame's depth and the previous frame's, warped, as inputs
+    bool clip = false;        // accumulate: the history clamped to the frame's neighbourhood (AccumulateDesc)
 };
 
 class Model {

@@ -69,9 +69,15 @@ nlohmann::json architectureFor(const std::string& arch) {
         arch.size() > family.size()) {
         nn::ModelOptions options;
         std::string spec = arch.substr(family.size() + 1);
-        // accumulate:WxD+depth: with the depth inputs.
-        if (family == "accumulate" && spec.size() > 6 && spec.substr(spec.size() - 6) == "+depth")
-            options.depthInput = true, spec.resize(spec.size() - 6);
+        // accumulate:WxD[+depth][+clip]: with the depth inputs; the history clamped to the neighbourhood.
+        auto suffix = [&](const std::string& s) {
+            const bool has =
+                family == "accumulate" && spec.size() > s.size() && spec.substr(spec.size() - s.size()) == s;
+            if (has) spec.resize(spec.size() - s.size());
+            return has;
+        };
+        options.clip = suffix("+clip");
+        options.depthInput = suffix("+depth");
         size_t used = 0, usedDepth = 0;
         try {
             options.width = std::stoi(spec, &used);
@@ -85,7 +91,7 @@ nlohmann::json architectureFor(const std::string& arch) {
         if (used == 0 || used != spec.size())
             throw Error("--arch '" + arch + "': expected " + family + ":WIDTH or " + family +
                         ":WIDTHxDEPTH (e.g. " + family + ":12x3" +
-                        (family == "accumulate" ? ", or accumulate:8x2+depth" : "") + ")");
+                        (family == "accumulate" ? ", or accumulate:8x2+depth+clip" : "") + ")");
         return nn::Model::builtinArchitecture(family, options);
     }
     if (!fs::exists(arch))

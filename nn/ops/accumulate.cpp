@@ -1,7 +1,7 @@
 // accumulate: inputs [image (C), logits with kernel^2 + 1 channels, history (C + 1: colour and confidence)];
-// kernel (3), max_count (32): a TAA's blend of the frame's filtered neighbourhood with the history's
-// running mean of samples (nn/layers.h); the output is the colour shown, the colour kept and the next
-// confidence (2 C + 1).
+// kernel (3), max_count (32), clip (false): a TAA's blend of the frame's filtered neighbourhood with the
+// history's running mean of samples (nn/layers.h); the output is the colour shown, the colour kept and the
+// next confidence (2 C + 1).
 #include <cmath>
 
 #include "base/error.h"
@@ -14,7 +14,7 @@ namespace {
 AccumulateDesc desc(const GraphNode& n, const Shape& image) {
     AccumulateDesc d;
     d.batch = image[0], d.channels = image[1], d.height = image[2], d.width = image[3];
-    d.kernel = n.kernel, d.maxCount = n.maxCount;
+    d.kernel = n.kernel, d.maxCount = n.maxCount, d.clip = n.clip;
     return d;
 }
 
@@ -37,6 +37,7 @@ OpDef accumulateOp() {
     op.parse = [](GraphNode& n, const OpParse& p) {
         n.kernel = p.json.value("kernel", 3);
         n.maxCount = p.json.value("max_count", 32.0f);
+        n.clip = p.json.value("clip", false);
         if (n.kernel < 1 || n.kernel > 7 || n.kernel % 2 == 0) throw Error("kernel must be odd and 1..7");
         if (!std::isfinite(n.maxCount) || n.maxCount < 1.0f || n.maxCount > 1.0e6f)
             throw Error("max_count must be from 1 to 1e6");
@@ -71,7 +72,8 @@ OpDef accumulateOp() {
     op.backwardDouble = backward<double>;
     op.card = [](const GraphNode& n) -> OpCard {
         return {"", std::to_string(n.kernel) + "x" + std::to_string(n.kernel), "",
-                "running mean, up to " + std::to_string(int(n.maxCount)) + " samples"};
+                "running mean, up to " + std::to_string(int(n.maxCount)) + " samples" +
+                    (n.clip ? ", history clamped to the neighbourhood" : "")};
     };
     return op;
 }

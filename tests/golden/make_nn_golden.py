@@ -144,16 +144,17 @@ def kernel_filter_case(name, n, c, h, w, k, centre_bias, logit_scale=2.0, histor
     cases[name] = (run(fn, inputs, {}), config)
 
 
-def accumulate_case(name, n, c, h, w, k, max_count, confidence_high=1.0):
+def accumulate_case(name, n, c, h, w, k, max_count, confidence_high=1.0, clip=False):
     """dejag's accumulate: the frame's k x k neighbourhood by the softmax of k^2 logits, blended with the
     history's colour by a = m / (1 + m), m = min(1, 2 sigmoid(last logit)) n, n = s / (1 - s) from the history's last
     channel s (clamped to [0, N / (N + 1)]); the history is blended the same way with the pixel's own
     sample (the kept colour); the means in linear light (the history's colour is linear, the frame's
     sRGB-encoded: decoded, and the shown colour encoded); the output is the shown colour, the kept colour
-    and n' / (n' + 1), n' = min(1 + m, N)."""
+    and n' / (n' + 1), n' = min(1 + m, N). With clip, the history's colour is first clamped to
+    [decode(min), decode(max)] of the k x k taps (history colours drawn wider, so that both bounds bite)."""
     inputs = {"input": f32(n, c, h, w, low=0.0, high=1.0),
               "logits": f32(n, k * k + 1, h, w, low=-2.0, high=2.0),
-              "history": torch.cat([f32(n, c, h, w, low=0.0, high=1.0),
+              "history": torch.cat([f32(n, c, h, w, low=-0.3 if clip else 0.0, high=1.3 if clip else 1.0),
                                     f32(n, 1, h, w, low=0.0, high=confidence_high)], dim=1)}
 
     def fn(input, logits, history):
@@ -174,13 +175,20 @@ def accumulate_case(name, n, c, h, w, k, max_count, confidence_high=1.0):
             return torch.where(x <= 0.0031308, x * 12.92, 1.055 * x.clamp(min=1e-12) ** (1 / 2.4) - 0.055)
 
         filtered, own = decode(spatial), decode(input)
-        shown = encode(filtered + a * (history[:, :c] - filtered))
-        kept = own + a * (history[:, :c] - own)
+        colour = history[:, :c]
+        if clip:
+            colour = torch.maximum(torch.minimum(colour, decode(taps.max(dim=2).values)),
+                                   decode(taps.min(dim=2).values))
+        shown = encode(filtered + a * (colour - filtered))
+        kept = own + a * (colour - own)
         count = torch.clamp(1 + m, max=max_count)
         return torch.cat([shown, kept, count / (count + 1)], dim=1)
 
-    cases[name] = (run(fn, inputs, {}), {"layer": "accumulate", "batch": n, "channels": c, "height": h,
-                                         "width": w, "kernel": k, "max_count": max_count})
+    config = {"layer": "accumulate", "batch": n, "channels": c, "height": h, "width": w, "kernel": k,
+              "max_count": max_count}
+    if clip:
+        config["clip"] = True
+    cases[name] = (run(fn, inputs, {}), config)
 
 
 def warp_case(name, n, c, h, w, mode, reach):
@@ -370,6 +378,8 @@ def main():
     # confidences up to 0.95 reach and pass.
     accumulate_case("accumulate_k3", 2, 3, 6, 7, 3, 1000.0, confidence_high=0.97)
     accumulate_case("accumulate_k1_capped", 1, 2, 5, 4, 1, 3.0, confidence_high=0.95)
+    # With the history clamped to the neighbourhood's range.
+    accumulate_case("accumulate_k3_clip", 2, 3, 6, 7, 3, 1000.0, confidence_high=0.97, clip=True)
 
     for name, (tensors, config) in cases.items():
         write_safetensors(os.path.join(HERE, name + ".safetensors"), tensors, config)

@@ -482,55 +482,101 @@ TEST_P(Inference, RowRangesDecideAsTheFlatGroupTest) {
 
 // The row kernel's accumulate mode is accumulate's reference (nn/layers.h) on the middle row of a 3-row
 // image: confidences below 0, inside and past the clamp, trust logits either side of the kink (and 0),
-// kernels 1 and 3, widths that leave a vector tail (the sRGB curves within 5e-6).
+// kernels 1 and 3, widths that leave a vector tail (the sRGB curves within 5e-6); with the clip; and with
+// the still gate (kernel 3), where a still pixel trusted enough whose history lies in the taps' range
+// (widened) is the reference's with full trust and no clip, and every other pixel the reference's.
 TEST_P(Inference, AccumulateRowMatchesTheReference) {
     Rng rng(43);
-    for (int kernel : {1, 3})
-        for (int64_t width : {1, 7, 37, 70}) {
-            AccumulateDesc d;
-            d.batch = 1, d.channels = 3, d.height = 3, d.width = width, d.kernel = kernel, d.maxCount = 6;
-            const int64_t plane = 3 * width, taps = kernel * kernel;
-            std::vector<float> image(size_t(3 * plane)), logits(size_t((taps + 1) * plane)),
-                history(size_t(4 * plane)), out(size_t(7 * plane));
-            for (float& v : image) v = rng.uniform(0.0f, 1.0f);
-            for (float& v : logits) v = rng.uniform(-4.0f, 4.0f);
-            for (float& v : history) v = rng.uniform(-0.1f, 1.0f);
-            for (int64_t x = 0; x < width; x += 5) logits[size_t(taps * plane + width + x)] = 0.0f;
-            accumulateForward(out.data(), image.data(), logits.data(), history.data(), d);
-            const float* in[9];
-            const float* hist[3];
-            std::vector<float> rowLogits(size_t((taps + 1) * width)), shown(size_t(3 * width)),
-                kept(size_t(3 * width)), next(static_cast<size_t>(width));
-            float* shownRows[3];
-            float* keptRows[3];
-            for (int c = 0; c < 3; ++c) {
-                for (int dy = 0; dy < kernel; ++dy)
-                    in[c * kernel + dy] = image.data() + c * plane + (dy + 1 - kernel / 2) * width;
-                hist[c] = history.data() + c * plane + width;
-                shownRows[c] = shown.data() + c * width, keptRows[c] = kept.data() + c * width;
-            }
-            for (int64_t j = 0; j <= taps; ++j)
-                std::copy_n(logits.data() + j * plane + width, width, rowLogits.data() + j * width);
-            KernelFilterRowArgs args;
-            args.out = shownRows, args.in = in, args.logits = rowLogits.data(), args.width = width;
-            args.channels = 3, args.kernel = kernel, args.history = hist, args.kept = keptRows;
-            args.confidence = history.data() + 3 * plane + width, args.nextConfidence = next.data();
-            args.maxCount = d.maxCount;
-            DEJAG_SIMD_CALL(kernelFilterRow, args);
-            for (int64_t x = 0; x < width; ++x) {
-                for (int c = 0; c < 3; ++c) {
-                    ASSERT_NEAR(shown[size_t(c * width + x)], out[size_t(c * plane + width + x)], 5e-6)
-                        << "kernel " << kernel << " width " << width << " x " << x;
-                    ASSERT_NEAR(kept[size_t(c * width + x)], out[size_t((3 + c) * plane + width + x)], 5e-6)
-                        << "kernel " << kernel << " width " << width << " x " << x;
+    for (int mode = 0; mode < 3; ++mode)  // plain, clip, clip and the still gate
+        for (int kernel : {1, 3})
+            for (int64_t width : {1, 7, 37, 70}) {
+                if (mode == 2 && kernel != 3) continue;
+                SCOPED_TRACE("mode " + std::to_string(mode) + " kernel " + std::to_string(kernel) +
+                             " width " + std::to_string(width));
+                AccumulateDesc d;
+                d.batch = 1, d.channels = 3, d.height = 3, d.width = width, d.kernel = kernel, d.maxCount = 6;
+                d.clip = mode >= 1;
+                const int64_t plane = 3 * width, taps = kernel * kernel;
+                std::vector<float> image(size_t(3 * plane)), logits(size_t((taps + 1) * plane)),
+                    history(size_t(4 * plane)), out(size_t(7 * plane)), still(static_cast<size_t>(width));
+                for (float& v : image) v = rng.uniform(0.0f, 1.0f);
+                for (float& v : logits) v = rng.uniform(-4.0f, 4.0f);
+                for (float& v : history) v = rng.uniform(-0.1f, 1.0f);
+                for (int64_t x = 0; x < width; x += 5) logits[size_t(taps * plane + width + x)] = 0.0f;
+                for (float& v : still) v = rng.uniform(0.0f, 1.0f) < 0.7f ? 1.0f : 0.0f;
+                const float stillLogit = -1.0f, tolerance = 0.05f;
+                // The gate's pixels: the reference with full trust (logit 0 and up) and no clip.
+                std::vector<uint8_t> gated(size_t(width), 0);
+                std::vector<float> gatedOut(out.size());
+                if (mode == 2) {
+                    std::vector<float> lifted = logits;
+                    for (int64_t x = 0; x < width; ++x) {
+                        bool inside =
+                            still[size_t(x)] > 0.5f && logits[size_t(taps * plane + width + x)] >= stillLogit;
+                        for (int c = 0; c < 3 && inside; ++c) {
+                            float lo = 2, hi = -1;
+                            for (int dy = 0; dy < 3; ++dy)
+                                for (int64_t dx = -1; dx <= 1; ++dx) {
+                                    const float v = image[size_t(c * plane + dy * width +
+                                                                 std::clamp<int64_t>(x + dx, 0, width - 1))];
+                                    lo = std::min(lo, v), hi = std::max(hi, v);
+                                }
+                            const float h = history[size_t(c * plane + width + x)];
+                            inside = h >= srgbDecode(lo) - tolerance && h <= srgbDecode(hi) + tolerance;
+                        }
+                        gated[size_t(x)] = inside;
+                        lifted[size_t(taps * plane + width + x)] = 1.0f;
+                    }
+                    AccumulateDesc whole = d;
+                    whole.clip = false;
+                    accumulateForward(gatedOut.data(), image.data(), lifted.data(), history.data(), whole);
                 }
-                ASSERT_NEAR(next[size_t(x)], out[size_t(6 * plane + width + x)], 2e-6)
-                    << "kernel " << kernel << " width " << width << " x " << x;
+                accumulateForward(out.data(), image.data(), logits.data(), history.data(), d);
+                for (int64_t x = 0; x < width; ++x)
+                    if (gated[size_t(x)])
+                        for (int c = 0; c < 7; ++c)
+                            out[size_t(c * plane + width + x)] = gatedOut[size_t(c * plane + width + x)];
+                const float* in[9];
+                const float* hist[3];
+                std::vector<float> rowLogits(size_t((taps + 1) * width)), shown(size_t(3 * width)),
+                    kept(size_t(3 * width)), next(static_cast<size_t>(width));
+                float* shownRows[3];
+                float* keptRows[3];
+                for (int c = 0; c < 3; ++c) {
+                    for (int dy = 0; dy < kernel; ++dy)
+                        in[c * kernel + dy] = image.data() + c * plane + (dy + 1 - kernel / 2) * width;
+                    hist[c] = history.data() + c * plane + width;
+                    shownRows[c] = shown.data() + c * width, keptRows[c] = kept.data() + c * width;
+                }
+                for (int64_t j = 0; j <= taps; ++j)
+                    std::copy_n(logits.data() + j * plane + width, width, rowLogits.data() + j * width);
+                KernelFilterRowArgs args;
+                args.out = shownRows, args.in = in, args.logits = rowLogits.data(), args.width = width;
+                args.channels = 3, args.kernel = kernel, args.history = hist, args.kept = keptRows;
+                args.confidence = history.data() + 3 * plane + width, args.nextConfidence = next.data();
+                args.maxCount = d.maxCount, args.clip = d.clip;
+                if (mode == 2)
+                    args.still = still.data(), args.stillLogit = stillLogit, args.stillTolerance = tolerance;
+                DEJAG_SIMD_CALL(kernelFilterRow, args);
+                for (int64_t x = 0; x < width; ++x) {
+                    for (int c = 0; c < 3; ++c) {
+                        ASSERT_NEAR(shown[size_t(c * width + x)], out[size_t(c * plane + width + x)], 5e-6)
+                            << x;
+                        ASSERT_NEAR(kept[size_t(c * width + x)], out[size_t((3 + c) * plane + width + x)],
+                                    5e-6)
+                            << x;
+                    }
+                    ASSERT_NEAR(next[size_t(x)], out[size_t(6 * plane + width + x)], 2e-6) << x;
+                }
+                if (mode == 2 && width == 70) {  // both decisions represented
+                    const int count = int(std::count(gated.begin(), gated.end(), uint8_t(1)));
+                    EXPECT_GT(count, 3);
+                    EXPECT_LT(count, 60);
+                }
             }
-        }
 }
 
-// An input the plan holds blocked (more than 4 channels): inputRow() writes a staging tensor.
+// An input the plan holds blocked (more than 16 channels): inputRow() writes a staging tensor.
 TEST_P(Inference, BlockedInputMatchesTheReference) {
     using nlohmann::json;
     const json nodes = json::array({{{"name", "a"},
@@ -546,8 +592,8 @@ TEST_P(Inference, BlockedInputMatchesTheReference) {
                                      {"out_channels", 3},
                                      {"kernel", 3},
                                      {"padding", "same"}}});
-    Model model = Model::fromArchitecture({{"name", "wide_input"}, {"input_channels", 6}, {"nodes", nodes}});
-    expectPlanMatchesReference(model, {2, 6, 12, 20});
+    Model model = Model::fromArchitecture({{"name", "wide_input"}, {"input_channels", 17}, {"nodes", nodes}});
+    expectPlanMatchesReference(model, {2, 17, 12, 20});
 }
 
 INSTANTIATE_TEST_SUITE_P(SimdLevels, Inference, ::testing::ValuesIn(testing::availableSimdLevels()),

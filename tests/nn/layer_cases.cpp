@@ -169,7 +169,7 @@ LayerCase accumulate(const std::string& label, const AccumulateDesc& d) {
     LayerCase c = layerCase(
         "accumulate " + label + ": N" + std::to_string(d.batch) + " C" + std::to_string(d.channels) + " " +
             std::to_string(d.height) + "x" + std::to_string(d.width) + " k" + std::to_string(d.kernel) +
-            " max count " + std::to_string(d.maxCount),
+            " max count " + std::to_string(d.maxCount) + (d.clip ? " clip" : ""),
         {"input", "logits", "history"}, {image, logits, history},
         image * 2 + history / size_t(d.channels + 1),
         [d](const auto& call) { accumulateForward(call.out, call.in[0], call.in[1], call.in[2], d); },
@@ -257,7 +257,7 @@ void goldenCases(std::vector<LayerCase>& cases) {
         } else if (layer == "accumulate") {
             AccumulateDesc d;
             d.batch = c["batch"], d.channels = c["channels"], d.height = c["height"], d.width = c["width"];
-            d.kernel = c["kernel"], d.maxCount = c["max_count"];
+            d.kernel = c["kernel"], d.maxCount = c["max_count"], d.clip = c.value("clip", false);
             lc = accumulate(label, d);
         } else if (layer == "warp") {
             WarpDesc d;
@@ -339,6 +339,15 @@ void randomCases(std::vector<LayerCase>& cases) {
         d.kernel = 1 + 2 * int(rng() % 2);
         d.maxCount = trial % 3 == 2 ? 4.0f : 1000.0f;
         cases.push_back(accumulate("random " + std::to_string(trial), d));
+    }
+    rng.seed(12);
+    for (int trial = 0; trial < 4; ++trial) {  // the history clamped to the neighbourhood
+        AccumulateDesc d;
+        d.batch = 1 + int(rng() % 2), d.channels = 1 + int(rng() % 3);
+        d.height = 2 + int(rng() % 5), d.width = 2 + int(rng() % 6);
+        d.kernel = trial == 3 ? 1 : 3, d.clip = true;
+        d.maxCount = trial % 2 == 1 ? 4.0f : 1000.0f;
+        cases.push_back(accumulate("clip random " + std::to_string(trial), d));
     }
     rng.seed(10);
     for (int trial = 0; trial < 9; ++trial) {

@@ -126,7 +126,7 @@ std::vector<OpCase> cases() {
              json::array({image, history, logits,
                           node("op", "kernel_filter", {"image", "logits", "history"}, {{"kernel", 3}})})});
     }
-    for (double maxCount : {1000.0, 3.0}) {
+    for (double maxCount : {1000.0, 3.0, 999.0}) {  // 999: with the clip
         // The accumulate family's blend: a history of colour and a confidence in (0, 1) (a sigmoid).
         const json image = node("image", "slice", {"input"}, {{"from", 0}, {"to", 3}});
         const json colour = node("colour", "slice", {"input"}, {{"from", 3}, {"to", 6}});
@@ -135,11 +135,12 @@ std::vector<OpCase> cases() {
         const json history = node("history", "concat", {"colour", "confidence"});
         const json logits =
             node("logits", "conv2d", {"input"}, {{"out_channels", 10}, {"kernel", 3}, {"padding", "same"}});
-        c.push_back({"accumulate max_count " + std::to_string(int(maxCount)), 7,
+        const bool clip = maxCount == 999.0;
+        c.push_back({"accumulate max_count " + std::to_string(int(maxCount)) + (clip ? " clip" : ""), 7,
                      json::array({image, colour, raw, confidence, history, logits,
                                   node("op", "accumulate", {"image", "logits", "history"},
-                                       {{"kernel", 3}, {"max_count", maxCount}})}),
-                     12, 16, maxCount < 100});
+                                       {{"kernel", 3}, {"max_count", maxCount}, {"clip", clip}})}),
+                     12, 16, maxCount < 100 || clip});
     }
     single("slice 2..5 of 6", node("op", "slice", {"input"}, {{"from", 2}, {"to", 5}}), false, 6);
     single("slice all", node("op", "slice", {"input"}));
