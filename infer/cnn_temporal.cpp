@@ -305,6 +305,8 @@ class CnnTemporalFilter final : public Filter {
                         previousDepth_.data()[4 * p] = hasDepth ? frame.previousDepth[q] : 0.0f;
                 }
         });
+        // (A frame where everything moves has no still pixel: the row kernel then skips the gate's test.)
+        if (gateStill_) gateStill_ = std::find(moving_.begin(), moving_.end(), uint8_t(0)) != moving_.end();
         if (depthInput_) {  // the previous frame's depth where each pixel was (where the history restarts,
                             // this one's)
             if (fresh) {
