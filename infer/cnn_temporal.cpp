@@ -276,10 +276,9 @@ class CnnTemporalFilter final : public Filter {
             fused_.emplace(*trunk_, shape, precision_);
             frame_ = nn::Tensor({3, H, W}), warped_ = nn::Tensor({S, H, W});
             motion_ = padded ? nn::Tensor({H, W, 2}) : nn::Tensor();
-            // Depth: the frame's and the previous frame's warped as planes; the previous frame's as it came,
-            // 4 floats a pixel for the interleaved warp.
+            // Depth: the frame's and the previous frame's warped, as planes; the previous frame's as it came.
             depth_ = depthInput_ ? nn::Tensor({2, H, W}) : nn::Tensor();
-            previousDepth_ = depthInput_ ? nn::Tensor({H, W, 4}) : nn::Tensor();
+            previousDepth_ = depthInput_ ? nn::Tensor({H, W}) : nn::Tensor();
             moving_.assign(stillLogit_ ? size_t(plane) : 0, 0);
         }
         const bool fresh = fresh_;
@@ -302,7 +301,7 @@ class CnnTemporalFilter final : public Filter {
                     }
                     if (depthInput_)
                         depth_.data()[p] = hasDepth ? frame.depth[q] : 0.0f,
-                        previousDepth_.data()[4 * p] = hasDepth ? frame.previousDepth[q] : 0.0f;
+                        previousDepth_.data()[p] = hasDepth ? frame.previousDepth[q] : 0.0f;
                 }
         });
         // (A frame where everything moves has no still pixel: the row kernel then skips the gate's test.)
@@ -312,9 +311,8 @@ class CnnTemporalFilter final : public Filter {
             if (fresh) {
                 std::copy_n(depth_.data(), plane, depth_.data() + plane);
             } else {
-                float* planes[1] = {depth_.data() + plane};
-                nn::warpInterleaved(planes, previousDepth_.data(), padded ? motion_.data() : frame.motion, W,
-                                    H, 1, nn::WarpFilter::Bilinear);
+                nn::warpPlane(depth_.data() + plane, previousDepth_.data(),
+                              padded ? motion_.data() : frame.motion, W, H, nn::WarpFilter::Bilinear);
             }
         }
         // The history (interleaved, 4 floats a pixel) read where each pixel was, as planes; on a fresh start

@@ -321,6 +321,9 @@ void warpBackward(T* dimage,        // (N, C, H, W) or null
 // gather per channel. The arithmetic, order of sums included, is warpForward's.
 void warpInterleaved(float* const* out, const float* image, const float* motion, int64_t width,
                      int64_t height, int channels, WarpFilter filter);
+// The same for one channel stored as a plane (image[y W + x]).
+void warpPlane(float* out, const float* image, const float* motion, int64_t width, int64_t height,
+               WarpFilter filter);
 // "bilinear" | "catmull-rom" | "bicubic"; throws dejag::Error naming the choices.
 WarpFilter parseWarpFilter(const std::string& name);
 const char* warpFilterName(WarpFilter filter);

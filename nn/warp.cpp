@@ -284,6 +284,21 @@ void warpInterleaved(float* const* out, const float* image, const float* motion,
     });
 }
 
+void warpPlane(float* out, const float* image, const float* motion, int64_t width, int64_t height,
+               WarpFilter filter) {
+    if (width < 1 || height < 1) throw Error("warp: an empty plane");
+    float* planes[1] = {out};
+    WarpRowsArgs args;
+    args.out = planes, args.image = image, args.motion = motion, args.width = width, args.height = height;
+    args.channels = 1, args.planar = true, args.taps = filter == WarpFilter::Bilinear ? 2 : 4;
+    args.a = filter == WarpFilter::CatmullRom ? -0.5f : -0.75f;
+    parallelFor(0, height, 4, [&](int64_t first, int64_t last) {
+        WarpRowsArgs band = args;
+        band.firstRow = first, band.lastRow = last;
+        DEJAG_SIMD_CALL(warpInterleavedRows, band);
+    });
+}
+
 #define DEJAG_WARP(T)                                                      \
     template void warpForward<T>(T*, const T*, const T*, const WarpDesc&); \
     template void warpBackward<T>(T*, T*, const T*, const T*, const T*, const WarpDesc&);

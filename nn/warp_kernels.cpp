@@ -38,7 +38,7 @@ template <int K>
     }
 }
 
-template <int K>
+template <int K, bool Planar>
 void rows(const WarpRowsArgs& args) {
     const int64_t W = args.width, H = args.height;
     const float limitX = float(W + 2), limitY = float(H + 2);
@@ -60,6 +60,21 @@ void rows(const WarpRowsArgs& args) {
             axis<K>(sy, limitY, args.a, firstY, wys);
             for (int l = 0; l < n; ++l) {
                 const int64_t tx = firstX[l], ty = firstY[l];
+                if constexpr (Planar) {  // one plane: K x K scalar taps
+                    const bool inside = tx >= 0 && tx + K <= W && ty >= 0 && ty + K <= H;
+                    float sum = 0;
+                    for (int j = 0; j < K; ++j) {
+                        const float* row =
+                            args.image + (inside ? ty + j : std::clamp<int64_t>(ty + j, 0, H - 1)) * W;
+                        float rowSum = 0;
+                        for (int i = 0; i < K; ++i)
+                            rowSum +=
+                                wxs[i][l] * row[inside ? tx + i : std::clamp<int64_t>(tx + i, 0, W - 1)];
+                        sum += wys[j][l] * rowSum;
+                    }
+                    args.out[0][y * W + x0 + l] = sum;
+                    continue;
+                }
                 V4 sum;
                 if (tx >= 0 && tx + K <= W && ty >= 0 && ty + K <= H) {
                     // A tap row is K pixels of 4 floats in a row: one vector; the rows weighted, then the
@@ -112,10 +127,10 @@ void rows(const WarpRowsArgs& args) {
 }  // namespace
 
 void warpInterleavedRows(const WarpRowsArgs& args) {
-    if (args.taps == 2)
-        rows<2>(args);
+    if (args.planar)
+        args.taps == 2 ? rows<2, true>(args) : rows<4, true>(args);
     else
-        rows<4>(args);
+        args.taps == 2 ? rows<2, false>(args) : rows<4, false>(args);
 }
 
 }  // namespace dejag::nn::DEJAG_SIMD_NAMESPACE

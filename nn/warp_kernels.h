@@ -15,8 +15,9 @@ struct WarpRowsArgs {
     const float* image = nullptr;   // image[(y width + x) 4 + c]
     const float* motion = nullptr;  // motion[2 (y width + x) + {0, 1}]
     int64_t width = 0, height = 0;
-    int channels = 4;  // 1 .. 4: the planes written
-    int taps = 4;      // 2: bilinear; 4: cubic convolution of parameter `a`
+    int channels = 4;     // 1 .. 4: the planes written
+    bool planar = false;  // one channel stored as a plane (image[y width + x]); channels 1
+    int taps = 4;         // 2: bilinear; 4: cubic convolution of parameter `a`
     float a = -0.5f;
     int64_t firstRow = 0, lastRow = 0;  // the output rows [firstRow, lastRow)
 };

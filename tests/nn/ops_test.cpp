@@ -540,7 +540,7 @@ TEST(Warp, WholePixelsCopyConstantsStayAndRampsAreExact) {
 
 // The inference warp (4 floats a pixel in, planes out) is the layer's forward on the same image at every
 // SIMD level: every filter, pixels whose taps lie inside and pixels whose taps cross the borders, a NaN
-// and a huge motion among the motion; 1 to 4 channels.
+// and a huge motion among the motion; 1 to 4 channels, and one channel stored as a plane.
 class WarpLevels : public testing::SimdLevelTest {};
 INSTANTIATE_TEST_SUITE_P(SimdLevels, WarpLevels, ::testing::ValuesIn(testing::availableSimdLevels()),
                          testing::simdTestName);
@@ -570,6 +570,11 @@ TEST_P(WarpLevels, TheInterleavedWarpIsTheLayersForward) {
             for (int c = 0; c < channels; ++c) rows[c] = out.data() + c * H * W;
             warpInterleaved(rows, interleaved.data(), motionPairs.data(), W, H, channels, filter);
             for (size_t i = 0; i < out.size(); ++i) ASSERT_NEAR(out[i], expected[i], 1e-6f) << i;
+            if (channels == 1) {  // one channel as a plane
+                std::vector<float> plane(size_t(H * W));
+                warpPlane(plane.data(), planes.data(), motionPairs.data(), W, H, filter);
+                for (size_t i = 0; i < plane.size(); ++i) ASSERT_NEAR(plane[i], expected[i], 1e-6f) << i;
+            }
         }
     float* none[1] = {nullptr};
     EXPECT_THROW(warpInterleaved(none, interleaved.data(), motionPairs.data(), W, H, 5, WarpFilter::Bilinear),
