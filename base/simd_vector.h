@@ -6,7 +6,10 @@
 // per-level flags (-ffp-contract=fast).
 #pragma once
 
+#include <array>
+#include <cstdint>
 #include <cstring>
+#include <utility>
 
 #if !defined(DEJAG_SIMD_LEVEL_scalar)
 #include <immintrin.h>
@@ -78,5 +81,83 @@ inline float horizontalSum(VFloat v) {
     return sum;
 }
 #endif
+
+#if !defined(DEJAG_SIMD_LEVEL_scalar)
+// Lanes Index[0..kFloatLanes) of the concatenation a ++ b (a shuffle with constant indices, GCC and Clang
+// alike).
+template <const auto& Index, size_t... I>
+inline VFloat shuffleTwo(VFloat a, VFloat b, std::index_sequence<I...>) {
+    return __builtin_shufflevector(a, b, Index[I]...);
+}
+template <const auto& Index>
+inline VFloat shuffleTwo(VFloat a, VFloat b) {
+    return shuffleTwo<Index>(a, b, std::make_index_sequence<kFloatLanes>());
+}
+
+namespace interleave_detail {
+constexpr int N = kFloatLanes;
+using Lanes = std::array<int32_t, kFloatLanes>;
+// Two channels' lanes alternated, from lane `from` of each: a0 b0 a1 b1 ...
+constexpr Lanes pairs(int from) {
+    Lanes index{};
+    for (int i = 0; i < N; ++i) index[size_t(i)] = (i % 2 ? N : 0) + from + i / 2;
+    return index;
+}
+// Two such pair vectors' pairs alternated, from pair `from` of each: a0 b0 c0 d0 a1 b1 c1 d1 ...
+constexpr Lanes quads(int from) {
+    Lanes index{};
+    for (int i = 0; i < N; ++i) {
+        const int pair = i / 2;
+        index[size_t(i)] = (pair % 2 ? N : 0) + 2 * (from + pair / 2) + i % 2;
+    }
+    return index;
+}
+// Three channels: output vector k's lanes of channels 0 and 1 (first shuffle), then channel 2's.
+constexpr Lanes triplesFirst(int k) {
+    Lanes index{};
+    for (int i = 0; i < N; ++i) {
+        const int g = k * N + i, pixel = g / 3, channel = g % 3;
+        index[size_t(i)] = channel == 0 ? pixel : channel == 1 ? N + pixel : 0;
+    }
+    return index;
+}
+constexpr Lanes triplesSecond(int k) {
+    Lanes index{};
+    for (int i = 0; i < N; ++i) {
+        const int g = k * N + i, pixel = g / 3, channel = g % 3;
+        index[size_t(i)] = channel == 2 ? N + pixel : i;
+    }
+    return index;
+}
+inline constexpr Lanes kPairsLow = pairs(0), kPairsHigh = pairs(N / 2);
+inline constexpr Lanes kQuads[2] = {quads(0), quads(N / 4)};
+inline constexpr Lanes kTriplesFirst[3] = {triplesFirst(0), triplesFirst(1), triplesFirst(2)};
+inline constexpr Lanes kTriplesSecond[3] = {triplesSecond(0), triplesSecond(1), triplesSecond(2)};
+}  // namespace interleave_detail
+
+// The lanes of C = 3 or 4 channel vectors stored as kFloatLanes pixels of C floats each (p[C l + c] =
+// v[c][l]): two shuffles per vector stored.
+template <int C>
+inline void storeInterleaved(float* p, const VFloat* v) {
+    using namespace interleave_detail;
+    static_assert(C == 3 || C == 4, "3 or 4 channels");
+    if constexpr (C == 4) {
+        const VFloat ab[2] = {shuffleTwo<kPairsLow>(v[0], v[1]), shuffleTwo<kPairsHigh>(v[0], v[1])};
+        const VFloat cd[2] = {shuffleTwo<kPairsLow>(v[2], v[3]), shuffleTwo<kPairsHigh>(v[2], v[3])};
+        for (int h = 0; h < 2; ++h) {
+            storeu(p + (2 * h) * N, shuffleTwo<kQuads[0]>(ab[h], cd[h]));
+            storeu(p + (2 * h + 1) * N, shuffleTwo<kQuads[1]>(ab[h], cd[h]));
+        }
+    } else {
+        storeu(p, shuffleTwo<kTriplesSecond[0]>(shuffleTwo<kTriplesFirst[0]>(v[0], v[1]), v[2]));
+        storeu(p + N, shuffleTwo<kTriplesSecond[1]>(shuffleTwo<kTriplesFirst[1]>(v[0], v[1]), v[2]));
+        storeu(p + 2 * N, shuffleTwo<kTriplesSecond[2]>(shuffleTwo<kTriplesFirst[2]>(v[0], v[1]), v[2]));
+    }
+}
+#endif
+template <int C>
+inline void storeInterleaved(float* p, const float* v) {
+    for (int c = 0; c < C; ++c) p[c] = v[c];
+}
 
 }  // namespace dejag::DEJAG_SIMD_NAMESPACE

@@ -24,12 +24,17 @@ namespace {
 void blendRow(const KernelFilterRowArgs& args) {
     DEJAG_SIMD_CALL(kernelFilterRow, args);
 }
+// The head's 1x1 convolution and pixel shuffle fused: one output row's logits from the trunk's features.
+void headLogitsRow(const KernelLogitsRowArgs& args) {
+    DEJAG_SIMD_CALL(kernelLogitsRow, args);
+}
 }  // namespace
 }  // namespace dejag::nn
 
 namespace dejag::infer {
 namespace {
 using nn::blendRow;
+using nn::headLogitsRow;
 
 class CnnTemporalFilter final : public Filter {
   public:
@@ -49,7 +54,8 @@ class CnnTemporalFilter final : public Filter {
                         "depth)");
         figures_.settings = {{"model", path}, {"precision", precisionName(precision)}, {"gate", gate}};
         accumulate_ = model_.architecture().value("name", "") == "accumulate";
-        trunk_ = builtinTrunk(model_);
+        trunk_ = builtinTrunk(model_, headFused_);
+        if (headFused_) takeHead();
         if (trunk_) multiple_ = int64_t(1) << model_.architecture()["family"]["depth"].get<int>();
         warpedChannels_ = accumulate_ ? 4 : history_;
         if (accumulate_ && trunk_) maxCount_ = model_.architecture()["family"].value("max_count", 32.0f);
@@ -84,7 +90,12 @@ class CnnTemporalFilter final : public Filter {
     // channels. The accumulate family runs the same way: its warped history is the kept mean and its
     // confidence (4 floats a pixel), and its sink blends them with accumulatePixel. Other temporal
     // networks (any JSON graph) run as one plan.
-    static std::optional<nn::Model> builtinTrunk(const nn::Model& model) {
+    //
+    // Where the head has exactly the 10 logits of 4 phases (no state channels), the trunk stops at the
+    // head's input and the sink computes each output row's logits from those features (the 1x1
+    // convolution and the shuffle fused, kernelLogitsRow): the 40-channel head is never stored.
+    static std::optional<nn::Model> builtinTrunk(const nn::Model& model, bool& headFused) {
+        headFused = false;
         const nlohmann::json& a = model.architecture();
         const std::string family = a.value("name", "");
         if ((family != "temporal" && family != "accumulate") || !a.contains("family")) return std::nullopt;
@@ -103,11 +114,18 @@ class CnnTemporalFilter final : public Filter {
         if (builtin["nodes"] != a["nodes"] || builtin["output"] != a["output"] || options.state > 1)
             return std::nullopt;  // (the fused path keeps the history in 4 floats a pixel)
         nlohmann::json nodes = nlohmann::json::array();
+        std::string output = "head";
         bool inside = false;
         for (nlohmann::json node : a["nodes"]) {
             if (inside) {
                 for (auto& input : node["inputs"])
                     if (input == "seen") input = "input";
+                if (node["name"] == "head" && node.value("out_channels", 0) == 4 * 10 &&
+                    node.value("kernel", 0) == 1 && node.value("stride", 1) == 1 &&
+                    node.value("activation", "none") == "none" && node["inputs"].size() == 1) {
+                    headFused = true, output = node["inputs"][0].get<std::string>();
+                    break;
+                }
                 nodes.push_back(node);
                 if (node["name"] == "head") break;
             }
@@ -119,7 +137,7 @@ class CnnTemporalFilter final : public Filter {
               3 + (3 + options.state) + 2 + (family == "accumulate" ? 2 : 0) + (options.depthInput ? 2 : 0)},
              {"init", a.value("init", "he_normal")},
              {"nodes", nodes},
-             {"output", "head"}});
+             {"output", output}});
         for (const nn::ParameterInfo& p : trunk.parameters()) {
             const nn::ParameterInfo& from = model.parameter(p.name);
             std::copy_n(model.parameterData() + from.offset, nn::shapeNumel(p.shape),
@@ -128,7 +146,26 @@ class CnnTemporalFilter final : public Filter {
         return trunk;
     }
 
-    // The history's row kernel's inputs for one output row y (the head's rows at y / 2 given).
+    // The fused head's weights as kernelLogitsRow reads them: per row phase py, tap j and column phase px
+    // (the shuffle's channel (2 j + py) 2 + px), the input channels' weights; the biases alike.
+    void takeHead() {
+        const nn::ParameterInfo& weight = model_.parameter("head.weight");
+        headChannels_ = int(weight.shape[1]);
+        const float* w = model_.parameterData() + weight.offset;
+        const float* b = model_.parameterData() + model_.parameter("head.bias").offset;
+        headWeights_.resize(size_t(40 * headChannels_)), headBias_.resize(40);
+        for (int py = 0; py < 2; ++py)
+            for (int j = 0; j < 10; ++j)
+                for (int px = 0; px < 2; ++px) {
+                    const int channel = (2 * j + py) * 2 + px, slot = (py * 10 + j) * 2 + px;
+                    headBias_[size_t(slot)] = b[channel];
+                    std::copy_n(w + channel * headChannels_, headChannels_,
+                                headWeights_.data() + slot * headChannels_);
+                }
+    }
+
+    // The history's row kernel's inputs for one output row y (the head's rows at y / 2 given; with the
+    // head fused, the head's input features).
     struct BlendSink final : nn::OutputRowSink {
         CnnTemporalFilter* self = nullptr;
         const Frame* frame = nullptr;
@@ -148,11 +185,37 @@ class CnnTemporalFilter final : public Filter {
             const int S = f.history_ - 3, C = frame->channels;
             thread_local std::vector<float> logits, blended, kept, stillRow;
             logits.resize(size_t(10 * W)), blended.resize(size_t(3 * W)), kept.resize(size_t(4 * W));
+            // The fused head reads the features blocked: channel c at features + (c / block) blockStride +
+            // s block + c % block. Rows laid out otherwise are copied so first.
+            nn::KernelLogitsRowArgs logitArgs;
+            if (f.headFused_) {
+                const int inC = f.headChannels_;
+                const int64_t blockStride = inC > stride ? head[stride] - head[0] : 0;
+                bool blocked = true;
+                for (int c = 0; c < inC; ++c)
+                    blocked = blocked && head[c] == head[0] + (c / stride) * blockStride + c % stride;
+                logitArgs.features = head[0], logitArgs.block = int(stride),
+                logitArgs.blockStride = blockStride;
+                if (!blocked) {
+                    thread_local std::vector<float> features;
+                    features.resize(size_t(inC * (W / 2)));
+                    for (int64_t s = 0; s < W / 2; ++s)
+                        for (int c = 0; c < inC; ++c) features[size_t(s * inC + c)] = head[c][s * stride];
+                    logitArgs.features = features.data(), logitArgs.block = inC, logitArgs.blockStride = 0;
+                }
+                logitArgs.inChannels = inC, logitArgs.taps = 10, logitArgs.factor = 2;
+                logitArgs.width = W, logitArgs.logits = logits.data();
+            }
             for (int dy = 0; dy < 2; ++dy) {
                 const int64_t y = 2 * y2 + dy;
+                if (f.headFused_) {
+                    logitArgs.weights = f.headWeights_.data() + dy * 20 * f.headChannels_;
+                    logitArgs.bias = f.headBias_.data() + dy * 20;
+                    headLogitsRow(logitArgs);
+                }
                 // The shuffle: output channel k at (2 y2 + dy, 2 s + dx) is head channel 4 k + 2 dy + dx at
                 // s.
-                for (int k = 0; k < 10; ++k) {
+                for (int k = 0; k < 10 && !f.headFused_; ++k) {
                     const float* even = head[4 * k + 2 * dy];
                     const float* odd = head[4 * k + 2 * dy + 1];
                     float* l = logits.data() + k * W;
@@ -186,14 +249,22 @@ class CnnTemporalFilter final : public Filter {
                         args.stillTolerance = kStillTolerance;
                     }
                 }
-                blendRow(args);
-                // The next history, interleaved: the blend's RGB and the warped state plus its correction;
-                // accumulate's: the kept mean and its confidence.
                 float* next = f.previous_.data() + y * W * 4;
+                // Accumulate's kernel writes the next history (the kept mean and its confidence) and, for
+                // frames of 3 or 4 channels, the output's pixels itself.
+                const bool shownByKernel = f.accumulate_ && (C == 3 || C == 4);
                 if (f.accumulate_) {
-                    for (int64_t x = 0; x < W; ++x)
-                        for (int c = 0; c < 4; ++c) next[4 * x + c] = kept[size_t(c * W + x)];
-                } else {
+                    args.keptInterleaved = next;
+                    if (shownByKernel && y < frameH) {  // (the padding's rows: to rgb, not shown)
+                        args.shownInterleaved = out + y * frameW * C;
+                        args.shownChannels = C, args.shownWidth = frameW;
+                        args.shownPass = frame->colour + y * frameW * C;
+                    }
+                }
+                blendRow(args);
+                if (shownByKernel) continue;
+                // The next history, interleaved: the blend's RGB and the warped state plus its correction.
+                if (!f.accumulate_) {
                     for (int64_t x = 0; x < W; ++x)
                         for (int c = 0; c < 3; ++c) next[4 * x + c] = rgb[c][x];
                 }
@@ -423,6 +494,9 @@ class CnnTemporalFilter final : public Filter {
     // planes (previous_ holds the history).
     std::optional<nn::Model> trunk_;
     std::optional<nn::InferencePlan> fused_;
+    bool headFused_ = false;  // the trunk ends at the head's input; the sink computes the logits
+    int headChannels_ = 0;
+    std::vector<float> headWeights_, headBias_;  // [row phase][tap][column phase][headChannels_]
     nn::Tensor frame_, warped_, motion_;
     int64_t width_ = 0, height_ = 0, paddedWidth_ = 0, paddedHeight_ = 0;
     int64_t multiple_ = 1;  // the fused path's sizes: multiples of 2^depth

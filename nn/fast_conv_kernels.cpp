@@ -477,12 +477,6 @@ constexpr std::array<int32_t, B> foldIndices(int offset) {
     return index;
 }
 
-// Lanes Index[0..B) of the concatenation a ++ b (a shuffle with constant indices, GCC and Clang alike).
-template <const auto& Index, size_t... I>
-inline VFloat shuffleTwo(VFloat a, VFloat b, std::index_sequence<I...>) {
-    return __builtin_shufflevector(a, b, Index[I]...);
-}
-
 template <int S>
 inline constexpr std::array<int32_t, B> kFoldLow = foldIndices<S>(0);
 template <int S>

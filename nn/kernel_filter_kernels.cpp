@@ -155,11 +155,50 @@ inline void filterPixels(const KernelFilterRowArgs& a, int64_t x, bool clampX) {
         const V historyWeight = m / (1.0f + m);
         V next = 1.0f + m;
         next = next < a.maxCount ? next : splat<V>(a.maxCount);
-        storeu(a.nextConfidence + x, next / (next + 1.0f));
+        V shown[kMaxChannels], keptValue[kMaxChannels];
         for (int c = 0; c < a.channels; ++c) {
             const V own = decodeSrgb<V, I>(loadu<V>(a.in[c * K + kRadius] + x));
-            storeu(a.out[c] + x, encodeSrgb<V, I>(filtered[c] + historyWeight * (history[c] - filtered[c])));
-            storeu(a.kept[c] + x, own + historyWeight * (history[c] - own));
+            shown[c] = encodeSrgb<V, I>(filtered[c] + historyWeight * (history[c] - filtered[c]));
+            keptValue[c] = own + historyWeight * (history[c] - own);
+        }
+        if (a.keptInterleaved) {  // (3 channels) the kept mean and the confidence, 4 floats a pixel
+            keptValue[3] = next / (next + 1.0f);
+            storeInterleaved<4>(a.keptInterleaved + 4 * x, keptValue);
+        } else {
+            storeu(a.nextConfidence + x, next / (next + 1.0f));
+            for (int c = 0; c < a.channels; ++c) storeu(a.kept[c] + x, keptValue[c]);
+        }
+        if (!a.shownInterleaved) {
+            for (int c = 0; c < a.channels; ++c) storeu(a.out[c] + x, shown[c]);
+            return;
+        }
+        // The colour shown, clamped to [0, 1], into the frame's pixels of shownChannels floats (3 or 4:
+        // the 4th passed through from shownPass) up to shownWidth.
+        constexpr int kLanes = int(sizeof(V) / sizeof(float));
+        for (int c = 0; c < 3; ++c) {
+            shown[c] = shown[c] < 0.0f ? splat<V>(0.0f) : shown[c];
+            shown[c] = shown[c] > 1.0f ? splat<V>(1.0f) : shown[c];
+        }
+        const int C = a.shownChannels;
+        float* o = a.shownInterleaved + C * x;
+        if (x + kLanes <= a.shownWidth) {
+            if (C == 3) {
+                storeInterleaved<3>(o, shown);
+            } else {
+                shown[3] = splat<V>(0.0f);
+                storeInterleaved<4>(o, shown);
+                for (int l = 0; l < kLanes; ++l) o[4 * l + 3] = a.shownPass[4 * (x + l) + 3];
+            }
+            return;
+        }
+        for (int l = 0; l < kLanes && x + l < a.shownWidth; ++l) {
+            for (int c = 0; c < 3; ++c) {
+                if constexpr (kLanes == 1)
+                    o[C * l + c] = shown[c];
+                else
+                    o[C * l + c] = shown[c][l];
+            }
+            if (C == 4) o[4 * l + 3] = a.shownPass[4 * (x + l) + 3];
         }
         return;
     }
@@ -493,6 +532,8 @@ void kernelLogitsRow(const KernelLogitsRowArgs& a) {
     int64_t s = 0;
 #if !defined(DEJAG_SIMD_LEVEL_scalar)
     if (a.factor == 2 && a.taps == 9 && a.inChannels <= 16) logitsFactor2<9>(a, s);  // the kpn family's
+    // the temporal families' (9 taps and the history's weight or the trust)
+    if (a.factor == 2 && a.taps == 10 && a.inChannels <= 16) logitsFactor2<10>(a, s);
 #endif
     for (; s < a.width / a.factor; ++s)
         for (int j = 0; j < a.taps; ++j)

@@ -32,6 +32,15 @@ struct KernelFilterRowArgs {
     const float* confidence = nullptr;
     float* nextConfidence = nullptr;
     float maxCount = 32.0f;
+    // Accumulate's outputs as pixels (3 channels; null: as rows above). keptInterleaved: the kept mean
+    // and the next confidence, 4 floats a pixel, `width` of them (kept and nextConfidence unused).
+    // shownInterleaved: the colour shown clamped to [0, 1], shownChannels (3 or 4) floats a pixel, the
+    // first shownWidth pixels of the row; with 4, the 4th is shownPass's (4 floats a pixel). `out` unused.
+    float* keptInterleaved = nullptr;
+    float* shownInterleaved = nullptr;
+    const float* shownPass = nullptr;
+    int shownChannels = 3;
+    int64_t shownWidth = 0;
     bool clip = false;  // accumulate's clip: the history clamped to the taps' range (AccumulateDesc::clip)
     // The still gate (null: off; accumulate, kernel 3, at most 4 channels): where still[x] is 1 (nothing
     // moves around the pixel), the trust logit is at least stillLogit and the history's every colour lies

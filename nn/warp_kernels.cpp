@@ -5,6 +5,10 @@
 #include <cstdint>
 #include <cstring>
 
+#if defined(DEJAG_SIMD_LEVEL_avx512) || defined(DEJAG_SIMD_LEVEL_avx2)
+#include <immintrin.h>
+#endif
+
 namespace dejag::nn::DEJAG_SIMD_NAMESPACE {
 namespace {
 
@@ -38,6 +42,50 @@ template <int K>
     }
 }
 
+#if defined(DEJAG_SIMD_LEVEL_avx512) || defined(DEJAG_SIMD_LEVEL_avx2)
+// image[index[l]] for the 16 lanes: one gather (AVX-512) or two (AVX2).
+// (Results through a reference: a 64-byte vector returned by value changes the ABI below AVX-512.)
+[[gnu::always_inline]] inline void gather16(const float* image, const I16& index, V16& out) {
+#if defined(DEJAG_SIMD_LEVEL_avx512)
+    out = V16(_mm512_mask_i32gather_ps(_mm512_setzero_ps(), 0xffff, __m512i(index), image, 4));
+#else
+    typedef int32_t I8 __attribute__((vector_size(32)));
+    const I8 low = __builtin_shufflevector(index, index, 0, 1, 2, 3, 4, 5, 6, 7),
+             high = __builtin_shufflevector(index, index, 8, 9, 10, 11, 12, 13, 14, 15);
+    const V8 a = V8(_mm256_i32gather_ps(image, __m256i(low), 4)),
+             b = V8(_mm256_i32gather_ps(image, __m256i(high), 4));
+    out = __builtin_shufflevector(a, b, 0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15);
+#endif
+}
+
+// A plane's kChunk pixels whose first taps are (firstX, firstY): every tap's place clamped to the image
+// (edges repeated, as the per-pixel path) and gathered, the same sums in the same order.
+template <int K>
+[[gnu::always_inline]] inline void planarChunk(const WarpRowsArgs& args, const I16& firstX, const I16& firstY,
+                                               const V16 (&wxs)[4], const V16 (&wys)[4], V16& sum) {
+    const int32_t lastX = int32_t(args.width - 1), lastY = int32_t(args.height - 1);
+    I16 column[K];
+    for (int i = 0; i < K; ++i) {
+        I16 c = firstX + i;
+        c = c < 0 ? 0 : c;
+        column[i] = c > lastX ? lastX : c;
+    }
+    sum = V16{};
+    for (int j = 0; j < K; ++j) {
+        I16 row = firstY + j;
+        row = row < 0 ? 0 : row;
+        row = (row > lastY ? lastY : row) * int32_t(args.width);
+        V16 rowSum = {};
+        for (int i = 0; i < K; ++i) {
+            V16 tap;
+            gather16(args.image, row + column[i], tap);
+            rowSum += wxs[i] * tap;
+        }
+        sum += wys[j] * rowSum;
+    }
+}
+#endif
+
 template <int K, bool Planar>
 void rows(const WarpRowsArgs& args) {
     const int64_t W = args.width, H = args.height;
@@ -58,6 +106,15 @@ void rows(const WarpRowsArgs& args) {
             const V16 sx = float(x0) + lane - mx, sy = float(y) - my;
             axis<K>(sx, limitX, args.a, firstX, wxs);
             axis<K>(sy, limitY, args.a, firstY, wys);
+#if defined(DEJAG_SIMD_LEVEL_avx512) || defined(DEJAG_SIMD_LEVEL_avx2)
+            // (32-bit indices: planes of fewer than 2^31 pixels.)
+            if (Planar && n == kChunk && W * H < (int64_t(1) << 31)) {
+                V16 sum;
+                planarChunk<K>(args, firstX, firstY, wxs, wys, sum);
+                std::memcpy(args.out[0] + y * W + x0, &sum, sizeof(sum));
+                continue;
+            }
+#endif
             for (int l = 0; l < n; ++l) {
                 const int64_t tx = firstX[l], ty = firstY[l];
                 if constexpr (Planar) {  // one plane: K x K scalar taps

@@ -49,12 +49,14 @@ Sequence makeSequence() {
 }
 
 // The temporal family with `state` state channels, or (state 0) the accumulate family, (state -1) with
-// the depth inputs.
-std::string savedModel(const testing::TempDir& dir, int state = 1) {
+// the depth inputs; `temporalState0`: the temporal family with no state channel. `width`: the first
+// level's channels (8, as the shipped network: its head reads 8 features).
+std::string savedModel(const testing::TempDir& dir, int state = 1, int width = 4,
+                       bool temporalState0 = false) {
     nn::ModelOptions options;
-    options.width = 4, options.depth = 2, options.state = state, options.maxCount = 3;
+    options.width = width, options.depth = 2, options.state = state, options.maxCount = 3;
     options.depthInput = state < 0;
-    nn::Model model = nn::Model::builtin(state <= 0 ? "accumulate" : "temporal", options);
+    nn::Model model = nn::Model::builtin(state <= 0 && !temporalState0 ? "accumulate" : "temporal", options);
     model.initialize(11);
     // The head at full size, so that every part of the network shows in the output (accumulate's trust
     // both below and above its kink, its cap of 3 samples reached).
@@ -90,12 +92,22 @@ INSTANTIATE_TEST_SUITE_P(SimdLevels, CnnTemporalLevels, ::testing::ValuesIn(test
                          testing::simdTestName);
 
 TEST_P(CnnTemporalLevels, TheFilterIsTrainingsUnrolledForward) {
-    for (int state : {1, 2, 0, -1}) {
-        SCOPED_TRACE(state == 0  ? std::string("accumulate")
-                     : state < 0 ? std::string("accumulate with depth")
-                                 : "state " + std::to_string(state));
+    // (state, width, temporal family with no state): the fused head (10 logits of 4 phases) for the
+    // accumulate family and the temporal one without state, at 4 and 8 features.
+    struct Case {
+        int state, width;
+        bool temporalState0;
+    };
+    for (const Case tc : {Case{1, 4, false}, Case{2, 4, false}, Case{0, 4, false}, Case{-1, 4, false},
+                          Case{-1, 8, false}, Case{0, 8, true}}) {
+        const int state = tc.state;
+        SCOPED_TRACE((tc.temporalState0 ? std::string("temporal, no state")
+                      : state == 0      ? std::string("accumulate")
+                      : state < 0       ? std::string("accumulate with depth")
+                                        : "state " + std::to_string(state)) +
+                     ", width " + std::to_string(tc.width));
         testing::TempDir dir;
-        const std::string path = savedModel(dir, state);
+        const std::string path = savedModel(dir, state, tc.width, tc.temporalState0);
         const Sequence s = makeSequence();
         // (The still gate is the filter's own, off here, though nothing here is still.)
         const auto filter =
@@ -194,6 +206,46 @@ TEST(CnnTemporal, AnySizeIsTheEdgePaddedFrameCropped) {
                         ASSERT_EQ(out[size_t((y * w + x) * 3 + k)],
                                   reference[size_t(t)][size_t((y * W + x) * 3 + k)])
                             << "frame " << t << " at " << x << ", " << y;
+        }
+    }
+}
+
+// Frames of 4 channels (37 x 21: the rows end inside a vector) get the colour of the same frames in 3
+// channels, bit for bit, and their 4th channel back as it came; at every SIMD level.
+TEST_P(CnnTemporalLevels, FourChannelFramesGetTheSameColourAndKeepTheirFourth) {
+    for (int state : {0, 1}) {
+        SCOPED_TRACE(state == 0 ? "accumulate" : "temporal");
+        testing::TempDir dir;
+        const std::string path = savedModel(dir, state);
+        const Sequence s = makeSequence();
+        constexpr int w = 37, h = 21;
+        const auto three = makeFilter("cnn-temporal", {{"model", path}, {"precision", "fp32"}});
+        const auto four = makeFilter("cnn-temporal", {{"model", path}, {"precision", "fp32"}});
+        for (int t = 0; t < K; ++t) {
+            std::vector<float> rgb(size_t(w * h * 3)), rgba(size_t(w * h * 4)), motion(size_t(w * h * 2));
+            for (int y = 0; y < h; ++y)
+                for (int x = 0; x < w; ++x) {
+                    const size_t p = size_t(y * w + x), q = size_t(y * W + x);
+                    for (int k = 0; k < 3; ++k)
+                        rgb[3 * p + size_t(k)] = rgba[4 * p + size_t(k)] =
+                            s.colour[size_t(t)][3 * q + size_t(k)];
+                    rgba[4 * p + 3] = float(p % 7) / 7.0f;
+                    for (int k = 0; k < 2; ++k)
+                        motion[2 * p + size_t(k)] = s.motion[size_t(t)][2 * q + size_t(k)];
+                }
+            Frame f;
+            f.width = w, f.height = h, f.motion = motion.data();
+            f.hasJitter = true, f.jitter[0] = s.jitter[size_t(t)][0], f.jitter[1] = s.jitter[size_t(t)][1];
+            std::vector<float> out3(rgb.size()), out4(rgba.size());
+            f.colour = rgb.data();
+            three->apply(f, out3.data());
+            f.colour = rgba.data(), f.channels = 4;
+            four->apply(f, out4.data());
+            for (size_t p = 0; p < size_t(w * h); ++p) {
+                for (size_t k = 0; k < 3; ++k)
+                    ASSERT_EQ(out4[4 * p + k], out3[3 * p + k]) << "frame " << t << " " << p;
+                ASSERT_EQ(out4[4 * p + 3], rgba[4 * p + 3]) << "frame " << t << " " << p;
+            }
         }
     }
 }
