@@ -545,37 +545,45 @@ class WarpLevels : public testing::SimdLevelTest {};
 INSTANTIATE_TEST_SUITE_P(SimdLevels, WarpLevels, ::testing::ValuesIn(testing::availableSimdLevels()),
                          testing::simdTestName);
 TEST_P(WarpLevels, TheInterleavedWarpIsTheLayersForward) {
-    const int H = 19, W = 37;
-    std::mt19937 rng(8);
-    std::uniform_real_distribution<float> u(-1, 1), m(-6, 6);
-    std::vector<float> interleaved(size_t(H * W * 4)), motionPairs(size_t(H * W * 2));
-    for (float& v : interleaved) v = u(rng);
-    for (float& v : motionPairs) v = m(rng);
-    motionPairs[10] = std::nanf(""), motionPairs[23] = 1e9f;
-    std::vector<float> motionPlanes(motionPairs.size());
-    for (int p = 0; p < H * W; ++p)
-        motionPlanes[size_t(p)] = motionPairs[size_t(2 * p)],
-        motionPlanes[size_t(H * W + p)] = motionPairs[size_t(2 * p + 1)];
-    for (WarpFilter filter : {WarpFilter::Bilinear, WarpFilter::CatmullRom, WarpFilter::Bicubic})
-        for (int channels = 1; channels <= 4; ++channels) {
-            SCOPED_TRACE(std::string(warpFilterName(filter)) + " " + std::to_string(channels));
-            std::vector<float> planes(size_t(channels * H * W)), expected(planes.size()), out(planes.size());
-            for (int c = 0; c < channels; ++c)
-                for (int p = 0; p < H * W; ++p)
-                    planes[size_t(c * H * W + p)] = interleaved[size_t(4 * p + c)];
-            WarpDesc d;
-            d.channels = channels, d.height = H, d.width = W, d.filter = filter;
-            warpForward(expected.data(), planes.data(), motionPlanes.data(), d);
-            float* rows[4];
-            for (int c = 0; c < channels; ++c) rows[c] = out.data() + c * H * W;
-            warpInterleaved(rows, interleaved.data(), motionPairs.data(), W, H, channels, filter);
-            for (size_t i = 0; i < out.size(); ++i) ASSERT_NEAR(out[i], expected[i], 1e-6f) << i;
-            if (channels == 1) {  // one channel as a plane
-                std::vector<float> plane(size_t(H * W));
-                warpPlane(plane.data(), planes.data(), motionPairs.data(), W, H, filter);
-                for (size_t i = 0; i < plane.size(); ++i) ASSERT_NEAR(plane[i], expected[i], 1e-6f) << i;
+    // Large motion (most taps cross a border somewhere in each run of pixels), then small motion (whole runs
+    // of 16 pixels with every tap inside).
+    for (const float reach : {6.0f, 1.5f}) {
+        SCOPED_TRACE("motion up to " + std::to_string(reach));
+        const int H = 19, W = 37;
+        std::mt19937 rng(8);
+        std::uniform_real_distribution<float> u(-1, 1), m(-reach, reach);
+        std::vector<float> interleaved(size_t(H * W * 4)), motionPairs(size_t(H * W * 2));
+        for (float& v : interleaved) v = u(rng);
+        for (float& v : motionPairs) v = m(rng);
+        if (reach > 2) motionPairs[10] = std::nanf(""), motionPairs[23] = 1e9f;
+        std::vector<float> motionPlanes(motionPairs.size());
+        for (int p = 0; p < H * W; ++p)
+            motionPlanes[size_t(p)] = motionPairs[size_t(2 * p)],
+            motionPlanes[size_t(H * W + p)] = motionPairs[size_t(2 * p + 1)];
+        for (WarpFilter filter : {WarpFilter::Bilinear, WarpFilter::CatmullRom, WarpFilter::Bicubic})
+            for (int channels = 1; channels <= 4; ++channels) {
+                SCOPED_TRACE(std::string(warpFilterName(filter)) + " " + std::to_string(channels));
+                std::vector<float> planes(size_t(channels * H * W)), expected(planes.size()),
+                    out(planes.size());
+                for (int c = 0; c < channels; ++c)
+                    for (int p = 0; p < H * W; ++p)
+                        planes[size_t(c * H * W + p)] = interleaved[size_t(4 * p + c)];
+                WarpDesc d;
+                d.channels = channels, d.height = H, d.width = W, d.filter = filter;
+                warpForward(expected.data(), planes.data(), motionPlanes.data(), d);
+                float* rows[4];
+                for (int c = 0; c < channels; ++c) rows[c] = out.data() + c * H * W;
+                warpInterleaved(rows, interleaved.data(), motionPairs.data(), W, H, channels, filter);
+                for (size_t i = 0; i < out.size(); ++i) ASSERT_NEAR(out[i], expected[i], 1e-6f) << i;
+                if (channels == 1) {  // one channel as a plane
+                    std::vector<float> plane(size_t(H * W));
+                    warpPlane(plane.data(), planes.data(), motionPairs.data(), W, H, filter);
+                    for (size_t i = 0; i < plane.size(); ++i) ASSERT_NEAR(plane[i], expected[i], 1e-6f) << i;
+                }
             }
-        }
+    }
+    const int H = 19, W = 37;
+    std::vector<float> interleaved(size_t(H * W * 4)), motionPairs(size_t(H * W * 2));
     float* none[1] = {nullptr};
     EXPECT_THROW(warpInterleaved(none, interleaved.data(), motionPairs.data(), W, H, 5, WarpFilter::Bilinear),
                  Error);
