@@ -192,13 +192,17 @@ void registerTrainCommand(CLI::App& app) {
         ->required();
     exportCommand->add_option("--test-images", *testImages, "test images to score (0: all)")
         ->capture_default_str();
+    auto exportBench = std::make_shared<std::string>();
+    exportCommand->add_option("--bench-taa", *exportBench,
+                              "the rows `dejag bench taa --json` printed for this model: the card carries "
+                              "their table");
     exportCommand->add_flag("--quiet", *exportQuiet, "print nothing but errors");
     addRuntimeOptions(exportCommand, *exportRuntime);
     exportCommand->callback([=] {
         applyRuntimeOptions(*exportRuntime);
         const std::string card =
             train::exportModel(*exportRun, *exportModel, standardBaselines(), *testImages, *exportQuiet,
-                               {sequenceFilterMethod("taa-hq", "taa-hq")});
+                               {sequenceFilterMethod("taa-hq", "taa-hq")}, *exportBench);
         if (!*exportQuiet) std::printf("%s", card.c_str());
     });
 

@@ -1,5 +1,6 @@
 #include "train/trainer.h"
 
+#include "train/bench_card.h"
 #include "train/temporal.h"
 
 #include <algorithm>
@@ -1314,7 +1315,8 @@ json sequenceScoresJson(const std::vector<SequenceScores>& scores) {
 // The export of a temporal network's run: scored on whole sequences next to the jittered frames and the
 // given baselines; its card.
 std::string exportTemporal(const json& runJson, nn::Model model, const std::string& modelPath,
-                           const std::vector<SequenceMethod>& baselines, int testSequences, bool quiet) {
+                           const std::vector<SequenceMethod>& baselines, int testSequences, bool quiet,
+                           const std::optional<BenchCardSection>& bench) {
     const std::string dataFolder = runJson.at("config").at("data");
     std::vector<SequenceMethod> methods;
     methods.push_back({"no AA", [](const data::SequenceBatch& b) {
@@ -1353,6 +1355,7 @@ std::string exportTemporal(const json& runJson, nn::Model model, const std::stri
     const json& finished = runJson.at("finished");
     json card = cardFields(runJson, name, model);
     card.update({{"validation", sequenceScoresJson(validation)}, {"test", sequenceScoresJson(test)}});
+    if (bench) card["bench_taa"] = bench->summary;
     nn::saveModel(
         modelPath, model,
         {{"dejag.provenance", runJson.at("command").get<std::string>()}, {"dejag.card", card.dump()}});
@@ -1401,6 +1404,7 @@ std::string exportTemporal(const json& runJson, nn::Model model, const std::stri
     std::snprintf(line, sizeof line, "### Test split (%d sequences of families never trained on)\n\n",
                   testCount);
     md << line << sequenceTable(test) << "\n### Validation split\n\n" << sequenceTable(validation);
+    if (bench) md << "\n" << bench->markdown;
     const std::string cardPath = (fs::path(modelPath).parent_path() / (name + ".md")).string();
     writeTextFileAtomically(cardPath, md.str());
     return md.str();
@@ -1410,7 +1414,7 @@ std::string exportTemporal(const json& runJson, nn::Model model, const std::stri
 
 std::string exportModel(const std::string& run, const std::string& modelPath,
                         const std::vector<Method>& baselines, int testImages, bool quiet,
-                        const std::vector<SequenceMethod>& sequenceBaselines) {
+                        const std::vector<SequenceMethod>& sequenceBaselines, const std::string& benchTaa) {
     const std::string runJsonPath = (fs::path(run) / "run.json").string();
     const std::string bestPath = (fs::path(run) / "best.safetensors").string();
     requireReadableFile(runJsonPath);
@@ -1422,10 +1426,13 @@ std::string exportModel(const std::string& run, const std::string& modelPath,
     if (const fs::path folder = fs::path(modelPath).parent_path();
         !folder.empty() && !fs::is_directory(folder))
         throw Error("cannot write '" + modelPath + "': folder '" + folder.string() + "' does not exist");
+    // (Read before the scoring too: a bad file fails at once.)
+    std::optional<BenchCardSection> bench;
+    if (!benchTaa.empty()) bench = benchTaaSection(benchTaa);
     if (runJson.value("temporal", false)) {
         std::map<std::string, std::string> metadata;
         return exportTemporal(runJson, nn::loadModel(bestPath, &metadata), modelPath, sequenceBaselines,
-                              testImages, quiet);
+                              testImages, quiet, bench);
     }
     std::map<std::string, std::string> metadata;
     nn::Model model = nn::loadModel(bestPath, &metadata);
@@ -1449,6 +1456,7 @@ std::string exportModel(const std::string& run, const std::string& modelPath,
     const json& finished = runJson.at("finished");
     json card = cardFields(runJson, name, model);
     card.update({{"validation", scoresToJson(validation)}, {"test", scoresToJson(test)}});
+    if (bench) card["bench_taa"] = bench->summary;
     std::map<std::string, std::string> out = {{"dejag.provenance", runJson.at("command").get<std::string>()},
                                               {"dejag.card", card.dump()}};
     nn::saveModel(modelPath, model, out);
@@ -1570,6 +1578,7 @@ std::string exportModel(const std::string& run, const std::string& modelPath,
             net->summary.psnr[t], none->summary.psnr[t], net->summary.ssim[t], none->summary.ssim[t]);
         md << line;
     }
+    if (bench) md << "\n" << bench->markdown;
     const std::string cardPath = (fs::path(modelPath).parent_path() / (name + ".md")).string();
     writeTextFileAtomically(cardPath, md.str());
     return md.str();

@@ -137,12 +137,15 @@ std::vector<MethodScores> scoreMethods(const std::vector<data::EvaluationItem>& 
 // A temporal network's run (a dataset of sequences) is scored on whole validation and test sequences next
 // to `sequenceBaselines` (each run over a whole sequence, a batch of one: every frame's sRGB RGB,
 // (1, 3, H, W)) and the jittered frames themselves; `testImages` then limits the test sequences.
+// `benchTaa` (empty: none): a file of `dejag bench taa --json` rows whose tables the card carries
+// (train/bench_card.h), read before anything is scored.
 struct SequenceMethod {
     std::string name;
     std::function<std::vector<nn::Tensor>(const data::SequenceBatch&)> apply;
 };
 std::string exportModel(const std::string& run, const std::string& modelPath,
                         const std::vector<Method>& baselines, int testImages, bool quiet,
-                        const std::vector<SequenceMethod>& sequenceBaselines = {});
+                        const std::vector<SequenceMethod>& sequenceBaselines = {},
+                        const std::string& benchTaa = "");
 
 }  // namespace dejag::train

@@ -843,6 +843,44 @@ TEST(Cli, TrainLogsJsonResumesAndExportsAModelCard) {
     text << card.rdbuf();
     EXPECT_NE(text.str().find("| FXAA |"), std::string::npos);
     EXPECT_NE(text.str().find("dejag train --data"), std::string::npos) << "the card records the command";
+
+    // With the rows `bench taa --json` printed (here a few written by hand): the card carries their means,
+    // per test, and the static test scene by scene. A file that is not such rows: one line, no model.
+    const std::string bench = dir.file("bench.json");
+    {
+        std::ofstream rows(bench);
+        rows
+            << R"({"test":"static","scene":"pipe","method":"no aa","psnr":30.0,"ssim":0.9,"width":80,"height":48})"
+            << "\n"
+            << R"({"test":"static","scene":"flowers","method":"no aa","psnr":32.0,"ssim":0.8,"width":80,"height":48})"
+            << "\n"
+            << R"({"test":"moving","scene":"pipe","method":"taa-hq","motion":"pan 1 px","psnr":{"best":40,"mean":36.5,"worst":30},"ssim":{"best":1,"mean":0.95,"worst":0.9},"flicker":0.004})"
+            << "\n";
+    }
+    r = run("train export '" + runFolder + "' '" + model + "' --quiet --bench-taa '" + bench + "'", dir);
+    ASSERT_EQ(r.exitCode, 0) << r.err;
+    std::ifstream benchCard(dir.file("tiny.md"));
+    std::stringstream withBench;
+    withBench << benchCard.rdbuf();
+    EXPECT_NE(withBench.str().find("| no aa | 31.00 | 0.8500 |"), std::string::npos) << withBench.str();
+    EXPECT_NE(withBench.str().find("| taa-hq | 36.50 | 0.9500 | 0.00400 |"), std::string::npos);
+    EXPECT_NE(withBench.str().find("| flowers | 32.00 |"), std::string::npos);
+    {
+        std::ofstream rows(dir.file("bad.json"));
+        rows
+            << R"({"test":"static","scene":"pipe","method":"no aa","psnr":30.0,"ssim":0.9,"width":80,"height":48})"
+            << "\nnot json\n";
+    }
+    const std::string other = dir.file("other.safetensors");
+    expectOneLineError(
+        run("train export '" + runFolder + "' '" + other + "' --bench-taa '" + dir.file("bad.json") + "'",
+            dir),
+        "line 2");
+    expectOneLineError(
+        run("train export '" + runFolder + "' '" + other + "' --bench-taa '" + dir.file("none.json") + "'",
+            dir),
+        "none.json");
+    EXPECT_FALSE(std::filesystem::exists(other));
 }
 
 TEST(Cli, TrainBadInputIsOneLine) {
