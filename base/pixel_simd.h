@@ -6,6 +6,7 @@
 // any() and all() take either.
 #pragma once
 
+#include <array>
 #include <cmath>
 #include <cstdint>
 #include <cstring>
@@ -351,6 +352,42 @@ inline void storeRgbFirst(float* p, VFloat r, VFloat g, VFloat b, int count) {
     float tail[3 * kFloatLanes];
     storeRgb(tail, r, g, b);
     std::memcpy(p, tail, sizeof(float) * 3 * size_t(count));
+}
+
+// Four planes' lanes stored as kFloatLanes pixels of 4 floats (p[4 l + c] = v[c] lane l): the two
+// channel pairs alternated, then the pairs alternated; two shuffles a vector stored.
+#if !defined(DEJAG_SIMD_LEVEL_scalar)
+namespace quads_detail {
+using Lanes = std::array<int32_t, kFloatLanes>;
+constexpr int N = kFloatLanes;
+// a0 b0 a1 b1 ... from lane `from` of each.
+constexpr Lanes pairs(int from) {
+    Lanes index{};
+    for (int i = 0; i < N; ++i) index[size_t(i)] = (i % 2 ? N : 0) + from + i / 2;
+    return index;
+}
+// Two pair vectors' pairs alternated from pair `from` of each: a0 b0 c0 d0 a1 b1 c1 d1 ...
+constexpr Lanes quads(int from) {
+    Lanes index{};
+    for (int i = 0; i < N; ++i) index[size_t(i)] = (i / 2 % 2 ? N : 0) + 2 * (from + i / 4) + i % 2;
+    return index;
+}
+inline constexpr Lanes kPairsLow = pairs(0), kPairsHigh = pairs(N / 2);
+inline constexpr Lanes kQuadsLow = quads(0), kQuadsHigh = quads(N / 4);
+}  // namespace quads_detail
+#endif
+inline void storeQuads(float* p, const VFloat v[4]) {
+#if defined(DEJAG_SIMD_LEVEL_scalar)
+    for (int c = 0; c < 4; ++c) p[c] = v[c];
+#else
+    using namespace quads_detail;
+    const VFloat ab[2] = {shuffleTwo<kPairsLow>(v[0], v[1]), shuffleTwo<kPairsHigh>(v[0], v[1])};
+    const VFloat cd[2] = {shuffleTwo<kPairsLow>(v[2], v[3]), shuffleTwo<kPairsHigh>(v[2], v[3])};
+    for (int h = 0; h < 2; ++h) {
+        storeu(p + (2 * h) * N, shuffleTwo<kQuadsLow>(ab[h], cd[h]));
+        storeu(p + (2 * h + 1) * N, shuffleTwo<kQuadsHigh>(ab[h], cd[h]));
+    }
+#endif
 }
 
 // Pixels x .. x + kFloatLanes - 1 of an interleaved 2-channel row (motion vectors), split into planes.

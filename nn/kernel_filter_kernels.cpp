@@ -7,7 +7,7 @@
 #include <cstring>
 #include <type_traits>
 
-#include "base/simd_vector.h"
+#include "base/pixel_simd.h"
 
 namespace dejag::nn::DEJAG_SIMD_NAMESPACE {
 using namespace ::dejag::DEJAG_SIMD_NAMESPACE;  // VFloat, kFloatLanes, loadu, storeu, splat
@@ -84,6 +84,22 @@ inline V encodeSrgb(V x) {
     x = x > 1.0f ? splat<V>(1.0f) : x;
     return x <= 0.0031308f ? x * 12.92f : 1.055f * powUnit<V, I>(x, 1.0f / 2.4f) - 0.055f;
 }
+
+// Interleaved stores of a pixel (V = float) or of a vector of pixels (base/pixel_simd.h).
+inline void storeRgbOf(float* p, const float* v) {
+    p[0] = v[0], p[1] = v[1], p[2] = v[2];
+}
+inline void storeQuadsOf(float* p, const float* v) {
+    p[0] = v[0], p[1] = v[1], p[2] = v[2], p[3] = v[3];
+}
+#if !defined(DEJAG_SIMD_LEVEL_scalar)
+inline void storeRgbOf(float* p, const VFloat* v) {
+    storeRgb(p, v[0], v[1], v[2]);
+}
+inline void storeQuadsOf(float* p, const VFloat* v) {
+    storeQuads(p, v);
+}
+#endif
 
 // The pixels from x (as many as V has lanes), all of whose taps x + dx lie in [0, width) unless `clampX`;
 // with `History`, one more weight on the history's pixel; with `Accumulate` (and History), accumulate's
@@ -163,7 +179,7 @@ inline void filterPixels(const KernelFilterRowArgs& a, int64_t x, bool clampX) {
         }
         if (a.keptInterleaved) {  // (3 channels) the kept mean and the confidence, 4 floats a pixel
             keptValue[3] = next / (next + 1.0f);
-            storeInterleaved<4>(a.keptInterleaved + 4 * x, keptValue);
+            storeQuadsOf(a.keptInterleaved + 4 * x, keptValue);
         } else {
             storeu(a.nextConfidence + x, next / (next + 1.0f));
             for (int c = 0; c < a.channels; ++c) storeu(a.kept[c] + x, keptValue[c]);
@@ -183,10 +199,10 @@ inline void filterPixels(const KernelFilterRowArgs& a, int64_t x, bool clampX) {
         float* o = a.shownInterleaved + C * x;
         if (x + kLanes <= a.shownWidth) {
             if (C == 3) {
-                storeInterleaved<3>(o, shown);
+                storeRgbOf(o, shown);
             } else {
                 shown[3] = splat<V>(0.0f);
-                storeInterleaved<4>(o, shown);
+                storeQuadsOf(o, shown);
                 for (int l = 0; l < kLanes; ++l) o[4 * l + 3] = a.shownPass[4 * (x + l) + 3];
             }
             return;
