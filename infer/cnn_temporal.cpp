@@ -13,6 +13,7 @@
 #include "base/simd.h"
 #include "base/thread_pool.h"
 #include "infer/cnn.h"
+#include "infer/cnn_temporal_kernels.h"
 #include "nn/inference.h"
 #include "nn/kernel_filter_kernels.h"
 #include "nn/layers.h"
@@ -355,25 +356,26 @@ class CnnTemporalFilter final : public Filter {
         const bool fresh = fresh_;
         gateStill_ = stillLogit_.has_value() && !fresh;
         const bool hasDepth = frame.depth && frame.previousDepth;
-        // The frame as planes (and the motion padded).
+        // The frame as planes, the motion padded, the moving pixels marked, the depth copied: rows of the
+        // padded size, the frame's last row and column repeated.
         parallelFor(0, H, 16, [&](int64_t first, int64_t last) {
-            for (int64_t y = first; y < last; ++y)
-                for (int64_t x = 0; x < W; ++x) {
-                    const int64_t p = y * W + x,
-                                  q = std::min(y, frameH - 1) * frameW + std::min(x, frameW - 1);
-                    for (int c = 0; c < 3; ++c) frame_.data()[c * plane + p] = frame.colour[q * C + c];
-                    if (padded)
-                        motion_.data()[2 * p] = frame.motion[2 * q],
-                                           motion_.data()[2 * p + 1] = frame.motion[2 * q + 1];
-                    if (!moving_.empty()) {
-                        const float mx = frame.motion[2 * q], my = frame.motion[2 * q + 1];
-                        moving_[size_t(p)] =
-                            !(std::fabs(mx) <= kStillMotion && std::fabs(my) <= kStillMotion);
-                    }
-                    if (depthInput_)
-                        depth_.data()[p] = hasDepth ? frame.depth[q] : 0.0f,
-                        previousDepth_.data()[p] = hasDepth ? frame.previousDepth[q] : 0.0f;
+            for (int64_t y = first; y < last; ++y) {
+                const int64_t q = std::min(y, frameH - 1) * frameW;
+                TemporalPrepassRow row;
+                row.colour = frame.colour + q * C, row.channels = C, row.frameWidth = frameW, row.width = W;
+                for (int c = 0; c < 3; ++c) row.planes[c] = frame_.data() + c * plane + y * W;
+                row.motion = frame.motion + 2 * q;
+                row.motionOut = padded ? motion_.data() + 2 * y * W : nullptr;
+                row.moving = moving_.empty() ? nullptr : moving_.data() + y * W;
+                row.stillMotion = kStillMotion;
+                if (depthInput_) {
+                    row.depth = hasDepth ? frame.depth + q : nullptr;
+                    row.previousDepth = hasDepth ? frame.previousDepth + q : nullptr;
+                    row.depthOut = depth_.data() + y * W,
+                    row.previousDepthOut = previousDepth_.data() + y * W;
                 }
+                DEJAG_SIMD_CALL(temporalPrepassRow, row);
+            }
         });
         // (A frame where everything moves has no still pixel: the row kernel then skips the gate's test.)
         if (gateStill_) gateStill_ = std::find(moving_.begin(), moving_.end(), uint8_t(0)) != moving_.end();
