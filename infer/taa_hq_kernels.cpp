@@ -7,6 +7,7 @@
 #include <cstring>
 
 #include "base/pixel_simd.h"
+#include "base/srgb_simd.h"
 #include "data/image.h"
 #include "infer/row_ring.h"
 
@@ -22,46 +23,7 @@ static_assert(RowRing::kRows == kTaaHqRingRows && RowRing::kPad == kTaaHqRowPad)
 // Motion below this (pixels) is none: the static lock's test.
 constexpr float kStill = 1e-3f;
 
-// ---- sRGB by exponent and mantissa ----------------------------------------------------------------
-// Both curves are powers past their knee: x^p with x = 2^e m, m in [1, 2), is 2^(e p) m^p. m^p is one
-// polynomial in m - 1.5 (interpolating it at Chebyshev nodes of [1, 2], fitted in double at start-up:
-// degree 5 for p = 2.4, 6 for p = 1/2.4), and 2^(e p) one of 16 factors read by the low 4 bits of the
-// float's biased exponent (decoding sees e in [-5, 0], encoding e in [-9, -1]: 16 apart at most). No
-// gathers: the factor is one permute (AVX-512) or two and a blend (AVX2).
-constexpr float kDecodeKnee = 0.04045f, kEncodeKnee = 0.0031308f;
-
-struct PowerCurve {
-    alignas(64) float factor[16];  // 2^(e p) (times `gain`), by biased exponent mod 16
-    float c[7] = {};               // the polynomial's coefficients in m - 1.5, lowest first
-    int degree = 0;
-};
-
-PowerCurve fitPower(double p, int degree, double gain) {
-    PowerCurve curve{};
-    curve.degree = degree;
-    const int n = degree + 1;
-    double m[8][9] = {};
-    for (int i = 0; i < n; ++i) {
-        const double s = 0.5 * std::cos(M_PI * (2 * i + 1) / (2 * n));  // node: m = 1.5 + s
-        for (int j = 0; j < n; ++j) m[i][j] = std::pow(s, j);
-        m[i][n] = std::pow(1.5 + s, p);
-    }
-    for (int col = 0; col < n; ++col) {  // Gauss-Jordan with partial pivoting
-        int pivot = col;
-        for (int r = col + 1; r < n; ++r)
-            if (std::abs(m[r][col]) > std::abs(m[pivot][col])) pivot = r;
-        std::swap(m[col], m[pivot]);
-        for (int r = 0; r < n; ++r)
-            if (r != col) {
-                const double k = m[r][col] / m[col][col];
-                for (int j = col; j <= n; ++j) m[r][j] -= k * m[col][j];
-            }
-    }
-    for (int j = 0; j < n; ++j) curve.c[j] = float(m[j][n] / m[j][j]);
-    for (int biased = 112; biased < 128; ++biased)  // e = biased - 127 in [-15, 0]
-        curve.factor[biased & 15] = float(gain * std::pow(2.0, p * (biased - 127)));
-    return curve;
-}
+// ---- sRGB by exponent and mantissa (base/srgb_simd.h): degree 5 for p = 2.4, 6 for p = 1/2.4 ---------
 
 const PowerCurve& decodeCurve() {  // ((v + 0.055) / 1.055)^2.4
     static const PowerCurve curve = fitPower(2.4, 5, 1.0);
@@ -72,62 +34,12 @@ const PowerCurve& encodeCurve() {  // 1.055 x^(1/2.4) (- 0.055)
     return curve;
 }
 
-inline VInt asInt(VFloat v) {
-#if defined(DEJAG_SIMD_LEVEL_scalar)
-    VInt i;
-    std::memcpy(&i, &v, sizeof(i));
-    return i;
-#else
-    return VInt(v);
-#endif
-}
-inline VFloat asFloat(VInt v) {
-#if defined(DEJAG_SIMD_LEVEL_scalar)
-    VFloat f;
-    std::memcpy(&f, &v, sizeof(f));
-    return f;
-#else
-    return VFloat(v);
-#endif
-}
-
-// table[index & 15] for each lane.
-inline VFloat lookup16(const float* table, VInt index) {
-#if defined(DEJAG_SIMD_LEVEL_avx512)
-    const __m512 t = _mm512_load_ps(table);  // (both sources: bit 4 of the index picks either)
-    return VFloat(_mm512_permutex2var_ps(t, __m512i(index), t));
-#elif defined(DEJAG_SIMD_LEVEL_scalar)
-    return table[index & 15];
-#else
-    const __m256 low = _mm256_permutevar8x32_ps(_mm256_load_ps(table), __m256i(index));
-    const __m256 high = _mm256_permutevar8x32_ps(_mm256_load_ps(table + 8), __m256i(index));
-    // (vpermps reads the low 3 bits; bit 3 picks the second half, moved to the sign bit)
-    return VFloat(_mm256_blendv_ps(low, high, _mm256_castsi256_ps(_mm256_slli_epi32(__m256i(index), 28))));
-#endif
-}
-
-// The curve at x > 0 (a normal float): factor(e) m^p.
-inline VFloat powerAt(const PowerCurve& curve, VFloat x) {
-    const VInt bits = asInt(x);
-    const VFloat s = asFloat((bits & 0x7fffff) | 0x3f800000) - 1.5f;  // m - 1.5
-    VFloat poly = splat<VFloat>(curve.c[curve.degree]);
-    for (int j = curve.degree - 1; j >= 0; --j) poly = poly * s + curve.c[j];
-    return lookup16(curve.factor, bits >> 23) * poly;
-}
-
-// sRGB-encoded [0, 1] (clamped; NaN reads 0) to linear light.
+// sRGB-encoded [0, 1] (clamped; NaN reads 0) to linear light, and back.
 inline VFloat decodeSrgb(VFloat v) {
-    v = vmin(vmax(splat<VFloat>(0.0f), v), splat<VFloat>(1.0f));  // (0 first: a NaN becomes 0)
-    const VFloat curve = powerAt(decodeCurve(), v * (1.0f / 1.055f) + (0.055f / 1.055f));
-    return select(v <= splat<VFloat>(kDecodeKnee), v * (1.0f / 12.92f), curve);
+    return decodeSrgbBy<5>(decodeCurve(), v);
 }
-
-// Linear light [0, 1] (clamped; NaN reads 0) to sRGB-encoded.
 inline VFloat encodeSrgb(VFloat x) {
-    x = vmin(vmax(splat<VFloat>(0.0f), x), splat<VFloat>(0.99999994f));  // (below 1: e at most -1)
-    // (the linear part's lanes, 0 and subnormals too, read some factor of the table and are replaced)
-    const VFloat curve = powerAt(encodeCurve(), x) - 0.055f;
-    return select(x <= splat<VFloat>(kEncodeKnee), x * 12.92f, curve);
+    return encodeSrgbBy<6>(encodeCurve(), x);
 }
 
 // ---- the band ----------------------------------------------------------------------------------------

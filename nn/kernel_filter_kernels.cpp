@@ -8,6 +8,7 @@
 #include <type_traits>
 
 #include "base/pixel_simd.h"
+#include "base/srgb_simd.h"
 
 namespace dejag::nn::DEJAG_SIMD_NAMESPACE {
 using namespace ::dejag::DEJAG_SIMD_NAMESPACE;  // VFloat, kFloatLanes, loadu, storeu, splat
@@ -48,41 +49,23 @@ inline V expNonPositive(V x) {
     return p * bitCast<V>(exponent);
 }
 
-// x^p for x in [0, 1] and p > 0 (0 at 0), relative error about 1e-6: ln x from the exponent and the
-// mantissa m in [1, 2) (ln m = 2 atanh((m - 1) / (m + 1)), odd series to t^11), then expNonPositive.
-template <class V, class I>
-inline V powUnit(V x, float p) {
-    const I bits = bitCast<I>(x);
-    const I exponent = ((bits >> 23) & 0xff) - 127;
-    const V m = bitCast<V>((bits & 0x7fffff) | 0x3f800000);
-    const V t = (m - 1.0f) / (m + 1.0f), t2 = t * t;
-    V series = splat<V>(1.0f / 11.0f);
-    series = series * t2 + 1.0f / 9.0f;
-    series = series * t2 + 1.0f / 7.0f;
-    series = series * t2 + 1.0f / 5.0f;
-    series = series * t2 + 1.0f / 3.0f;
-    series = series * t2 + 1.0f;
-    V e;
-    if constexpr (std::is_same_v<V, float>)
-        e = float(exponent);
-    else
-        e = __builtin_convertvector(exponent, V);
-    const V log = e * 0.693147181f + 2.0f * t * series;
-    const V result = expNonPositive<V, I>(p * log);
-    return x > 0.0f ? result : splat<V>(0.0f);
+// The sRGB curves on [0, 1] (clamped), as srgbDecode and srgbEncode of nn/layers.h, by exponent and
+// mantissa (base/srgb_simd.h) at degree 7: within 2e-7 of the reference (rounding included).
+const PowerCurve& decodeCurve() {
+    static const PowerCurve curve = fitPower(2.4, 7, 1.0);
+    return curve;
 }
-// The sRGB curves on [0, 1] (clamped), as srgbDecode and srgbEncode of nn/layers.h.
+const PowerCurve& encodeCurve() {
+    static const PowerCurve curve = fitPower(1 / 2.4, 7, 1.055);
+    return curve;
+}
 template <class V, class I>
 inline V decodeSrgb(V v) {
-    v = v < 0.0f ? splat<V>(0.0f) : v;
-    v = v > 1.0f ? splat<V>(1.0f) : v;
-    return v <= 0.04045f ? v * (1.0f / 12.92f) : powUnit<V, I>((v + 0.055f) * (1.0f / 1.055f), 2.4f);
+    return decodeSrgbBy<7>(decodeCurve(), v);
 }
 template <class V, class I>
 inline V encodeSrgb(V x) {
-    x = x < 0.0f ? splat<V>(0.0f) : x;
-    x = x > 1.0f ? splat<V>(1.0f) : x;
-    return x <= 0.0031308f ? x * 12.92f : 1.055f * powUnit<V, I>(x, 1.0f / 2.4f) - 0.055f;
+    return encodeSrgbBy<7>(encodeCurve(), x);
 }
 
 // Interleaved stores of a pixel (V = float) or of a vector of pixels (base/pixel_simd.h).
@@ -104,8 +87,11 @@ inline void storeQuadsOf(float* p, const VFloat* v) {
 // The pixels from x (as many as V has lanes), all of whose taps x + dx lie in [0, width) unless `clampX`;
 // with `History`, one more weight on the history's pixel; with `Accumulate` (and History), accumulate's
 // blend of the filtered pixels with the history's kept mean.
-template <class V, class I, int K, bool History = false, bool Accumulate = false>
+// kChannels: the channel count when known at compile time (0: a.channels), so that the per-channel
+// vectors stay in registers.
+template <class V, class I, int K, bool History = false, bool Accumulate = false, int kChannels = 0>
 inline void filterPixels(const KernelFilterRowArgs& a, int64_t x, bool clampX) {
+    const int channels = kChannels > 0 ? kChannels : a.channels;
     constexpr int kTaps = K * K, kRadius = K / 2, kCentre = kTaps / 2,
                   kWeights = kTaps + (History && !Accumulate ? 1 : 0);
     V weight[kWeights];
@@ -134,7 +120,7 @@ inline void filterPixels(const KernelFilterRowArgs& a, int64_t x, bool clampX) {
         // history.
         V filtered[kMaxChannels], low[kMaxChannels], high[kMaxChannels], history[kMaxChannels];
         const bool ranges = a.clip || a.still;
-        for (int c = 0; c < a.channels; ++c) {
+        for (int c = 0; c < channels; ++c) {
             V value = splat<V>(0.0f), lo = splat<V>(3.4e38f), hi = splat<V>(-3.4e38f);
             for (int dy = 0; dy < K; ++dy) {
                 const float* row = a.in[c * K + dy];
@@ -152,7 +138,7 @@ inline void filterPixels(const KernelFilterRowArgs& a, int64_t x, bool clampX) {
         V gated = splat<V>(0.0f);
         if (a.still) {
             V keep = loadu<V>(a.still + x) > 0.5f && trust >= a.stillLogit ? splat<V>(1.0f) : splat<V>(0.0f);
-            for (int c = 0; c < a.channels; ++c)
+            for (int c = 0; c < channels; ++c)
                 keep = history[c] >= low[c] - a.stillTolerance && history[c] <= high[c] + a.stillTolerance
                            ? keep
                            : splat<V>(0.0f);
@@ -160,7 +146,7 @@ inline void filterPixels(const KernelFilterRowArgs& a, int64_t x, bool clampX) {
             trust = gated > 0.5f ? splat<V>(0.0f) : trust;  // rho = 1 from 0 up
         }
         if (a.clip)
-            for (int c = 0; c < a.channels; ++c) {
+            for (int c = 0; c < channels; ++c) {
                 V clipped = history[c] < low[c] ? low[c] : history[c];
                 clipped = clipped > high[c] ? high[c] : clipped;
                 history[c] = gated > 0.5f ? history[c] : clipped;
@@ -172,7 +158,7 @@ inline void filterPixels(const KernelFilterRowArgs& a, int64_t x, bool clampX) {
         V next = 1.0f + m;
         next = next < a.maxCount ? next : splat<V>(a.maxCount);
         V shown[kMaxChannels], keptValue[kMaxChannels];
-        for (int c = 0; c < a.channels; ++c) {
+        for (int c = 0; c < channels; ++c) {
             const V own = decodeSrgb<V, I>(loadu<V>(a.in[c * K + kRadius] + x));
             shown[c] = encodeSrgb<V, I>(filtered[c] + historyWeight * (history[c] - filtered[c]));
             keptValue[c] = own + historyWeight * (history[c] - own);
@@ -182,10 +168,10 @@ inline void filterPixels(const KernelFilterRowArgs& a, int64_t x, bool clampX) {
             storeQuadsOf(a.keptInterleaved + 4 * x, keptValue);
         } else {
             storeu(a.nextConfidence + x, next / (next + 1.0f));
-            for (int c = 0; c < a.channels; ++c) storeu(a.kept[c] + x, keptValue[c]);
+            for (int c = 0; c < channels; ++c) storeu(a.kept[c] + x, keptValue[c]);
         }
         if (!a.shownInterleaved) {
-            for (int c = 0; c < a.channels; ++c) storeu(a.out[c] + x, shown[c]);
+            for (int c = 0; c < channels; ++c) storeu(a.out[c] + x, shown[c]);
             return;
         }
         // The colour shown, clamped to [0, 1], into the frame's pixels of shownChannels floats (3 or 4:
@@ -218,7 +204,7 @@ inline void filterPixels(const KernelFilterRowArgs& a, int64_t x, bool clampX) {
         }
         return;
     }
-    for (int c = 0; c < a.channels; ++c) {
+    for (int c = 0; c < channels; ++c) {
         V value = splat<V>(0.0f);
         for (int dy = 0; dy < K; ++dy) {
             const float* row = a.in[c * K + dy];
@@ -558,16 +544,18 @@ void kernelLogitsRow(const KernelLogitsRowArgs& a) {
 }
 
 // A row with a history (or accumulate's): every pixel filtered (no pass-through).
-template <int K, bool Accumulate>
+template <int K, bool Accumulate, int kChannels = 0>
 void filterRowWithHistory(const KernelFilterRowArgs& a) {
+    if constexpr (kChannels == 0)
+        if (a.channels == 3) return filterRowWithHistory<K, Accumulate, 3>(a);  // RGB: unrolled
     constexpr int kRadius = K / 2;
     const int64_t W = a.width;
     int64_t x = 0;
     for (; x < std::min<int64_t>(kRadius, W); ++x)
-        filterPixels<float, int32_t, K, true, Accumulate>(a, x, true);
+        filterPixels<float, int32_t, K, true, Accumulate, kChannels>(a, x, true);
     for (; x + kFloatLanes + kRadius <= W; x += kFloatLanes)
-        filterPixels<VFloat, VInt, K, true, Accumulate>(a, x, false);
-    for (; x < W; ++x) filterPixels<float, int32_t, K, true, Accumulate>(a, x, true);
+        filterPixels<VFloat, VInt, K, true, Accumulate, kChannels>(a, x, false);
+    for (; x < W; ++x) filterPixels<float, int32_t, K, true, Accumulate, kChannels>(a, x, true);
 }
 
 void kernelFilterRow(const KernelFilterRowArgs& args) {
