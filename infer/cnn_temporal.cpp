@@ -289,18 +289,23 @@ class CnnTemporalFilter final : public Filter {
         }
     };
 
-    // The still gate (accumulate family): where the pixel and its 8 neighbours do not move, the network
-    // trusts the history at least τ and the history's colours lie within the frame's 3x3 range (widened by
-    // kStillTolerance, linear), the pixel keeps its whole history (full trust, no clip), so a still view
-    // keeps its running mean of up to max_count samples (training's sequences are too short to teach trust
-    // beyond a few frames; docs/infer.md). The range test sends back to the network a still pixel whose
-    // light changed. The row kernel decides; this marks the pixels whose neighbourhood does not move
-    // (moving_: the pixels whose motion exceeds kStillMotion).
+    // The still gate (accumulate family): where the pixel and its 8 neighbours do not move, now and in the
+    // previous frame (where the history comes from: an object that has just left a still background is in
+    // its history), the network trusts the history at least τ and the history's colours lie within the
+    // frame's 3x3 range (widened by kStillTolerance, linear), the pixel keeps its whole history (full
+    // trust, no clip), so a still view keeps its running mean of up to max_count samples (training's
+    // sequences are too short to teach trust beyond a few frames; docs/infer.md). The range test sends
+    // back to the network a still pixel whose light changed. The row kernel decides; this marks the pixels
+    // whose neighbourhood does not move (moving_ and previousMoving_: the pixels whose motion exceeds
+    // kStillMotion, this frame's and the previous one's).
     static constexpr float kStillMotion = 1e-3f, kStillTolerance = 2.0f / 255.0f;
     void stillRow(int64_t y, float* still) const {
         const int64_t W = paddedWidth_, H = paddedHeight_;
-        const uint8_t* rows[3];
-        for (int d = -1; d <= 1; ++d) rows[d + 1] = moving_.data() + std::clamp<int64_t>(y + d, 0, H - 1) * W;
+        const uint8_t* rows[6];
+        for (int d = -1; d <= 1; ++d) {
+            const int64_t row = std::clamp<int64_t>(y + d, 0, H - 1) * W;
+            rows[d + 1] = moving_.data() + row, rows[d + 4] = previousMoving_.data() + row;
+        }
         for (int64_t x = 0; x < W; ++x) {
             const int64_t left = std::max<int64_t>(x - 1, 0), right = std::min<int64_t>(x + 1, W - 1);
             uint8_t moving = 0;
@@ -352,8 +357,10 @@ class CnnTemporalFilter final : public Filter {
             depth_ = depthInput_ ? nn::Tensor({2, H, W}) : nn::Tensor();
             previousDepth_ = depthInput_ ? nn::Tensor({H, W}) : nn::Tensor();
             moving_.assign(stillLogit_ ? size_t(plane) : 0, 0);
+            previousMoving_.assign(moving_.size(), 1);
         }
         const bool fresh = fresh_;
+        std::swap(moving_, previousMoving_);  // the previous frame's flags kept; this one's made below
         gateStill_ = stillLogit_.has_value() && !fresh;
         const bool hasDepth = frame.depth && frame.previousDepth;
         // The frame as planes, the motion padded, the moving pixels marked, the depth copied: rows of the
@@ -512,6 +519,7 @@ class CnnTemporalFilter final : public Filter {
     bool gateStill_ = false;            // this frame's
     bool clip_ = false;            // the history clamped to the frame's 3x3 range (the model's, or forced)
     std::vector<uint8_t> moving_;  // the still gate's: 1 where a pixel moves (padded)
+    std::vector<uint8_t> previousMoving_;  // ... in the previous frame (all 1 before the first)
 };
 
 }  // namespace
@@ -526,9 +534,9 @@ MethodSpec cnnTemporalMethod() {
         {"model", "models/dejag-temporal.safetensors", "the model file (a temporal network)"},
         {"precision", "auto", "fp32 | bf16 (AVX-512 BF16 CPUs) | auto (bf16 where the CPU has it)"},
         {"gate", "auto",
-         "off | auto (0.5) | T: where nothing moves in a pixel's 3x3 neighbourhood, the network trusts the "
-         "history at least T in [0, 1] and the history lies within the frame's 3x3 range, keep all of it "
-         "(accumulate networks)"},
+         "off | auto (0) | T: where nothing moves in a pixel's 3x3 neighbourhood (now and in the previous "
+         "frame), the network trusts the history at least T in [0, 1] and the history lies within the "
+         "frame's 3x3 range, keep all of it (accumulate networks)"},
         {"clip", "auto",
          "auto (as the network was trained) | on | off: clamp the history to the frame's 3x3 range "
          "(accumulate networks)"},
@@ -543,7 +551,7 @@ MethodSpec cnnTemporalMethod() {
         const std::string gate = p.text("gate");
         float stillTrust = -1.0f;
         if (gate == "auto") {
-            stillTrust = 0.5f;
+            stillTrust = 0.0f;
         } else if (gate != "off") {
             char* end = nullptr;
             const double t = std::strtod(gate.c_str(), &end);

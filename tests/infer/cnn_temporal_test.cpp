@@ -347,6 +347,15 @@ TEST(CnnTemporal, TheStillGateKeepsTheWholeHistoryWhereNothingMoves) {
     EXPECT_GT(worst(runFilter(*filter("0"), jump)[K - 1], K - 1, jump), 1e-3);
     const Sequence moving = makeSequence();
     EXPECT_EQ(runFilter(*filter("0"), moving), runFilter(*filter("off"), moving));
+    // Still only from frame 2: the history of frame 2 comes from a frame that moved, so the gate first
+    // holds on frame 3.
+    Sequence settles = still;
+    std::fill(settles.motion[1].begin(), settles.motion[1].end(), 0.5f);
+    const auto settlesGated = runFilter(*filter("0"), settles),
+               settlesUngated = runFilter(*filter("off"), settles);
+    for (int t = 0; t < 3; ++t)
+        EXPECT_EQ(settlesGated[size_t(t)], settlesUngated[size_t(t)]) << "frame " << t;
+    EXPECT_NE(settlesGated[3], settlesUngated[3]);
     for (const char* bad : {"1.5", "-0.1", "half", ""}) EXPECT_THROW((void)filter(bad), Error) << bad;
     EXPECT_THROW((void)makeFilter("cnn-temporal", {{"model", path}, {"clip", "maybe"}}), Error);
 }
