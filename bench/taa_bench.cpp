@@ -365,6 +365,7 @@ std::vector<nlohmann::json> benchTaa(const TaaBenchOptions& options) {
                 progress.advance(1, std::string(name) + " " + motion.label);
             }
     }
+    for (nlohmann::json& row : rows) row["jitter_spread"] = options.jitterSpread;  // (what a card quotes)
     return rows;
 }
 

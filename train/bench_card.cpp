@@ -38,6 +38,7 @@ BenchCardSection benchTaaSection(const std::string& path) {
     std::vector<std::string> scenes;                                  // the static test's, in order
     std::map<std::string, std::map<std::string, double>> staticPsnr;  // [scene][method]
     std::string line, size;
+    double spread = -1;  // the rows' jitter spread (older rows: not given)
     int number = 0, rows = 0;
     while (std::getline(in, line)) {
         ++number;
@@ -52,6 +53,7 @@ BenchCardSection benchTaaSection(const std::string& path) {
             if (m.count == 0) order[test].push_back(method);
             m.psnr += figure(row, "psnr"), m.ssim += figure(row, "ssim"), ++m.count;
             if (row.contains("flicker")) m.flicker += row.at("flicker").get<double>(), m.hasFlicker = true;
+            if (row.contains("jitter_spread")) spread = row.at("jitter_spread").get<double>();
             if (test == "static") {
                 const std::string scene = row.at("scene").get<std::string>();
                 if (!staticPsnr.count(scene)) scenes.push_back(scene);
@@ -72,7 +74,12 @@ BenchCardSection benchTaaSection(const std::string& path) {
     char text[512];
     md << "## `dejag bench taa`\n\nThe benchmark's tests (docs/infer.md) on dejag's scenes, none of them "
           "in training; PSNR and SSIM against each frame's truth on 8-bit values; flicker on 8-bit values "
-          "(docs/metrics.md). Each figure is the mean over the test's scenes (and motions).\n";
+          "(docs/metrics.md). Each figure is the mean over the test's scenes (and motions)";
+    if (spread >= 0) {
+        std::snprintf(text, sizeof text, "; the frames' jitter spread %g px", spread);
+        md << text;
+    }
+    md << ".\n";
     for (const std::string& test : tests) {
         if (!means.count(test)) continue;
         const bool flicker = means[test].begin()->second.hasFlicker;

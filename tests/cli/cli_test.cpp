@@ -850,7 +850,7 @@ TEST(Cli, TrainLogsJsonResumesAndExportsAModelCard) {
     {
         std::ofstream rows(bench);
         rows
-            << R"({"test":"static","scene":"pipe","method":"no aa","psnr":30.0,"ssim":0.9,"width":80,"height":48})"
+            << R"({"test":"static","scene":"pipe","method":"no aa","psnr":30.0,"ssim":0.9,"width":80,"height":48,"jitter_spread":1.0})"
             << "\n"
             << R"({"test":"static","scene":"flowers","method":"no aa","psnr":32.0,"ssim":0.8,"width":80,"height":48})"
             << "\n"
@@ -865,6 +865,7 @@ TEST(Cli, TrainLogsJsonResumesAndExportsAModelCard) {
     EXPECT_NE(withBench.str().find("| no aa | 31.00 | 0.8500 |"), std::string::npos) << withBench.str();
     EXPECT_NE(withBench.str().find("| taa-hq | 36.50 | 0.9500 | 0.00400 |"), std::string::npos);
     EXPECT_NE(withBench.str().find("| flowers | 32.00 |"), std::string::npos);
+    EXPECT_NE(withBench.str().find("jitter spread 1 px"), std::string::npos);
     {
         std::ofstream rows(dir.file("bad.json"));
         rows
