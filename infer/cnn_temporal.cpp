@@ -184,8 +184,8 @@ class CnnTemporalFilter final : public Filter {
             const int64_t W = f.paddedWidth_, H = f.paddedHeight_, plane = W * H;
             const int64_t frameW = f.width_, frameH = f.height_;
             const int S = f.history_ - 3, C = frame->channels;
-            thread_local std::vector<float> logits, blended, kept, stillRow;
-            logits.resize(size_t(10 * W)), blended.resize(size_t(3 * W)), kept.resize(size_t(4 * W));
+            thread_local std::vector<float> logits, blended, stillRow;
+            logits.resize(size_t(10 * W)), blended.resize(size_t(3 * W));
             // The fused head reads the features blocked: channel c at features + (c / block) blockStride +
             // s block + c % block. Rows laid out otherwise are copied so first.
             nn::KernelLogitsRowArgs logitArgs;
@@ -237,11 +237,10 @@ class CnnTemporalFilter final : public Filter {
                 args.out = rgb, args.in = in, args.logits = logits.data(), args.width = W;
                 args.channels = 3, args.kernel = 3, args.centreBias = f.centreBias_;
                 args.history = history;
-                float* keptRows[3];
-                if (f.accumulate_) {  // the frame shown in rgb, the kept mean and its confidence
-                    for (int c = 0; c < 3; ++c) keptRows[c] = kept.data() + c * W;
-                    args.kept = keptRows, args.confidence = f.warped_.data() + 3 * plane + y * W;
-                    args.nextConfidence = kept.data() + 3 * W, args.maxCount = f.maxCount_;
+                float* next = f.previous_.data() + y * W * 4;
+                if (f.accumulate_) {  // the next history (kept mean and confidence) straight into `next`
+                    args.keptInterleaved = next, args.confidence = f.warped_.data() + 3 * plane + y * W;
+                    args.maxCount = f.maxCount_;
                     args.clip = f.clip_;
                     if (f.gateStill_) {
                         stillRow.resize(size_t(W));
@@ -250,12 +249,9 @@ class CnnTemporalFilter final : public Filter {
                         args.stillTolerance = kStillTolerance;
                     }
                 }
-                float* next = f.previous_.data() + y * W * 4;
-                // Accumulate's kernel writes the next history (the kept mean and its confidence) and, for
-                // frames of 3 or 4 channels, the output's pixels itself.
+                // Accumulate's kernel writes, for frames of 3 or 4 channels, the output's pixels itself.
                 const bool shownByKernel = f.accumulate_ && (C == 3 || C == 4);
                 if (f.accumulate_) {
-                    args.keptInterleaved = next;
                     if (shownByKernel && y < frameH) {  // (the padding's rows: to rgb, not shown)
                         args.shownInterleaved = out + y * frameW * C;
                         args.shownChannels = C, args.shownWidth = frameW;

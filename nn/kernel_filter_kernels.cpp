@@ -559,7 +559,7 @@ void filterRowWithHistory(const KernelFilterRowArgs& a) {
 }
 
 void kernelFilterRow(const KernelFilterRowArgs& args) {
-    if (args.history && args.kept) {
+    if (args.history && (args.kept || args.keptInterleaved)) {  // accumulate
         if (args.kernel == 3) return filterRowWithHistory<3, true>(args);
         if (args.kernel == 1) return filterRowWithHistory<1, true>(args);
         return;

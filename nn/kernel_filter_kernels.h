@@ -33,7 +33,8 @@ struct KernelFilterRowArgs {
     float* nextConfidence = nullptr;
     float maxCount = 32.0f;
     // Accumulate's outputs as pixels (3 channels; null: as rows above). keptInterleaved: the kept mean
-    // and the next confidence, 4 floats a pixel, `width` of them (kept and nextConfidence unused).
+    // and the next confidence, 4 floats a pixel, `width` of them (kept and nextConfidence unused; either
+    // it or kept selects accumulate).
     // shownInterleaved: the colour shown clamped to [0, 1], shownChannels (3 or 4) floats a pixel, the
     // first shownWidth pixels of the row; with 4, the 4th is shownPass's (4 floats a pixel). `out` unused.
     float* keptInterleaved = nullptr;
