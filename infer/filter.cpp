@@ -14,6 +14,7 @@
 #include "infer/cnn.h"
 #include "infer/cnn_temporal.h"
 #include "infer/fxaa.h"
+#include "infer/smaa.h"
 #include "infer/taa.h"
 #include "infer/taa_hq.h"
 
@@ -206,8 +207,8 @@ MethodSpec noneMethod() {
 // The table of methods: one line each.
 const std::vector<MethodSpec>& filterMethods() {
     static const std::vector<MethodSpec> table = {
-        noneMethod(),    fxaaMethod(),  cnnMethod(),         taaMethod(false),
-        taaMethod(true), taaHqMethod(), cnnTemporalMethod(),
+        noneMethod(),     fxaaMethod(),    smaaMethod(),         cnnMethod(),
+        taaMethod(false), taaMethod(true), taaHqMethod(), cnnTemporalMethod(),
     };
     return table;
 }
