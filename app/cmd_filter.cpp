@@ -35,7 +35,7 @@ struct FilterArguments {
     std::string method, chain, input, output;
     std::string model = "models/dejag-fast.safetensors", gate = "auto", precision = "auto";
     int tile = 2048;
-    int preset = 39;
+    std::string preset = "39";
     bool greenLuma = false, json = false, noSharpen = false, quiet = false, listMethods = false;
     bool motionBlur = false;
     float motionBlurScale = 1.0f;
@@ -332,7 +332,7 @@ void collectParameters(CLI::App& command, FilterArguments& args) {
         else if (flag == "--precision")
             value = args.precision;
         else if (flag == "--preset")
-            value = std::to_string(args.preset);
+            value = args.preset;
         else if (flag == "--green-luma")
             value = "true";
         else if (flag == "--no-sharpen")
@@ -372,7 +372,9 @@ void registerFilterCommand(CLI::App& app) {
     auto args = std::make_shared<FilterArguments>();
     CLI::App* command = app.add_subcommand(
         "filter", "anti-alias images and sequences: FXAA 3.11, the CNN, U-TAA, T-TAA, alone or chained");
-    command->add_option("--method", args->method, "none | fxaa | cnn | taa | taa-sobel (--list-methods)");
+    command->add_option(
+        "--method", args->method,
+        "none | fxaa | smaa | cnn | taa | taa-sobel | taa-hq | cnn-temporal (--list-methods)");
     command->add_option("--chain", args->chain,
                         "methods in order, each filtering the one before: taa,cnn or fxaa,cnn");
     command->add_flag("--list-methods", args->listMethods,
@@ -399,7 +401,9 @@ void registerFilterCommand(CLI::App& app) {
                      "CNN: fp32 | bf16 (AVX-512 BF16 CPUs: bf16 activations, float sums) | auto (bf16 where "
                      "the CPU has it)")
         ->capture_default_str();
-    command->add_option("--preset", args->preset, "FXAA quality preset: 12, 23 or 39")->capture_default_str();
+    command->add_option(
+        "--preset", args->preset,
+        "quality preset: FXAA 12, 23 or 39 (default 39); SMAA low, medium, high or ultra (default ultra)");
     command->add_flag("--green-luma", args->greenLuma, "FXAA: use green as luma");
     command->add_flag("--no-sharpen", args->noSharpen, "TAA: skip the final sharpen (see docs/infer.md)");
     command->add_flag("--motion-blur", args->motionBlur,

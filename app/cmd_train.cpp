@@ -59,10 +59,11 @@ train::SequenceMethod sequenceFilterMethod(const std::string& label, const std::
             }};
 }
 
-// The comparison methods of validation and of the model card: the unfiltered frame and FXAA 3.11 at
-// its highest preset (train/ cannot depend on infer/, so they are wired in here).
+// The comparison methods of validation and of the model card: the unfiltered frame, FXAA 3.11 at its
+// highest preset and SMAA 1x at its ultra preset (train/ cannot depend on infer/, so they are wired in
+// here).
 std::vector<train::Method> standardBaselines() {
-    return {filterMethod("no AA", "none"), filterMethod("FXAA", "fxaa")};
+    return {filterMethod("no AA", "none"), filterMethod("FXAA", "fxaa"), filterMethod("SMAA", "smaa")};
 }
 
 std::vector<int64_t> parseSteps(const std::string& text) {

@@ -24,6 +24,9 @@ namespace {
 // motion and the RGB history and writes the history and the output; T-TAA also reads albedo, IDs, the
 // previous depth and its Sobel history and writes that.
 constexpr double kFxaaBytesPerPixel = 12 + 4 + 4;
+// SMAA (out of place) reads RGB and writes RGB, writes and reads back its luma plane and its edge bytes
+// (the blending weights, 16 bytes for each pixel with an edge, are not counted).
+constexpr double kSmaaBytesPerPixel = 12 + 12 + 4 + 4 + 1 + 1;
 constexpr double kUTaaBytesPerPixel = 12 + 4 + 8 + 12 + 12 + 12;
 constexpr double kTTaaBytesPerPixel = kUTaaBytesPerPixel + 12 + 4 + 4 + 4 + 4;
 // taa-hq (docs/taa-hq.md) reads colour, motion, depth, the previous depth and its history (RGB and the
@@ -85,6 +88,25 @@ std::vector<nlohmann::json> benchFilters(const FilterBenchOptions& options) {
                             {"target_ms", 2.0},
                             {"processed_fraction", fxaa->figures().processedFraction},
                             {"floor_ms", floorMs(kFxaaBytesPerPixel, threads)},
+                            {"psnr_before", floatPsnr(frame, truth)},
+                            {"psnr_after", floatPsnr(out, truth)}});
+        }
+    }
+    for (const char* preset : {"low", "medium", "high", "ultra"}) {
+        const auto smaa = infer::makeFilter("smaa", {{"preset", preset}});
+        infer::Frame in;
+        in.width = options.width, in.height = options.height, in.colour = frame.data();
+        for (const int threads : options.threads) {
+            setThreadCount(threads);
+            const double ms = medianMilliseconds(options.repeat, [&] { smaa->apply(in, out.data()); });
+            rows.push_back({{"name", std::string("smaa ") + preset},
+                            {"threads", threads},
+                            {"width", options.width},
+                            {"height", options.height},
+                            {"ms", ms},
+                            {"target_ms", 0.0},
+                            {"processed_fraction", smaa->figures().processedFraction},
+                            {"floor_ms", floorMs(kSmaaBytesPerPixel, threads)},
                             {"psnr_before", floatPsnr(frame, truth)},
                             {"psnr_after", floatPsnr(out, truth)}});
         }

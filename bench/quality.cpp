@@ -147,6 +147,7 @@ StillMethods::StillMethods(const Options& options) : impl_(std::make_unique<Impl
     for (int preset : options.fxaaPresets)
         impl.add(options.fxaaPresets.size() == 1 ? "FXAA" : "FXAA " + std::to_string(preset), "fxaa",
                  {{"preset", std::to_string(preset)}});
+    impl.add("SMAA", "smaa", {});
     for (const std::string& path : options.models) {
         if (!fs::exists(path)) {
             impl.notes.push_back("model " + path + " not found: skipped (make models trains it)");

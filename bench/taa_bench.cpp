@@ -62,6 +62,7 @@ struct Taas {
 struct Singles {
     explicit Singles(const TaaBenchOptions& options) {
         names.push_back("fxaa"), filters.push_back(infer::makeFilter("fxaa", {}));
+        names.push_back("smaa"), filters.push_back(infer::makeFilter("smaa", {}));
         if (!options.fastModel.empty())
             names.push_back("dejag-fast"),
                 filters.push_back(infer::makeFilter("cnn", {{"model", options.fastModel}}));

@@ -636,14 +636,14 @@ TEST(Cli, FilterListsItsMethodsAndRefusesParametersNoMethodReads) {
     testing::TempDir dir;
     RunResult r = run("filter --list-methods", dir);
     ASSERT_EQ(r.exitCode, 0) << r.err;
-    for (const char* text : {"none\n", "fxaa\n", "cnn\n", "taa  (temporal", "taa-sobel  (temporal",
+    for (const char* text : {"none\n", "fxaa\n", "smaa\n", "cnn\n", "taa  (temporal", "taa-sobel  (temporal",
                              "taa-hq  (temporal", "cnn-temporal  (temporal", "static-lock = true",
                              "preset = 39", "gate = auto", "needs: depth, motion", "feedback-max = 0.979"})
         EXPECT_NE(r.out.find(text), std::string::npos) << text;
     r = run("filter --list-methods --json", dir);
     ASSERT_EQ(r.exitCode, 0) << r.err;
     EXPECT_EQ(nlohmann::json::parse(r.out).size(),
-              7u);  // none, fxaa, cnn, taa, taa-sobel, taa-hq, cnn-temporal
+              8u);  // none, fxaa, smaa, cnn, taa, taa-sobel, taa-hq, cnn-temporal
     Image edge(24, 20, {"R", "G", "B"}, PixelType::UInt8);
     for (int y = 0; y < 20; ++y)
         for (int x = 0; x < 24; ++x)
@@ -676,7 +676,8 @@ TEST(Cli, BenchFilterPrintsEveryMethod) {
         EXPECT_GT(j["floor_ms"].get<double>(), 0.0);
         names.push_back(j["name"].get<std::string>());
     }
-    EXPECT_EQ(names, (std::vector<std::string>{"fxaa preset 12", "fxaa preset 23", "fxaa preset 39", "u-taa",
+    EXPECT_EQ(names, (std::vector<std::string>{"fxaa preset 12", "fxaa preset 23", "fxaa preset 39", "smaa low",
+                                               "smaa medium", "smaa high", "smaa ultra", "u-taa",
                                                "u-taa zoom", "u-taa random motion", "t-taa", "t-taa zoom",
                                                "t-taa random motion", "taa-hq", "taa-hq zoom",
                                                "taa-hq random motion"}));
@@ -758,12 +759,12 @@ TEST(Cli, BenchTaaReproducesTheThesisProtocolsSmall) {
             EXPECT_GE(j["flicker"].get<double>(), 0.0);
         }
     }
-    EXPECT_EQ(statics, 9 * 8);
-    EXPECT_EQ(ghosts, 3 * 7);
-    EXPECT_EQ(moving, 4 * 3 * 7);  // 4 scenes, 3 camera motions, 7 methods
-    for (const char* m : {"no aa", "fxaa", "u-taa", "t-taa", "taa-hq", "oracle"})
+    EXPECT_EQ(statics, 9 * 9);
+    EXPECT_EQ(ghosts, 3 * 8);
+    EXPECT_EQ(moving, 4 * 3 * 8);  // 4 scenes, 3 camera motions, 8 methods
+    for (const char* m : {"no aa", "fxaa", "smaa", "u-taa", "t-taa", "taa-hq", "oracle"})
         EXPECT_EQ(staticMethods.count(m), 1u) << m;
-    for (const char* m : {"no aa", "fxaa", "u-taa", "t-taa", "taa-hq"})
+    for (const char* m : {"no aa", "fxaa", "smaa", "u-taa", "t-taa", "taa-hq"})
         EXPECT_EQ(ghostMethods.count(m), 1u) << m;
     // The table prints every protocol.
     const RunResult text =
@@ -947,6 +948,7 @@ TEST(Cli, DemoRunsEveryMethodAndWritesTheReport) {
     const std::string first = dir.path().filename().string() + "/tiny";
     std::set<std::string> expected{"no AA",
                                    "FXAA",
+                                   "SMAA",
                                    "U-TAA",
                                    "T-TAA",
                                    "T-TAA unsharpened",
