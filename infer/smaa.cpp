@@ -187,6 +187,8 @@ void Smaa::apply(const float* in, float* out, int width, int height, int channel
     if (width < 1 || height < 1 || channels < 3) throw Error("SMAA needs an image with R, G, B channels");
     if (options_.predication && !depth) throw Error("SMAA with predication needs the frame's depth");
     const size_t pixels = size_t(width) * size_t(height);
+    if (pixels * size_t(channels) > size_t(INT32_MAX))
+        throw Error("SMAA: image too large (" + std::to_string(width) + "x" + std::to_string(height) + ")");
     if (in == out) {  // every pass reads the original frame
         if (copy_.size() < pixels * size_t(channels)) copy_.resize(pixels * size_t(channels));
         parallelFor(0, height, 16, [&](int64_t y0, int64_t y1) {

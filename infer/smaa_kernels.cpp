@@ -78,7 +78,13 @@ void smaaLumaRow(const SmaaKernelArgs& a, int y) {
     float* dst = a.luma + size_t(y) * a.lumaStride + kSmaaLumaPad;
     const int c = a.channels;
     if (c == 3) {
-        for (int x = 0; x < a.width; ++x)
+        int x = 0;
+        for (; x + kFloatLanes <= a.width; x += kFloatLanes) {
+            VFloat r, g, b;
+            loadRgb(src + 3 * x, r, g, b);
+            storeu(dst + x, 0.2126f * r + 0.7152f * g + 0.0722f * b);
+        }
+        for (; x < a.width; ++x)
             dst[x] = 0.2126f * src[3 * x] + 0.7152f * src[3 * x + 1] + 0.0722f * src[3 * x + 2];
     } else {
         for (int x = 0; x < a.width; ++x)
@@ -160,9 +166,46 @@ void smaaBlendRow(const SmaaKernelArgs& a, int y) {
     const uint8_t* e0 = a.edges + size_t(y + a.edgePad) * a.edgeStride + size_t(a.edgePad);
     const uint8_t* e1 = e0 + a.edgeStride;  // the row below (the zero pad below the last row)
     const float* weights = a.weights + size_t(y) * w * 4;
-    const PowerCurve &dec = decodeCurve(), &enc = encodeCurve();
-    const float* up = in - (y > 0 ? w * c : 0);
-    const float* down = in + (y + 1 < a.height ? w * c : 0);
+    const int32_t rowStart = int32_t(size_t(y) * w * c);  // (Smaa::apply keeps frames below 2^31 floats)
+    const int32_t upStep = y > 0 ? int32_t(w * c) : 0, downStep = y + 1 < a.height ? int32_t(w * c) : 0;
+    // The pixels that blend, collected a batch at a time: their offset in the frame, their two
+    // neighbours' and the two weights; then mixed kFloatLanes at a time.
+    constexpr int kBatch = 128;
+    alignas(64) int32_t at[kBatch + kFloatLanes], n1[kBatch + kFloatLanes], n2[kBatch + kFloatLanes];
+    alignas(64) float w1[kBatch + kFloatLanes], w2[kBatch + kFloatLanes];
+    int count = 0;
+    auto flush = [&] {
+        if (count == 0) return;
+        for (int k = count; k % kFloatLanes != 0; ++k)  // the last vector's spare lanes repeat a pixel
+            at[k] = at[count - 1], n1[k] = n1[count - 1], n2[k] = n2[count - 1], w1[k] = w1[count - 1],
+            w2[k] = w2[count - 1];
+        const PowerCurve &dec = decodeCurve(), &enc = encodeCurve();
+        for (int i = 0; i < count; i += kFloatLanes) {
+            VInt p, q1, q2;
+            std::memcpy(&p, at + i, sizeof(VInt)), std::memcpy(&q1, n1 + i, sizeof(VInt)),
+                std::memcpy(&q2, n2 + i, sizeof(VInt));
+            const VFloat a1 = loadu<VFloat>(w1 + i), a2 = loadu<VFloat>(w2 + i);
+            const VFloat scale = 1.0f / (a1 + a2);
+            alignas(64) float result[3][kFloatLanes];
+            for (int k = 0; k < 3; ++k) {
+                VFloat v0 = gather(a.frame + k, p), v1 = gather(a.frame + k, q1),
+                       v2 = gather(a.frame + k, q2);
+                if (a.linear)
+                    v0 = decodeSrgbBy<7>(dec, v0), v1 = decodeSrgbBy<7>(dec, v1),
+                    v2 = decodeSrgbBy<7>(dec, v2);
+                // Each weight mixes the pixel toward its neighbour by that amount (a bilinear read at that
+                // offset); the two mixes are averaged by the weights.
+                VFloat v = (a1 * (v0 + (v1 - v0) * a1) + a2 * (v0 + (v2 - v0) * a2)) * scale;
+                if (a.linear) v = encodeSrgbBy<7>(enc, v);
+                storeu(result[k], v);
+            }
+            for (int l = 0; l < std::min(kFloatLanes, count - i); ++l) {
+                float* o = a.out + at[i + l];
+                o[0] = result[0][l], o[1] = result[1][l], o[2] = result[2][l];
+            }
+        }
+        count = 0;
+    };
     for (int x = 0; x < a.width;) {
         // Eight pixels at once where none of them, their right neighbours or the pixels below has an edge
         // (the pads are zero, so the reads past the row's end are in bounds).
@@ -181,30 +224,21 @@ void smaaBlendRow(const SmaaKernelArgs& a, int y) {
             if (e0[x + 1]) toRight = weights[4 * x + 7];
             if (e1[x]) toBottom = weights[4 * (w + size_t(x)) + 1];
             if (toTop + toLeft + toRight + toBottom < 1e-5f) continue;
-            // The stronger direction wins; its two weights mix the pixel toward each neighbour by that
-            // amount (a bilinear read), normalised.
-            const bool horizontal = std::max(toRight, toLeft) > std::max(toBottom, toTop);
-            float w1, w2;
-            const float *n1, *n2;
-            if (horizontal) {
-                w1 = toRight, w2 = toLeft;
-                n1 = in + c * size_t(std::min(x + 1, a.width - 1)), n2 = in + c * size_t(std::max(x - 1, 0));
+            // The stronger direction wins, with its two weights.
+            const int32_t self = rowStart + int32_t(c) * x;
+            at[count] = self;
+            if (std::max(toRight, toLeft) > std::max(toBottom, toTop)) {
+                w1[count] = toRight, w2[count] = toLeft;
+                n1[count] = self + (x + 1 < a.width ? int32_t(c) : 0),
+                n2[count] = self - (x > 0 ? int32_t(c) : 0);
             } else {
-                w1 = toBottom, w2 = toTop;
-                n1 = down + c * size_t(x), n2 = up + c * size_t(x);
+                w1[count] = toBottom, w2[count] = toTop;
+                n1[count] = self + downStep, n2[count] = self - upStep;
             }
-            const float scale = 1.0f / (w1 + w2);
-            const float* p = in + c * size_t(x);
-            for (int k = 0; k < 3; ++k) {
-                float v0 = p[k], v1 = n1[k], v2 = n2[k];
-                if (a.linear)
-                    v0 = decodeSrgbBy<7>(dec, v0), v1 = decodeSrgbBy<7>(dec, v1),
-                    v2 = decodeSrgbBy<7>(dec, v2);
-                float v = (w1 * (v0 + (v1 - v0) * w1) + w2 * (v0 + (v2 - v0) * w2)) * scale;
-                out[c * size_t(x) + size_t(k)] = a.linear ? encodeSrgbBy<7>(enc, v) : v;
-            }
+            if (++count == kBatch) flush();
         }
     }
+    flush();
 }
 
 }  // namespace dejag::infer::DEJAG_SIMD_NAMESPACE

@@ -664,6 +664,24 @@ TEST(Cli, FilterListsItsMethodsAndRefusesParametersNoMethodReads) {
     expectOneLineError(
         run("filter --method fxaa --cuts 3 '" + dir.file("edge.png") + "' '" + dir.file("o.png") + "'", dir),
         "keeps no history");
+    // SMAA by preset name, a setting of its own, and a bad preset, a bad setting, predication without depth.
+    r = run("filter --method smaa --preset high --set corner-rounding=50 '" + dir.file("edge.png") + "' '" +
+                dir.file("s.png") + "'",
+            dir);
+    ASSERT_EQ(r.exitCode, 0) << r.err;
+    EXPECT_NE(readImage(dir.file("s.png")).pixels, readImage(dir.file("edge.png")).pixels);
+    expectOneLineError(run("filter --method smaa --preset extreme '" + dir.file("edge.png") + "' '" +
+                               dir.file("s.png") + "'",
+                           dir),
+                       "--preset: SMAA preset 'extreme' is not one of low, medium, high, ultra");
+    expectOneLineError(run("filter --method smaa --set search-steps=500 '" + dir.file("edge.png") + "' '" +
+                               dir.file("s.png") + "'",
+                           dir),
+                       "search-steps");
+    expectOneLineError(run("filter --method smaa --set predication=on '" + dir.file("edge.png") + "' '" +
+                               dir.file("s.png") + "'",
+                           dir),
+                       "depth");
 }
 
 TEST(Cli, BenchFilterPrintsEveryMethod) {
@@ -676,11 +694,11 @@ TEST(Cli, BenchFilterPrintsEveryMethod) {
         EXPECT_GT(j["floor_ms"].get<double>(), 0.0);
         names.push_back(j["name"].get<std::string>());
     }
-    EXPECT_EQ(names, (std::vector<std::string>{"fxaa preset 12", "fxaa preset 23", "fxaa preset 39", "smaa low",
-                                               "smaa medium", "smaa high", "smaa ultra", "u-taa",
-                                               "u-taa zoom", "u-taa random motion", "t-taa", "t-taa zoom",
-                                               "t-taa random motion", "taa-hq", "taa-hq zoom",
-                                               "taa-hq random motion"}));
+    EXPECT_EQ(names,
+              (std::vector<std::string>{"fxaa preset 12", "fxaa preset 23", "fxaa preset 39", "smaa low",
+                                        "smaa medium", "smaa high", "smaa ultra", "u-taa", "u-taa zoom",
+                                        "u-taa random motion", "t-taa", "t-taa zoom", "t-taa random motion",
+                                        "taa-hq", "taa-hq zoom", "taa-hq random motion"}));
 }
 
 TEST(Cli, BenchStabilityChecksEveryKindWithinTolerance) {

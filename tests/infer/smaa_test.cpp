@@ -140,6 +140,36 @@ TEST(Smaa, SameResultForEveryThreadCountSimdLevelInPlaceOrNotAndOtherChannelsKep
     }
 }
 
+// A 45-degree staircase: its pixels with a left and a top edge take the diagonal pattern's weights, and a
+// pixel that found a diagonal has no orthogonal weights for its left edge; without diagonal steps the
+// same pixels blend by the orthogonal patterns only.
+TEST(Smaa, DiagonalPatternsTakePrecedence) {
+    const int n = 24;
+    std::vector<float> image(size_t(n * n * 3)), out(image.size());
+    for (int y = 0; y < n; ++y)
+        for (int x = 0; x < n; ++x)
+            for (int c = 0; c < 3; ++c)
+                image[size_t((y * n + x) * 3 + c)] = y > (n - 1 - x) + 3 ? 0.9f : 0.1f;
+    for (const int diagonalSteps : {0, 16}) {
+        SmaaOptions options = smaaPreset("ultra");
+        options.diagonalSteps = diagonalSteps;
+        Smaa smaa(options);
+        smaa.apply(image.data(), out.data(), n, n, 3);
+        for (int y = 8; y < 12; ++y) {
+            const int x = n - 1 - (y - 4);  // the first bright pixel of the row
+            ASSERT_EQ(smaa.edgeAt(x, y), 3) << x << "," << y;
+            const float* w = smaa.weightsAt(x, y);
+            if (diagonalSteps > 0) {
+                EXPECT_GT(w[0], 0.2f);
+                EXPECT_GT(w[1], 0.05f);
+                EXPECT_EQ(w[2] + w[3], 0.0f);
+            } else {
+                EXPECT_GT(w[2] + w[3], 0.0f);
+            }
+        }
+    }
+}
+
 TEST(Smaa, RefusesBadSettingsAndPredicationWithoutDepth) {
     EXPECT_THROW(smaaPreset("extreme"), Error);
     SmaaOptions o;
