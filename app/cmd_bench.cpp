@@ -19,6 +19,7 @@
 #include "bench/bench.h"
 #include "bench/filter_bench.h"
 #include "bench/quality.h"
+#include "bench/reach.h"
 #include "bench/render_bench.h"
 #include "bench/stability.h"
 #include "bench/taa_bench.h"
@@ -609,7 +610,8 @@ void registerBenchCommand(CLI::App& app) {
     qualityBench->add_flag("--quiet", quality->quiet, "no progress bar");
     addRuntimeOptions(qualityBench, *qualityRuntime);
     qualityBench->footer(
-        "Methods: no AA, FXAA presets 12/23/39, each model gated and ungated, FXAA then each model. Writes\n"
+        "Methods: no AA, FXAA presets 12/23/39, SMAA, each model gated and ungated, FXAA then each model.\n"
+        "Writes "
         "OUT/results.csv, results.json, pareto.png (ms at 1920x1080 against PSNR), mosaic.png and "
         "report.html.");
     qualityBench->callback([=] {
@@ -618,6 +620,68 @@ void registerBenchCommand(CLI::App& app) {
         const std::vector<nlohmann::json> rows = bench::benchQuality(*quality);
         bench::printQualityRows(rows, *qualityJson, true);
         if (!*qualityJson) std::printf("report: %s/report.html\n", quality->out.c_str());
+    });
+
+    struct ReachArguments {
+        std::string size = "1920x1080", fastModel = "models/dejag-fast.safetensors";
+        std::vector<std::string> scenes;
+        int truth = 64;
+        bool json = false, quiet = false;
+    };
+    auto reachArgs = std::make_shared<ReachArguments>();
+    CLI::App* reach = bench->add_subcommand(
+        "reach",
+        "where along an edge each single-frame method gains: edge pixels by the length of their run");
+    reach->add_option("--size", reachArgs->size, "frame size WIDTHxHEIGHT")->capture_default_str();
+    reach->add_option("--scenes", reachArgs->scenes,
+                      "scenes (dejag render --list; default atrium, pipe, hard-edges, flowers, hairball)");
+    reach->add_option("--truth", reachArgs->truth, "truth samples")
+        ->check(CLI::Range(1, 4096))
+        ->capture_default_str();
+    reach
+        ->add_option(
+            "--fast-model", reachArgs->fastModel,
+            "the single-frame network compared as dejag-fast ('' or a missing default: not compared)")
+        ->capture_default_str();
+    reach->add_flag("--json", reachArgs->json, "one JSON object per row");
+    reach->add_flag("--quiet", reachArgs->quiet, "no progress bar");
+    reach->callback([reachArgs, reach] {
+        bench::ReachBenchOptions options;
+        const Size size = parseSize(reachArgs->size, "--size");
+        options.width = size.width, options.height = size.height;
+        if (!reachArgs->scenes.empty()) options.scenes = reachArgs->scenes;
+        for (const std::string& scene : options.scenes)
+            render::buildScene(scene, {});  // unknown: one line, now
+        options.truthSamples = reachArgs->truth;
+        options.quiet = reachArgs->quiet || reachArgs->json;
+        if (!reachArgs->fastModel.empty() &&
+            !(reach->count("--fast-model") == 0 && !std::filesystem::exists(reachArgs->fastModel))) {
+            if (!std::filesystem::exists(reachArgs->fastModel))
+                throw Error("--fast-model: no model file " + reachArgs->fastModel);
+            options.fastModel = reachArgs->fastModel;
+        }
+        const std::vector<nlohmann::json> rows = bench::benchReach(options);
+        if (reachArgs->json) {
+            for (const nlohmann::json& r : rows) std::printf("%s\n", r.dump().c_str());
+            return;
+        }
+        // Per scene and pooled: each class's pixels, no AA's PSNR and every method's gain over it.
+        std::vector<std::string> methods;
+        for (const nlohmann::json& r : rows)
+            if (std::find(methods.begin(), methods.end(), r["method"].get<std::string>()) == methods.end())
+                methods.push_back(r["method"].get<std::string>());
+        std::printf("%-12s %-6s %9s %9s", "scene", "run", "pixels", "no AA dB");
+        for (size_t m = 1; m < methods.size(); ++m) std::printf(" %12s", (methods[m] + " +dB").c_str());
+        std::printf("\n");
+        for (size_t i = 0; i < rows.size(); i += methods.size()) {
+            const nlohmann::json& base = rows[i];
+            std::printf("%-12s %-6s %9lld %9.2f", base["scene"].get<std::string>().c_str(),
+                        base["run"].get<std::string>().c_str(), (long long)base["pixels"].get<int64_t>(),
+                        base["psnr"].get<double>());
+            for (size_t m = 1; m < methods.size(); ++m)
+                std::printf(" %12.2f", rows[i + m]["gain_db"].get<double>());
+            std::printf("\n");
+        }
     });
 
     auto args = std::make_shared<BenchArguments>();

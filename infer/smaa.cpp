@@ -55,6 +55,31 @@ void smaaHorizontalRun(const uint8_t* edges, size_t stride, int pad, int x, int 
     first = l, last = r;
 }
 
+void smaaVerticalRun(const uint8_t* edges, size_t stride, int pad, int x, int y, int steps, int& first,
+                     int& last) {
+    auto at = [&](int xx, int yy) { return edges[size_t(yy + pad) * stride + size_t(xx + pad)]; };
+    auto crossing = [&](int yy) { return ((at(x, yy) | at(x - 1, yy)) >> 1) & 1; };
+    const int reach = 2 * steps;
+    int t = y, b = y;
+    while (y - t < reach - 1 && (at(x, t - 1) & 1) && !crossing(t)) --t;
+    while (b - y < reach && (at(x, b + 1) & 1) && !crossing(b + 1)) ++b;
+    first = t, last = b;
+}
+
+int Smaa::runLength(int x, int y) const {
+    const int e = edgeAt(x, y);
+    int longest = 0, first, last;
+    if (e & 2) {
+        smaaHorizontalRun(edges_.data(), edgeStride_, pad_, x, y, options_.searchSteps, first, last);
+        longest = last - first + 1;
+    }
+    if (e & 1) {
+        smaaVerticalRun(edges_.data(), edgeStride_, pad_, x, y, options_.searchSteps, first, last);
+        longest = std::max(longest, last - first + 1);
+    }
+    return longest;
+}
+
 namespace {
 
 // Pass 2 for one pixel with an edge: its four weights (SMAA's blending weight pass, docs/smaa.md).
@@ -113,11 +138,8 @@ class WeightSearch {
 
     // The same along a column of left edges (the transposed search): w = {toward left, left neighbour's}.
     void verticalWeights(int x, int y, float* w) const {
-        const int reach = 2 * o_.searchSteps;
-        auto crossing = [&](int yy) { return top(x, yy) | top(x - 1, yy); };
-        int t = y, b = y;
-        while (y - t < reach - 1 && left(x, t - 1) && !crossing(t)) --t;
-        while (b - y < reach && left(x, b + 1) && !crossing(b + 1)) ++b;
+        int t, b;
+        smaaVerticalRun(edges_, stride_, pad_, x, y, o_.searchSteps, t, b);
         const int pattern = smaaOrthogonalPattern(top(x, t), top(x, b + 1), top(x - 1, t), top(x - 1, b + 1));
         const auto a = smaaOrthogonalArea(pattern, y - t, b - y);
         w[0] = a[0], w[1] = a[1];

@@ -53,6 +53,9 @@ class Smaa {
     // far of the top edge, near and far of the left edge; zero where a pixel has no edge). For tests.
     uint8_t edgeAt(int x, int y) const { return edges_[size_t(y + pad_) * edgeStride_ + size_t(x + pad_)]; }
     const float* weightsAt(int x, int y) const;
+    // The length in pixels of the longest run (of top edges along the row, of left edges along the column)
+    // through (x, y) of the last apply(), as the searches find it (up to 4 x search steps); 0 without edge.
+    int runLength(int x, int y) const;
 
   private:
     SmaaOptions options_;
@@ -73,6 +76,9 @@ class Smaa {
 // search texture finds (tested against it).
 void smaaHorizontalRun(const uint8_t* edges, size_t stride, int pad, int x, int y, int steps, int& first,
                        int& last);
+// The same along the column of left edges through (x, y) (the transposed search): its first and last row.
+void smaaVerticalRun(const uint8_t* edges, size_t stride, int pad, int x, int y, int steps, int& first,
+                     int& last);
 
 // The method "smaa" of infer/filter.h: parameters preset, threshold, search-steps, diagonal-steps,
 // corner-rounding, edges, predication, linear; uses depth when predication is on.

@@ -701,6 +701,30 @@ TEST(Cli, BenchFilterPrintsEveryMethod) {
                                         "taa-hq", "taa-hq zoom", "taa-hq random motion"}));
 }
 
+TEST(Cli, BenchReachScoresEdgePixelsByRunLength) {
+    testing::TempDir dir;
+    const RunResult r = run("bench reach --size 200x120 --scenes pipe --truth 4 --fast-model '' --json", dir);
+    ASSERT_EQ(r.exitCode, 0) << r.err;
+    std::set<std::string> methods, runs;
+    int rows = 0;
+    double fxaaGain = -100;
+    for (const nlohmann::json& j : jsonLines(r.out)) {
+        ++rows;
+        methods.insert(j["method"].get<std::string>());
+        runs.insert(j["run"].get<std::string>());
+        if (j["method"] == "no AA") {
+            EXPECT_EQ(j["gain_db"].get<double>(), 0.0);
+        }
+        if (j["method"] == "FXAA" && j["scene"] == "all" && j["pixels"].get<int64_t>() > 0)
+            fxaaGain = std::max(fxaaGain, j["gain_db"].get<double>());
+    }
+    EXPECT_EQ(methods, (std::set<std::string>{"no AA", "FXAA", "SMAA"}));
+    EXPECT_EQ(runs, (std::set<std::string>{"1-3", "4-15", "16-63", "64+"}));
+    EXPECT_EQ(rows, 2 * 4 * 3);  // pipe and all, 4 classes, 3 methods
+    EXPECT_GT(fxaaGain, 0.5);
+    expectOneLineError(run("bench reach --scenes nowhere", dir), "nowhere");
+}
+
 TEST(Cli, BenchStabilityChecksEveryKindWithinTolerance) {
     testing::TempDir dir;
     const RunResult r =

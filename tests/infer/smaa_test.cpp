@@ -271,6 +271,15 @@ TEST(SmaaArea, SearchTextureFindsTheRunEndsTheDirectWalkFinds) {
                     const bool leftEdge = unitInterval(state = splitMix64(state)) < crossingRate;
                     at(x, y) = uint8_t(int(leftEdge) | int(topEdge) << 1);
                 }
+            // The plane transposed (a pixel's left and top edges swapped).
+            const size_t tstride = size_t(height + 2 * pad);
+            std::vector<uint8_t> transposed(tstride * size_t(width + 2 * pad), 0);
+            for (int y = 0; y < height; ++y)
+                for (int x = 0; x < width; ++x) {
+                    const uint8_t e = at(x, y);
+                    transposed[size_t(x + pad) * tstride + size_t(y + pad)] =
+                        uint8_t((e & 1) << 1 | (e >> 1));
+                }
             // The fetch at (-0.25, -0.125) from pixel (x, y) (right search: +0.25 from pixel x, so pixel
             // x + 1 takes the quarter weight): the r (left edges) and g (top edges) values.
             auto fetch = [&](int x, int y, int other, float& r, float& g) {
@@ -302,6 +311,10 @@ TEST(SmaaArea, SearchTextureFindsTheRunEndsTheDirectWalkFinds) {
                     const int gpuLast = last - 1 + texel(r, g, 1);
                     int first, lastPixel;
                     smaaHorizontalRun(edges.data(), stride, pad, x, y, steps, first, lastPixel);
+                    int top, bottom;  // the vertical search on the transposed plane finds the same run
+                    smaaVerticalRun(transposed.data(), tstride, pad, y, x, steps, top, bottom);
+                    ASSERT_EQ(top, first);
+                    ASSERT_EQ(bottom, lastPixel);
                     ASSERT_EQ(first, gpuFirst) << "pixel " << x << "," << y << " steps " << steps;
                     ASSERT_EQ(lastPixel, gpuLast) << "pixel " << x << "," << y << " steps " << steps;
                     ++checked;
