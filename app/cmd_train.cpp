@@ -92,6 +92,9 @@ void registerTrainCommand(CLI::App& app) {
     auto runtime = std::make_shared<RuntimeOptions>();
     auto poison = std::make_shared<std::string>();
     trainCommand->add_option("--data", config->data, "dataset folder (dejag data generate)");
+    trainCommand->add_option("--input-method", config->inputMethod,
+                             "a single-frame method the network runs after (e.g. smaa): its patches and "
+                             "validation images pass through it, and dejag filter runs it first");
     trainCommand
         ->add_option(
             "--arch", config->arch,
@@ -214,6 +217,21 @@ void registerTrainCommand(CLI::App& app) {
         faults.poisonSteps = parseSteps(*poison);
         config->families = splitList(*families);
         config->commandLine = invocation();
+        if (!config->inputMethod.empty()) {
+            const std::string method = config->inputMethod;
+            const auto check = infer::makeFilter(method, {});  // an unknown method: one line, now
+            if (check->needs() != 0 || check->temporal() || !check->stages().empty())
+                throw Error("--input-method: " + method + " is not a single-frame method on colour alone");
+            // (A filter per call: items load in parallel.)
+            config->inputTransform = [method](float* rgb, int width, int height) {
+                const auto filter = infer::makeFilter(method, {});
+                std::vector<float> out(size_t(width) * size_t(height) * 3);
+                infer::Frame frame;
+                frame.width = width, frame.height = height, frame.channels = 3, frame.colour = rgb;
+                filter->apply(frame, out.data());
+                std::copy(out.begin(), out.end(), rgb);
+            };
+        }
         const train::TrainResult r = train::trainModel(*config, standardBaselines(), faults);
         if (config->json)
             std::printf("%s\n", nlohmann::json{{"event", "finished"},

@@ -87,6 +87,13 @@ PatchSampler::PatchSampler(const std::string& folder, const PatchOptions& option
                 item.aliasing[p] = source;
                 if (source) item.aliasingPixels.push_back(int(p));
             }
+        if (options.inputTransform) {
+            std::vector<float> rgb(n * 3);
+            for (size_t i = 0; i < rgb.size(); ++i) rgb[i] = float(item.input[i]) / 65535.0f;
+            options.inputTransform(rgb.data(), item.width, item.height);
+            for (size_t i = 0; i < rgb.size(); ++i)
+                item.input[i] = uint16_t(std::lround(std::clamp(rgb[i], 0.0f, 1.0f) * 65535.0f));
+        }
     };
     // Items load in parallel (reading EXRs dominates), each into its own slot: the order stays the
     // manifest's whatever the thread count.

@@ -9,6 +9,7 @@
 #include <condition_variable>
 #include <cstdint>
 #include <deque>
+#include <functional>
 #include <mutex>
 #include <string>
 #include <thread>
@@ -32,6 +33,9 @@ struct PatchOptions {
     int prefetch = 2;                   // batches assembled ahead on the background thread
     uint64_t firstBatch = 0;            // next() starts at this batch (a resumed training run)
     std::vector<std::string> families;  // only items of these families (empty: all)
+    // Applied to each item's input (sRGB-encoded RGB, (height, width, 3) interleaved) once at loading,
+    // after its aliasing sources are found: a method the network runs after (dejag train --input-method).
+    std::function<void(float* rgb, int width, int height)> inputTransform;
 };
 
 // Values are sRGB-encoded in [0, 1] (the networks see display-referred images, like FXAA).

@@ -175,24 +175,38 @@ namespace {
 
 class CnnMethodFilter final : public Filter {
   public:
-    CnnMethodFilter(CnnFilter cnn, std::string model, std::string gate)
+    // inputMethod: the method the network was trained to run after ("": none), run here first.
+    CnnMethodFilter(CnnFilter cnn, std::string model, std::string gate, const std::string& inputMethod)
         : Filter("cnn"), cnn_(std::move(cnn)) {
         figures_.settings = {{"model", std::move(model)},
                              {"gate", std::move(gate)},
                              {"precision", precisionName(cnn_.options().precision)}};
+        if (!inputMethod.empty()) {
+            input_ = makeFilter(inputMethod, {});
+            figures_.settings.push_back({"input_method", inputMethod});
+        }
     }
     BufferSet needs() const override { return 0; }
     BufferSet uses() const override { return Buffer::Depth | Buffer::Ids; }
 
   private:
     void process(const Frame& frame, float* out) override {
-        cnn_.apply(frame.colour, out, frame.width, frame.height, frame.channels, {frame.depth, frame.ids});
+        Frame through = frame;
+        if (input_) {
+            const size_t floats = size_t(frame.width) * size_t(frame.height) * size_t(frame.channels);
+            if (inputFrame_.size() < floats) inputFrame_.resize(floats);
+            input_->apply(frame, inputFrame_.data());
+            through.colour = inputFrame_.data();
+        }
+        cnn_.apply(through.colour, out, frame.width, frame.height, frame.channels, {frame.depth, frame.ids});
         figures_.processedFraction = cnn_.processedFraction();
         figures_.extra = {{"tiles", double(cnn_.tileCount())},
                           {"tiles_processed", double(cnn_.tilesProcessed())},
                           {"passed_through_fraction", cnn_.passedThroughFraction()}};
     }
     CnnFilter cnn_;
+    std::unique_ptr<Filter> input_;
+    std::vector<float> inputFrame_;
 };
 
 }  // namespace
@@ -233,8 +247,10 @@ MethodSpec cnnMethod() {
         }
         const std::string path = p.path("model");
         nn::Model model = nn::loadModel(path);
+        const std::string inputMethod = model.architecture().value("input_method", "");
         try {
-            return std::make_unique<CnnMethodFilter>(CnnFilter(std::move(model), options), path, gate);
+            return std::make_unique<CnnMethodFilter>(CnnFilter(std::move(model), options), path, gate,
+                                                     inputMethod);
         } catch (const Error& e) {
             throw Error("--model '" + path + "': " + e.what());
         }

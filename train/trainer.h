@@ -65,6 +65,11 @@ struct TrainConfig {
     // length) and the weight of the temporal term of the loss.
     int frames = 0;
     double temporalLoss = 0;
+    // A single-frame method the network runs after (its name, recorded in the model's architecture as
+    // "input_method", and the method itself on sRGB RGB in place): training patches and validation images
+    // reach the network through it, and the filter runs it before the network.
+    std::string inputMethod;
+    std::function<void(float* rgb, int width, int height)> inputTransform;
 };
 
 // The batches `--adversarial` mixes in. Constant: every patch one grey level, input = target; noise:

@@ -845,6 +845,32 @@ TEST(Cli, RenderListsTheScenes) {
         EXPECT_NE(r.out.find(scene), std::string::npos) << scene;
 }
 
+// A network trained after SMAA: the model records it, dejag filter runs SMAA first (tests/infer/cnn_test.cpp
+// checks the outputs), export refuses it for now, and a method that needs buffers is refused.
+TEST(Cli, TrainAfterAnInputMethodRecordsIt) {
+    testing::TempDir dir;
+    const std::string data = dir.file("data"), runFolder = dir.file("run");
+    ASSERT_EQ(
+        run("data generate --families shapes,pipes,foliage --test-families foliage --count 9 --size 64x64 "
+            "--truth 4 --quiet --out '" +
+                data + "'",
+            dir)
+            .exitCode,
+        0);
+    const std::string train = "train --data '" + data +
+                              "' --arch kpn:8x2 --steps 4 --batch 2 --patch 32 "
+                              "--eval-every 2 --checkpoint-every 2 --val-images 2 --quiet --input-method ";
+    RunResult r = run(train + "smaa --out '" + runFolder + "'", dir);
+    ASSERT_EQ(r.exitCode, 0) << r.err;
+    EXPECT_EQ(nn::loadModel(runFolder + "/final.safetensors").architecture().value("input_method", ""),
+              "smaa");
+    expectOneLineError(
+        run("train export '" + runFolder + "' '" + dir.file("m.safetensors") + "' --quiet", dir),
+        "input method");
+    expectOneLineError(run(train + "taa --out '" + dir.file("run2") + "'", dir), "--input-method: taa");
+    expectOneLineError(run(train + "blur --out '" + dir.file("run3") + "'", dir), "blur");
+}
+
 TEST(Cli, TrainLogsJsonResumesAndExportsAModelCard) {
     testing::TempDir dir;
     const std::string data = dir.file("data"), runFolder = dir.file("run");

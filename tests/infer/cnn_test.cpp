@@ -12,6 +12,7 @@
 
 #include "base/error.h"
 #include "infer/cnn_kernels.h"
+#include "infer/filter.h"
 #include "tests/alloc_counter.h"
 #include "tests/test_util.h"
 #include "train/trainer.h"
@@ -276,6 +277,37 @@ TEST(Cnn, TheCardScoresWhatTheFilterWrites) {
             ASSERT_EQ(std::bit_cast<uint32_t>(card.pixels[i]), std::bit_cast<uint32_t>(filtered[i]))
                 << arch << ", element " << i;
     }
+}
+
+// A network trained after an input method (its architecture's "input_method") is run after that method:
+// the filter on the frame equals the same weights without it on the method's output.
+TEST(Cnn, RunsTheInputMethodItWasTrainedAfter) {
+    testing::TempDir dir;
+    nlohmann::json arch = nn::Model::builtinArchitecture("kpn", {8, 3, 3});
+    nn::Model plain = nn::Model::fromArchitecture(arch);
+    plain.initialize(7);
+    arch["input_method"] = "smaa";
+    nn::Model after = nn::Model::fromArchitecture(arch);
+    after.initialize(7);
+    nn::saveModel(dir.file("plain.safetensors"), plain);
+    nn::saveModel(dir.file("after.safetensors"), after);
+    const int W = 61, H = 37;
+    const std::vector<float> frame = testFrame(W, H, 3);
+    Frame f;
+    f.width = W, f.height = H, f.channels = 3, f.colour = frame.data();
+    std::vector<float> smaa(frame.size()), expected(frame.size()), got(frame.size());
+    makeFilter("smaa", {})->apply(f, smaa.data());
+    ASSERT_NE(smaa, frame);
+    Frame g = f;
+    g.colour = smaa.data();
+    makeFilter("cnn", {{"model", dir.file("plain.safetensors")}, {"gate", "off"}})->apply(g, expected.data());
+    const auto filter = makeFilter("cnn", {{"model", dir.file("after.safetensors")}, {"gate", "off"}});
+    filter->apply(f, got.data());
+    EXPECT_EQ(got, expected);
+    bool named = false;
+    for (const auto& [key, value] : filter->figures().settings)
+        named = named || (key == "input_method" && value == "smaa");
+    EXPECT_TRUE(named);
 }
 
 TEST(Cnn, RefusesModelsItCannotRun) {
