@@ -26,6 +26,19 @@ train::Method filterMethod(const std::string& label, const std::string& method) 
             }};
 }
 
+// A single-frame method of the filter face on sRGB RGB in place, as --input-method runs it before a network
+// (a filter per call: the sampler loads items in parallel).
+std::function<void(float*, int, int)> inputTransform(const std::string& method) {
+    return [method](float* rgb, int width, int height) {
+        const auto filter = infer::makeFilter(method, {});
+        std::vector<float> out(size_t(width) * size_t(height) * 3);
+        infer::Frame frame;
+        frame.width = width, frame.height = height, frame.channels = 3, frame.colour = rgb;
+        filter->apply(frame, out.data());
+        std::copy(out.begin(), out.end(), rgb);
+    };
+}
+
 // A temporal method of the filter face run over a whole sequence (training's planar tensors in and out),
 // restarted where the sequence's history restarts.
 train::SequenceMethod sequenceFilterMethod(const std::string& label, const std::string& method) {
@@ -206,7 +219,7 @@ void registerTrainCommand(CLI::App& app) {
         applyRuntimeOptions(*exportRuntime);
         const std::string card =
             train::exportModel(*exportRun, *exportModel, standardBaselines(), *testImages, *exportQuiet,
-                               {sequenceFilterMethod("taa-hq", "taa-hq")}, *exportBench);
+                               {sequenceFilterMethod("taa-hq", "taa-hq")}, *exportBench, inputTransform);
         if (!*exportQuiet) std::printf("%s", card.c_str());
     });
 
@@ -222,15 +235,7 @@ void registerTrainCommand(CLI::App& app) {
             const auto check = infer::makeFilter(method, {});  // an unknown method: one line, now
             if (check->needs() != 0 || check->temporal() || !check->stages().empty())
                 throw Error("--input-method: " + method + " is not a single-frame method on colour alone");
-            // (A filter per call: items load in parallel.)
-            config->inputTransform = [method](float* rgb, int width, int height) {
-                const auto filter = infer::makeFilter(method, {});
-                std::vector<float> out(size_t(width) * size_t(height) * 3);
-                infer::Frame frame;
-                frame.width = width, frame.height = height, frame.channels = 3, frame.colour = rgb;
-                filter->apply(frame, out.data());
-                std::copy(out.begin(), out.end(), rgb);
-            };
+            config->inputTransform = inputTransform(method);
         }
         const train::TrainResult r = train::trainModel(*config, standardBaselines(), faults);
         if (config->json)

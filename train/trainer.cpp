@@ -1430,7 +1430,8 @@ std::string exportTemporal(const json& runJson, nn::Model model, const std::stri
 
 std::string exportModel(const std::string& run, const std::string& modelPath,
                         const std::vector<Method>& baselines, int testImages, bool quiet,
-                        const std::vector<SequenceMethod>& sequenceBaselines, const std::string& benchTaa) {
+                        const std::vector<SequenceMethod>& sequenceBaselines, const std::string& benchTaa,
+                        const InputMethodFactory& inputMethod) {
     const std::string runJsonPath = (fs::path(run) / "run.json").string();
     const std::string bestPath = (fs::path(run) / "best.safetensors").string();
     requireReadableFile(runJsonPath);
@@ -1452,16 +1453,25 @@ std::string exportModel(const std::string& run, const std::string& modelPath,
     }
     std::map<std::string, std::string> metadata;
     nn::Model model = nn::loadModel(bestPath, &metadata);
-    if (model.architecture().contains("input_method"))  // its test scores need the method before it
-        throw Error("export of a network trained after an input method (" +
-                    model.architecture()["input_method"].get<std::string>() +
-                    ") is not supported yet; dejag filter --method cnn runs the model file itself");
+    // A network trained after an input method is scored after it, as dejag filter runs it.
+    const std::string inputName = model.architecture().value("input_method", "");
+    std::function<void(float*, int, int)> through;
+    if (!inputName.empty()) {
+        if (!inputMethod)
+            throw Error("the network runs after " + inputName + ", which this export cannot make");
+        through = inputMethod(inputName);
+    }
     const bool grey = model.inputChannels() == 1;
     const std::string dataFolder = runJson.at("config").at("data");
     std::vector<Method> methods;
     for (const Method& b : baselines) methods.push_back(b);
     auto network = nn::FrameNetwork::borrowing(model);
-    methods.push_back({"network", [&](const Image& im) { return runNetwork(network, im); }});
+    methods.push_back({"network", [&](const Image& im) {
+                           if (!through) return runNetwork(network, im);
+                           Image copy = im;
+                           through(copy.pixels.data(), copy.width, copy.height);
+                           return runNetwork(network, copy);
+                       }});
     if (!quiet)
         std::fprintf(stderr, "scoring on the validation and test splits of '%s'...\n", dataFolder.c_str());
     const std::vector<std::string> families =
@@ -1495,6 +1505,11 @@ std::string exportModel(const std::string& run, const std::string& modelPath,
                   model.name().c_str(), (long long)model.parameterCount(),
                   runJson.at("macs_per_pixel").get<double>());
     md << line << architectureTable(model);
+    if (!inputName.empty())
+        md << "\nThe network runs after " << inputName << " (trained with `--input-method " << inputName
+           << "`): `dejag filter --method cnn` runs " << inputName
+           << " on the frame first, and the scores below "
+           << "are of the pair.\n";
     md << "\n## Training\n\n";
     md << "Command:\n\n```\n" << runJson.at("command").get<std::string>() << "\n```\n\n";
     std::snprintf(

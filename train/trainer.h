@@ -148,9 +148,14 @@ struct SequenceMethod {
     std::string name;
     std::function<std::vector<nn::Tensor>(const data::SequenceBatch&)> apply;
 };
+// inputMethod: makes, by name, the method a network trained with --input-method runs after (the model's
+// architecture names it); its validation and test images pass through it before the network. Null: such a
+// model is refused.
+using InputMethodFactory =
+    std::function<std::function<void(float* rgb, int width, int height)>(const std::string&)>;
 std::string exportModel(const std::string& run, const std::string& modelPath,
                         const std::vector<Method>& baselines, int testImages, bool quiet,
                         const std::vector<SequenceMethod>& sequenceBaselines = {},
-                        const std::string& benchTaa = "");
+                        const std::string& benchTaa = "", const InputMethodFactory& inputMethod = nullptr);
 
 }  // namespace dejag::train
