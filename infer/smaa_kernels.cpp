@@ -18,12 +18,10 @@ using namespace ::dejag::DEJAG_SIMD_NAMESPACE;
 namespace {
 
 const PowerCurve& decodeCurve() {
-    static const PowerCurve curve = fitPower(2.4, 7, 1.0);
-    return curve;
+    return srgbDecodeCurve7();
 }
 const PowerCurve& encodeCurve() {
-    static const PowerCurve curve = fitPower(1 / 2.4, 7, 1.055);
-    return curve;
+    return srgbEncodeCurve7();
 }
 
 const float* lumaRow(const SmaaKernelArgs& a, int y) {

@@ -52,12 +52,10 @@ inline V expNonPositive(V x) {
 // The sRGB curves on [0, 1] (clamped), as srgbDecode and srgbEncode of nn/layers.h, by exponent and
 // mantissa (base/srgb_simd.h) at degree 7: within 2e-7 of the reference (rounding included).
 const PowerCurve& decodeCurve() {
-    static const PowerCurve curve = fitPower(2.4, 7, 1.0);
-    return curve;
+    return srgbDecodeCurve7();
 }
 const PowerCurve& encodeCurve() {
-    static const PowerCurve curve = fitPower(1 / 2.4, 7, 1.055);
-    return curve;
+    return srgbEncodeCurve7();
 }
 template <class V, class I>
 inline V decodeSrgb(V v) {

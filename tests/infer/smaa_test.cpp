@@ -150,6 +150,25 @@ TEST(Smaa, DiagonalPatternsTakePrecedence) {
         for (int x = 0; x < n; ++x)
             for (int c = 0; c < 3; ++c)
                 image[size_t((y * n + x) * 3 + c)] = y > (n - 1 - x) + 3 ? 0.9f : 0.1f;
+    // The mirror image ("\\" instead of "/", found by the other diagonal search): its pixels with a top and
+    // a right edge take about the weights of their mirror pixels (the two searches read their patterns in
+    // opposite directions, so the areas come swapped and are swapped back).
+    {
+        std::vector<float> mirrored(image.size());
+        for (int y = 0; y < n; ++y)
+            for (int x = 0; x < n; ++x)
+                for (int c = 0; c < 3; ++c)
+                    mirrored[size_t((y * n + x) * 3 + c)] = image[size_t((y * n + (n - 1 - x)) * 3 + c)];
+        Smaa a(smaaPreset("ultra")), b(smaaPreset("ultra"));
+        a.apply(image.data(), out.data(), n, n, 3);
+        b.apply(mirrored.data(), out.data(), n, n, 3);
+        for (int y = 8; y < 12; ++y) {
+            const int x = n - 1 - (y - 4);
+            ASSERT_EQ(b.edgeAt(n - 1 - x, y), 2);
+            for (int k = 0; k < 2; ++k)
+                EXPECT_NEAR(a.weightsAt(x, y)[k], b.weightsAt(n - 1 - x, y)[k], 0.03) << y << " " << k;
+        }
+    }
     for (const int diagonalSteps : {0, 16}) {
         SmaaOptions options = smaaPreset("ultra");
         options.diagonalSteps = diagonalSteps;
