@@ -6,6 +6,7 @@
 
 #include "base/error.h"
 #include "base/random.h"
+#include "render/vector_art.h"
 
 namespace dejag::render {
 
@@ -461,6 +462,10 @@ const std::vector<Entry>& entries() {
         {{"random", "random composition from --seed: shapes, hair, grilles, textures, an orbiting camera",
           "random"},
          randomScene},
+        {{"vector-art", "flat 2D drawing: lines, fans, polygons, curves, rings, hatching, roads (--seed)",
+          "vector"},
+         vectorArtScene},
+        {{"type", "lines of text in 20 fonts from 4 to 48 pixels, over panels (--seed)", "type"}, typeScene},
     };
     return list;
 }
