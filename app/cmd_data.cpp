@@ -15,6 +15,7 @@ struct GenerateArguments {
     std::string families = "all", testFamilies = "default", size = "256x256", out;
     int count = 0, truth = 128, workers = 2, sequenceLength = 1;
     double jitterSpread = 1.0;
+    double closeUps = 0.0;
     uint64_t seed = 1;
     bool adaptive = false, listFamilies = false, json = false, quiet = false, jitterSpreadGiven = false;
     RuntimeOptions runtime;
@@ -51,6 +52,7 @@ void runGenerate(const GenerateArguments& args) {
     spec.seed = args.seed;
     spec.sequenceLength = args.sequenceLength;
     spec.jitterSpread = args.jitterSpread;
+    spec.closeUps = args.closeUps;
     if (args.jitterSpreadGiven && !spec.sequences())
         throw Error("--jitter-spread jitters sequences only (give --sequence-length 2 or more)");
     data::GenerateOptions options;
@@ -106,6 +108,12 @@ void registerDataCommand(CLI::App& app) {
         "--jitter-spread",
         [args](double spread) { args->jitterSpread = spread, args->jitterSpreadGiven = true; },
         "sequences: Halton jitter spread in pixels (1: within the pixel, the truth's box) [1]");
+    generate
+        ->add_option(
+            "--close-ups", args->closeUps,
+            "share of items framed as close-ups: the view narrowed 1.5-4.5x at a random point of it, "
+            "as a crop of a full-HD frame sees it")
+        ->capture_default_str();
     generate->add_flag("--list-families", args->listFamilies, "print the families and exit");
     generate->add_flag("--json", args->json, "print a JSON summary");
     generate->add_flag("--quiet", args->quiet, "no progress bar or summary");

@@ -102,6 +102,8 @@ void DatasetSpec::validate() const {
         throw Error("--sequence-length must be 1..1000 frames, not " + std::to_string(sequenceLength));
     if (!(jitterSpread >= 0 && jitterSpread <= 4))
         throw Error("--jitter-spread must be 0..4 pixels, not " + std::to_string(jitterSpread));
+    if (!(closeUps >= 0 && closeUps <= 1))
+        throw Error("--close-ups must be a share in [0, 1], not " + std::to_string(closeUps));
 }
 
 json DatasetSpec::toJson() const {
@@ -116,6 +118,7 @@ json DatasetSpec::toJson() const {
               {"validation_fraction", validationFraction}};
     if (sequences())
         j["sequence"] = {{"length", sequenceLength}, {"jitter", "halton16"}, {"jitter_spread", jitterSpread}};
+    if (closeUps > 0) j["close_ups"] = closeUps;
     return j;
 }
 
@@ -132,6 +135,7 @@ DatasetSpec DatasetSpec::fromJson(const json& j) {
         s.adaptive = j.at("adaptive").get<bool>();
         s.seed = j.at("seed").get<uint64_t>();
         s.validationFraction = j.at("validation_fraction").get<double>();
+        if (j.contains("close_ups")) s.closeUps = j.at("close_ups").get<double>();
         if (j.contains("sequence")) {
             const json& q = j.at("sequence");
             s.sequenceLength = q.at("length").get<int>();
@@ -232,11 +236,17 @@ ItemRenderer::~ItemRenderer() = default;
 
 namespace {
 
-// The item's variation on its scene: camera orbit, distance and field of view, light, colours.
-void vary(render::Scene& scene, uint64_t seed) {
+// The item's variation on its scene: camera orbit, distance and field of view, light, colours; and, for a
+// share `closeUps` of the items, a close-up framing.
+bool vary(render::Scene& scene, uint64_t seed, double closeUps, double aspect) {
     uint64_t state = seed ^ 0xC0FFEEull;
     const double yaw = uniform(state, -0.35, 0.35), pitch = uniform(state, -0.12, 0.12);
     const double distance = uniform(state, 0.75, 1.25), zoom = uniform(state, 0.85, 1.15);
+    // Close-ups from a state of their own, so that every other draw is that of a dataset without them.
+    uint64_t closeState = seed ^ 0xC105E0Full;
+    const bool closeUp = uniform(closeState, 0, 1) < closeUps;
+    const double narrow = std::exp(uniform(closeState, std::log(1.5), std::log(4.5)));
+    const double aimX = uniform(closeState, -1, 1), aimY = uniform(closeState, -1, 1);
     const auto camera = scene.camera;
     scene.camera = [=](double t) {
         render::CameraPose pose = camera ? camera(t) : render::CameraPose();
@@ -245,6 +255,17 @@ void vary(render::Scene& scene, uint64_t seed) {
         const render::Mat4 turn = render::Mat4::rotation(side, pitch) * render::Mat4::rotation(pose.up, yaw);
         pose.eye = pose.target + turn.transformDirection(offset) * distance;
         pose.fovY = std::clamp(pose.fovY * zoom, 0.3, 2.0);
+        if (closeUp) {
+            // Aim at a point of the full view whose narrowed view stays inside it, then narrow.
+            const double halfY = std::tan(pose.fovY / 2), halfX = halfY * aspect, keep = 1 - 1 / narrow;
+            const render::Vec3 forward = pose.target - pose.eye;
+            const render::Vec3 right = render::normalize(render::cross(forward, pose.up));
+            const render::Vec3 up = render::normalize(render::cross(right, forward));
+            const double length = render::length(forward);
+            pose.target = pose.eye + forward + right * (aimX * keep * halfX * length) +
+                          up * (aimY * keep * halfY * length);
+            pose.fovY = 2 * std::atan(halfY / narrow);
+        }
         return pose;
     };
     scene.lightDirection =
@@ -258,6 +279,7 @@ void vary(render::Scene& scene, uint64_t seed) {
              std::clamp(c.y * uniform(state, 0.75, 1.25), 0.02, 1.0),
              std::clamp(c.z * uniform(state, 0.75, 1.25), 0.02, 1.0)};
     }
+    return closeUp;
 }
 
 json fileRecord(const std::string& folder, const std::string& relative) {
@@ -519,10 +541,13 @@ json ItemRenderer::render(const DatasetSpec& spec, const ItemPlan& plan, const s
     const char* textures[] = {"checker", "bricks", "stripes", "text", "noise"};
     options.texture = textures[int(uniform(state, 0, 5))];
     render::Scene scene = render::buildScene(plan.scene, options);
-    vary(scene, plan.seed);
+    const bool closeUp = vary(scene, plan.seed, spec.closeUps, double(spec.width) / double(spec.height));
 
-    if (spec.sequences())
-        return renderSequence(*impl_->context, spec, plan, folder, std::move(scene), options);
+    if (spec.sequences()) {
+        json record = renderSequence(*impl_->context, spec, plan, folder, std::move(scene), options);
+        if (closeUp) record["close_up"] = true;
+        return record;
+    }
 
     render::Renderer renderer(*impl_->context, scene, spec.width, spec.height);
     render::FrameRequest request;
@@ -545,6 +570,7 @@ json ItemRenderer::render(const DatasetSpec& spec, const ItemPlan& plan, const s
     writeImage((fs::path(folder) / plan.truthFile()).string(), truth);
     json record =
         itemRecord(spec, plan, scene, options, scene.cameraAt(plan.time), stats.samples, stats.tileSamples);
+    if (closeUp) record["close_up"] = true;
     record.update({{"edge_fraction", double(edges) / double(input.pixelCount())},
                    {"aliased_psnr", mse > 0 ? 10 * std::log10(1.0 / mse) : 999.0},
                    {"files",

@@ -44,6 +44,10 @@ struct DatasetSpec {
     // its own pose (docs/data.md, "Sequences"). 1: single unjittered frames.
     int sequenceLength = 1;
     double jitterSpread = 1.0;
+    // The share of items framed as close-ups (docs/data.md, "Close-ups"): the view's field of view
+    // narrowed 1.5-4.5x (log-uniform) and aimed at a random point of it, as a 256-pixel crop of a
+    // full-HD frame sees the scene, with its long edges. 0 (the default, and what older datasets hold).
+    double closeUps = 0.0;
     bool sequences() const { return sequenceLength > 1; }
 
     // Throws dejag::Error for an unknown family, count < 1, a bad size or sample count.

@@ -128,6 +128,41 @@ TEST(DatasetGenerate, TinyRecipeVerifiesAndKeepsFamiliesApart) {
     EXPECT_TRUE(contents(out) == before);
 }
 
+// Close-ups: a share of the items get a narrower view at a random point of the full one, recorded in
+// the manifest; a dataset without them describes itself as before (no "close_ups" key).
+TEST(DatasetGenerate, CloseUpsNarrowTheViewOfTheSameItems) {
+    DatasetSpec spec = allFamilies(5);
+    EXPECT_FALSE(spec.toJson().contains("close_ups"));
+    spec.closeUps = 0.3;
+    EXPECT_EQ(DatasetSpec::fromJson(spec.toJson()).closeUps, 0.3);
+    spec.closeUps = 1.5;
+    EXPECT_THROW(spec.validate(), Error);
+    testing::TempDir dir;
+    const std::string recipe =
+        "data generate --families shapes,pipes --test-families none --count 4 "
+        "--size 48x48 --truth 8 --quiet --out '";
+    ASSERT_EQ(run(recipe + dir.file("full") + "'"), 0);
+    ASSERT_EQ(run(recipe + dir.file("close") + "' --close-ups 1"), 0);
+    std::string err;
+    EXPECT_EQ(run(recipe + dir.file("bad") + "' --close-ups -0.5", &err), 2);
+    EXPECT_NE(err.find("--close-ups"), std::string::npos) << err;
+    const std::vector<nlohmann::json> full = readManifest(dir.file("full")),
+                                      close = readManifest(dir.file("close"));
+    ASSERT_EQ(full.size(), 4u);
+    ASSERT_EQ(close.size(), 4u);
+    for (size_t i = 0; i < 4; ++i) {
+        EXPECT_EQ(close[i]["scene"], full[i]["scene"]);
+        EXPECT_FALSE(full[i].contains("close_up"));
+        EXPECT_TRUE(close[i].value("close_up", false));
+        const double ratio =
+            full[i]["camera"]["fov_y"].get<double>() / close[i]["camera"]["fov_y"].get<double>();
+        EXPECT_GT(ratio, 1.45);
+        EXPECT_LT(ratio, 4.6);
+        EXPECT_EQ(close[i]["camera"]["eye"], full[i]["camera"]["eye"]);
+        EXPECT_NE(close[i]["camera"]["target"], full[i]["camera"]["target"]);
+    }
+}
+
 TEST(DatasetGenerate, KillNineThenTheSameCommandEqualsAnUninterruptedRun) {
     testing::TempDir dir;
     const std::string whole = dir.file("whole"), broken = dir.file("broken");
