@@ -211,6 +211,42 @@ void ssimLossBackward(T* dpred, const T* pred, const T* target, const SsimLossDe
     });
 }
 
+template <class T>
+double harmLoss(const T* pred, const T* input, const T* target, int64_t batch, int64_t perSample) {
+    double total = 0.0;
+    for (int64_t n = 0; n < batch; ++n) {
+        const int64_t o = n * perSample;
+        double predicted = 0.0, given = 0.0;
+        for (int64_t i = 0; i < perSample; ++i) {
+            const double dp = double(pred[o + i]) - double(target[o + i]);
+            const double di = double(input[o + i]) - double(target[o + i]);
+            predicted += dp * dp, given += di * di;
+        }
+        predicted /= double(perSample), given /= double(perSample);
+        if (predicted > given) total += (predicted - given) / (given + kHarmEpsilon);
+    }
+    return total / double(batch);
+}
+
+template <class T>
+void harmLossBackward(T* dpred, const T* pred, const T* input, const T* target, int64_t batch,
+                      int64_t perSample, double scale) {
+    for (int64_t n = 0; n < batch; ++n) {
+        const int64_t o = n * perSample;
+        double predicted = 0.0, given = 0.0;
+        for (int64_t i = 0; i < perSample; ++i) {
+            const double dp = double(pred[o + i]) - double(target[o + i]);
+            const double di = double(input[o + i]) - double(target[o + i]);
+            predicted += dp * dp, given += di * di;
+        }
+        if (!(predicted > given)) continue;  // the same comparison as the value, on the sums
+        const double k =
+            scale * 2.0 / (double(batch) * double(perSample) * (given / double(perSample) + kHarmEpsilon));
+        for (int64_t i = 0; i < perSample; ++i)
+            dpred[o + i] += T(k * (double(pred[o + i]) - double(target[o + i])));
+    }
+}
+
 CompositeLoss CompositeLoss::parse(const std::string& text) {
     CompositeLoss loss;
     size_t start = 0;
@@ -235,8 +271,10 @@ CompositeLoss CompositeLoss::parse(const std::string& text) {
             t.kind = LossKind::L1;
         else if (name == "mse")
             t.kind = LossKind::Mse;
+        else if (name == "harm")
+            t.kind = LossKind::Harm;
         else
-            throw Error("loss '" + text + "': unknown term '" + name + "' (ssim, l1, mse)");
+            throw Error("loss '" + text + "': unknown term '" + name + "' (ssim, l1, mse, harm)");
         loss.terms.push_back(t);
     }
     return loss;
@@ -249,16 +287,23 @@ std::string CompositeLoss::describe() const {
         std::ostringstream weight;
         weight << t.weight;
         text += weight.str() + " * " +
-                (t.kind == LossKind::Ssim ? "(1 - SSIM)"
-                 : t.kind == LossKind::L1 ? "L1"
-                                          : "MSE");
+                (t.kind == LossKind::Ssim   ? "(1 - SSIM)"
+                 : t.kind == LossKind::L1   ? "L1"
+                 : t.kind == LossKind::Harm ? "harm"
+                                            : "MSE");
     }
     return text;
 }
 
+bool CompositeLoss::needsInput() const {
+    for (const LossTerm& t : terms)
+        if (t.kind == LossKind::Harm) return true;
+    return false;
+}
+
 template <class T>
 double CompositeLoss::evaluate(T* dpred, const T* pred, const T* target, const SsimLossDesc& shape,
-                               double scale) const {
+                               double scale, const T* input) const {
     const int64_t n = shape.batch * shape.channels * shape.height * shape.width;
     double value = 0.0;
     for (const LossTerm& t : terms) {
@@ -275,19 +320,30 @@ double CompositeLoss::evaluate(T* dpred, const T* pred, const T* target, const S
                 value += t.weight * mseLoss(pred, target, n);
                 if (dpred) mseLossBackward(dpred, pred, target, n, scale * t.weight);
                 break;
+            case LossKind::Harm: {
+                if (!input) throw Error("the loss's harm term needs the network's input");
+                const int64_t perSample = n / shape.batch;
+                value += t.weight * harmLoss(pred, input, target, shape.batch, perSample);
+                if (dpred)
+                    harmLossBackward(dpred, pred, input, target, shape.batch, perSample, scale * t.weight);
+                break;
+            }
         }
     }
     return value;
 }
 
-#define DEJAG_INSTANTIATE(T)                                                                \
-    template double l1Loss<T>(const T*, const T*, int64_t);                                 \
-    template void l1LossBackward<T>(T*, const T*, const T*, int64_t, double);               \
-    template double mseLoss<T>(const T*, const T*, int64_t);                                \
-    template void mseLossBackward<T>(T*, const T*, const T*, int64_t, double);              \
-    template double ssimLoss<T>(const T*, const T*, const SsimLossDesc&);                   \
-    template void ssimLossBackward<T>(T*, const T*, const T*, const SsimLossDesc&, double); \
-    template double CompositeLoss::evaluate<T>(T*, const T*, const T*, const SsimLossDesc&, double) const;
+#define DEJAG_INSTANTIATE(T)                                                                        \
+    template double l1Loss<T>(const T*, const T*, int64_t);                                         \
+    template void l1LossBackward<T>(T*, const T*, const T*, int64_t, double);                       \
+    template double mseLoss<T>(const T*, const T*, int64_t);                                        \
+    template void mseLossBackward<T>(T*, const T*, const T*, int64_t, double);                      \
+    template double ssimLoss<T>(const T*, const T*, const SsimLossDesc&);                           \
+    template void ssimLossBackward<T>(T*, const T*, const T*, const SsimLossDesc&, double);         \
+    template double harmLoss<T>(const T*, const T*, const T*, int64_t, int64_t);                    \
+    template void harmLossBackward<T>(T*, const T*, const T*, const T*, int64_t, int64_t, double);  \
+    template double CompositeLoss::evaluate<T>(T*, const T*, const T*, const SsimLossDesc&, double, \
+                                               const T*) const;
 DEJAG_INSTANTIATE(float)
 DEJAG_INSTANTIATE(double)
 #undef DEJAG_INSTANTIATE

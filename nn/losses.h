@@ -37,8 +37,22 @@ double ssimLoss(const T* pred, const T* target, const SsimLossDesc& d);  // (N, 
 template <class T>
 void ssimLossBackward(T* dpred, const T* pred, const T* target, const SsimLossDesc& d, double scale);
 
-// A weighted sum of the losses above, e.g. "ssim" or "0.84*ssim+0.16*l1".
-enum class LossKind { Ssim, L1, Mse };
+// Harm: how much worse than its input the prediction is, per sample — the mean over the batch of
+//   max(0, MSE(pred_n, target_n) - MSE(input_n, target_n)) / (MSE(input_n, target_n) + harmEpsilon),
+// each MSE over sample n's channels and pixels. Zero wherever the prediction is at least as close to the
+// target as the input was; otherwise its relative excess error (about 0.23 per dB lost, for small
+// losses), so a network trained with it steps back toward its input where it cannot help
+// (docs/train.md, "Never harm"). At the hinge (equal errors) the gradient is that of the zero side.
+inline constexpr double kHarmEpsilon = 1e-4;  // an input error of 40 dB PSNR
+template <class T>
+double harmLoss(const T* pred, const T* input, const T* target, int64_t batch, int64_t perSample);
+template <class T>
+void harmLossBackward(T* dpred, const T* pred, const T* input, const T* target, int64_t batch,
+                      int64_t perSample, double scale);
+
+// A weighted sum of the losses above, e.g. "ssim" or "0.84*ssim+0.16*l1" (or "...+0.5*harm", which
+// needs the input the prediction was made from).
+enum class LossKind { Ssim, L1, Mse, Harm };
 struct LossTerm {
     LossKind kind = LossKind::Ssim;
     double weight = 1.0;
@@ -47,10 +61,13 @@ struct CompositeLoss {
     std::vector<LossTerm> terms;
     static CompositeLoss parse(const std::string& text);  // throws dejag::Error on a bad spec
     std::string describe() const;
+    bool needsInput() const;  // a harm term: evaluate() needs `input`
     // Value of the weighted sum; if dpred is non-null, adds its gradient (times scale) into dpred.
+    // `input` (the prediction's shape) is what the network was given; only a harm term reads it, and
+    // throws dejag::Error if it is null.
     template <class T>
-    double evaluate(T* dpred, const T* pred, const T* target, const SsimLossDesc& shape,
-                    double scale = 1.0) const;
+    double evaluate(T* dpred, const T* pred, const T* target, const SsimLossDesc& shape, double scale = 1.0,
+                    const T* input = nullptr) const;
 };
 
 }  // namespace dejag::nn

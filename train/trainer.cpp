@@ -425,17 +425,31 @@ Image runNetwork(nn::FrameNetwork& network, const Image& rgb) {
 std::vector<MethodScores> scoreMethods(const std::vector<data::EvaluationItem>& items,
                                        const std::vector<Method>& methods, bool grey) {
     std::vector<MethodScores> scores;
+    std::vector<data::ImageScore> reference;  // the first method's, per item
     for (const Method& method : methods) {
         MethodScores s;
         s.name = method.name;
         std::vector<double> ms;
-        for (const data::EvaluationItem& item : items) {
+        for (size_t i = 0; i < items.size(); ++i) {
+            const data::EvaluationItem& item = items[i];
             const auto start = std::chrono::steady_clock::now();
             Image out = method.apply(item.input);
             ms.push_back(
                 std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count());
             if (grey && out.channels() == 3) out = data::lumaImage(out);
-            s.summary.add(data::scoreImage(item, out));
+            const data::ImageScore score = data::scoreImage(item, out);
+            s.summary.add(score);
+            if (scores.empty()) {
+                reference.push_back(score);
+                continue;
+            }
+            const double gain = score.region[0].psnr - reference[i].region[0].psnr;
+            s.harmed += gain < -kHarmDb;
+            const int texture = int(data::Region::Texture);
+            s.textureHarmed += score.region[texture].scored && reference[i].region[texture].scored &&
+                               score.region[texture].psnr < reference[i].region[texture].psnr;
+            if (s.worstItem.empty() || gain < s.worstGainDb)
+                s.worstGainDb = gain, s.worstItem = item.family + "/" + item.id;
         }
         s.summary.finish();
         s.millisecondsPerImage = median(ms);
@@ -991,6 +1005,9 @@ TrainResult trainModel(const TrainConfig& config, const std::vector<Method>& bas
         const json spec = json::parse(in, nullptr, false);
         temporal = spec.is_object() && spec.contains("sequence");
     }
+    if (temporal && loss.needsInput())
+        throw Error("the loss's harm term trains single-frame networks; '" + config.data +
+                    "' holds sequences");
     if (temporal && (config.adversarialFraction > 0 || config.outlierFactor > 0))
         throw Error("--adversarial and --skip-outliers train single-frame networks; '" + config.data +
                     "' holds sequences");
@@ -1102,7 +1119,13 @@ TrainResult trainModel(const TrainConfig& config, const std::vector<Method>& bas
             if (dout.shape() != out.shape()) dout = nn::Tensor(out.shape());
             dout.zero();
             const nn::SsimLossDesc desc{out.dim(0), out.dim(1), out.dim(2), out.dim(3), 1.0};
-            value = loss.evaluate(dout.data(), out.data(), step.batch.target.data(), desc);
+            const nn::Tensor& given = step.batch.input;
+            if (loss.needsInput() && given.shape() != out.shape())
+                throw Error(
+                    "the loss's harm term compares the output with the input, and this network's "
+                    "output is not the input's shape");
+            value = loss.evaluate(dout.data(), out.data(), step.batch.target.data(), desc, 1.0,
+                                  loss.needsInput() ? given.data() : nullptr);
             skip = guard.loss(value, dout);
         }
         if (!skip) {
@@ -1209,13 +1232,21 @@ namespace {
 std::string scoreTable(const std::vector<MethodScores>& scores) {
     std::ostringstream t;
     t << "| method | PSNR (dB) | SSIM | edge PSNR | edge SSIM | texture PSNR | texture SSIM | ms per image "
-         "|\n"
-         "|---|---|---|---|---|---|---|---|\n";
-    char line[256];
-    for (const MethodScores& s : scores) {
-        std::snprintf(line, sizeof line, "| %s | %.2f | %.4f | %.2f | %.4f | %.2f | %.4f | %.1f |\n",
+         "| harmed | texture harmed | worst gain dB |\n"
+         "|---|---|---|---|---|---|---|---|---|---|---|\n";
+    char line[512];
+    for (size_t m = 0; m < scores.size(); ++m) {
+        const MethodScores& s = scores[m];
+        std::snprintf(line, sizeof line, "| %s | %.2f | %.4f | %.2f | %.4f | %.2f | %.4f | %.1f |",
                       s.name.c_str(), s.summary.psnr[0], s.summary.ssim[0], s.summary.psnr[1],
                       s.summary.ssim[1], s.summary.psnr[2], s.summary.ssim[2], s.millisecondsPerImage);
+        t << line;
+        if (m == 0) {
+            t << "  |  |  |\n";
+            continue;
+        }
+        std::snprintf(line, sizeof line, " %d | %d | %+.2f (%s) |\n", s.harmed, s.textureHarmed,
+                      s.worstGainDb, s.worstItem.c_str());
         t << line;
     }
     return t.str();
@@ -1224,7 +1255,11 @@ std::string scoreTable(const std::vector<MethodScores>& scores) {
 json scoresToJson(const std::vector<MethodScores>& scores) {
     json j = json::object();
     for (const MethodScores& s : scores) {
-        json m = {{"ms_per_image", s.millisecondsPerImage}};
+        json m = {{"ms_per_image", s.millisecondsPerImage},
+                  {"harmed", s.harmed},
+                  {"texture_harmed", s.textureHarmed},
+                  {"worst_gain_db", s.worstGainDb},
+                  {"worst_item", s.worstItem}};
         for (int k = 0; k < int(data::Region::Count); ++k)
             m[data::regionName(data::Region(k))] = {
                 {"psnr", s.summary.psnr[k]}, {"ssim", s.summary.ssim[k]}, {"images", s.summary.images[k]}};

@@ -127,11 +127,18 @@ nlohmann::json architectureFor(const std::string& arch);
 // RGB out for RGB and grey models alike (a grey model's change of the luma on R, G and B).
 Image runNetwork(nn::FrameNetwork& network, const Image& rgb);
 
-// Scores methods on the items: returns a summary per method (same order as `methods`).
+// Scores methods on the items: returns a summary per method (same order as `methods`). The first
+// method is the reference of "harm" (the unfiltered frame, in every caller): an image is harmed by a
+// method whose PSNR on it is more than kHarmDb below the first method's, and its texture harmed when
+// the texture region's PSNR is below the first method's at all.
+inline constexpr double kHarmDb = 0.1;
 struct MethodScores {
     std::string name;
     data::ScoreSummary summary;
     double millisecondsPerImage = 0;  // median
+    int harmed = 0, textureHarmed = 0;
+    double worstGainDb = 0;  // the lowest per-image PSNR gain over the first method (0 for the first)
+    std::string worstItem;   // its family/id
 };
 std::vector<MethodScores> scoreMethods(const std::vector<data::EvaluationItem>& items,
                                        const std::vector<Method>& methods, bool grey);

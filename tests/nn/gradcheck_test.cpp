@@ -5,6 +5,8 @@
 // terms): small enough for O(h^2) truncation, large enough that double rounding stays far below 1e-6.
 #include <gtest/gtest.h>
 
+#include "base/error.h"
+
 #include <cmath>
 #include <functional>
 #include <random>
@@ -50,6 +52,50 @@ TEST(GradCheck, LossesRandomShapes) {
             EXPECT_LE(checkGradient(pred, dpred, value, rng, 40, 1e-4 * d.dataRange), kTolerance) << spec;
         }
     }
+}
+
+// The harm term: per-sample hinge on the excess MSE over the input's. Some samples are harmed (the
+// prediction noisier than the input), some helped (closer); none sits on the hinge, where the one-sided
+// derivatives differ.
+TEST(GradCheck, HarmTermHarmedAndHelpedSamples) {
+    std::mt19937 rng(11);
+    SsimLossDesc d;
+    d.batch = 4, d.channels = 3, d.height = 11, d.width = 12;
+    const size_t n = size_t(d.batch * d.channels * d.height * d.width), per = n / size_t(d.batch);
+    Vec target = randomValues(n, rng, 0.0, 1.0), input(n), pred(n);
+    std::normal_distribution<double> noise(0.0, 1.0);
+    for (size_t i = 0; i < n; ++i) {
+        const size_t sample = i / per;
+        input[i] = target[i] + 0.05 * noise(rng);
+        pred[i] = target[i] + (sample % 2 ? 0.02 : 0.09) * noise(rng);  // odd samples helped, even harmed
+    }
+    const CompositeLoss loss = CompositeLoss::parse("0.84*ssim+0.16*l1+0.5*harm");
+    EXPECT_TRUE(loss.needsInput());
+    EXPECT_THROW(loss.evaluate<double>(nullptr, pred.data(), target.data(), d), Error);
+    Vec dpred(n);
+    loss.evaluate(dpred.data(), pred.data(), target.data(), d, 1.0, input.data());
+    auto value = [&] {
+        return loss.evaluate<double>(nullptr, pred.data(), target.data(), d, 1.0, input.data());
+    };
+    EXPECT_LE(checkGradient(pred, dpred, value, rng, 60, 1e-5), kTolerance);
+    // The value by hand: only the harmed samples count, each by its relative excess error.
+    double expected = 0;
+    for (size_t s = 0; s < size_t(d.batch); ++s) {
+        double p = 0, g = 0;
+        for (size_t i = s * per; i < (s + 1) * per; ++i)
+            p += (pred[i] - target[i]) * (pred[i] - target[i]),
+                g += (input[i] - target[i]) * (input[i] - target[i]);
+        p /= double(per), g /= double(per);
+        if (s % 2 == 0) EXPECT_GT(p, g);
+        expected += std::max(0.0, p - g) / (g + kHarmEpsilon);
+    }
+    EXPECT_NEAR(harmLoss(pred.data(), input.data(), target.data(), d.batch, int64_t(per)), expected / d.batch,
+                1e-12);
+    // A prediction equal to its input, or closer to the target, costs nothing and pulls nowhere.
+    Vec zero(n, 0.0);
+    EXPECT_EQ(harmLoss(input.data(), input.data(), target.data(), d.batch, int64_t(per)), 0.0);
+    harmLossBackward(zero.data(), input.data(), input.data(), target.data(), d.batch, int64_t(per), 1.0);
+    EXPECT_EQ(zero, Vec(n, 0.0));
 }
 
 }  // namespace
