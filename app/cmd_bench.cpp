@@ -641,7 +641,8 @@ void registerBenchCommand(CLI::App& app) {
     reach
         ->add_option(
             "--fast-model", reachArgs->fastModel,
-            "the single-frame network compared as dejag-fast ('' or a missing default: not compared)")
+            "single-frame networks compared, comma-separated, each named by its file's stem ('' or a missing "
+            "default: none)")
         ->capture_default_str();
     reach->add_flag("--json", reachArgs->json, "one JSON object per row");
     reach->add_flag("--quiet", reachArgs->quiet, "no progress bar");
@@ -656,9 +657,10 @@ void registerBenchCommand(CLI::App& app) {
         options.quiet = reachArgs->quiet || reachArgs->json;
         if (!reachArgs->fastModel.empty() &&
             !(reach->count("--fast-model") == 0 && !std::filesystem::exists(reachArgs->fastModel))) {
-            if (!std::filesystem::exists(reachArgs->fastModel))
-                throw Error("--fast-model: no model file " + reachArgs->fastModel);
-            options.fastModel = reachArgs->fastModel;
+            for (const std::string& model : splitList(reachArgs->fastModel)) {
+                if (!std::filesystem::exists(model)) throw Error("--fast-model: no model file " + model);
+                options.fastModels.push_back(model);
+            }
         }
         const std::vector<nlohmann::json> rows = bench::benchReach(options);
         if (reachArgs->json) {

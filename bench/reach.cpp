@@ -2,9 +2,11 @@
 
 #include <algorithm>
 #include <cmath>
+#include <filesystem>
 #include <memory>
 
 #include "base/progress.h"
+#include "data/evaluation.h"
 #include "data/frame_image.h"
 #include "infer/filter.h"
 #include "infer/smaa.h"
@@ -13,7 +15,7 @@
 namespace dejag::bench {
 
 const char* reachClassName(int k) {
-    static const char* const kNames[kReachClasses] = {"1-3", "4-15", "16-63", "64+"};
+    static const char* const kNames[kReachClasses] = {"1-3", "4-15", "16-63", "64+", "frame", "texture"};
     return kNames[k];
 }
 
@@ -46,8 +48,10 @@ std::vector<nlohmann::json> benchReach(const ReachBenchOptions& options) {
     methods.emplace_back("no AA", infer::makeFilter("none", {}));
     methods.emplace_back("FXAA", infer::makeFilter("fxaa", {}));
     methods.emplace_back("SMAA", infer::makeFilter("smaa", {}));
-    if (!options.fastModel.empty())
-        methods.emplace_back("dejag-fast", infer::makeFilter("cnn", {{"model", options.fastModel}}));
+    for (const std::string& model : options.fastModels)
+        methods.emplace_back(
+            std::filesystem::path(model).stem().string(),
+            infer::makeFilter("cnn", {{"model", model}, {"gate", options.gate ? "auto" : "off"}}));
     // The classes: ultra's edges with the longest search SMAA allows, no diagonal patterns (a diagonal is
     // a run of 1 both ways).
     infer::SmaaOptions classify = infer::smaaPreset("ultra");
@@ -60,10 +64,20 @@ std::vector<nlohmann::json> benchReach(const ReachBenchOptions& options) {
     for (const std::string& name : options.scenes) {
         const render::Scene scene = render::buildScene(name, {});
         render::Renderer renderer(*context, scene, W, H);
-        const std::vector<float> aliased = frameChannels(renderer.render({}), 0, 3, true);
+        render::FrameRequest request;
+        request.buffers = render::BufferSet::parse("color,depth,id");
+        const render::Frame rendered = renderer.render(request);
+        const std::vector<float> aliased = frameChannels(rendered, 0, 3, true);
         render::TruthOptions truthOptions;
         truthOptions.samples = options.truthSamples, truthOptions.adaptive = true;
         const std::vector<float> truth = frameChannels(renderer.renderTruth(0, truthOptions), 0, 3, true);
+        // The texture region, as the dataset evaluation defines it.
+        data::EvaluationItem regions;
+        regions.id = name;
+        regions.truth = Image(W, H, Image::defaultChannelNames(3));
+        regions.truth.pixels = truth;
+        data::computeRegionMasks(regions, imageFromFrame(rendered));
+        const Image& texture = regions.masks[int(data::Region::Texture)];
         std::vector<float> scratch(aliased.size());
         smaa.apply(aliased.data(), scratch.data(), W, H, 3);
         // Each pixel's class: the longest run through it or through its neighbour across the edge; -1 off
@@ -89,13 +103,15 @@ std::vector<nlohmann::json> benchReach(const ReachBenchOptions& options) {
         for (size_t m = 0; m < methods.size(); ++m) {
             methods[m].second->apply(frame, out.data());
             for (size_t p = 0; p < cls.size(); ++p) {
-                if (cls[p] < 0) continue;
                 double squared = 0;
                 for (size_t c = 0; c < 3; ++c) {
                     const double d = double(out[3 * p + c]) - double(truth[3 * p + c]);
                     squared += d * d;
                 }
-                sums[m].squared[cls[p]] += squared, ++sums[m].pixels[cls[p]];
+                sums[m].squared[kFrameClass] += squared, ++sums[m].pixels[kFrameClass];
+                if (texture.pixels[p] > 0.5f)
+                    sums[m].squared[kTextureClass] += squared, ++sums[m].pixels[kTextureClass];
+                if (cls[p] >= 0) sums[m].squared[cls[p]] += squared, ++sums[m].pixels[cls[p]];
             }
             for (int k = 0; k < kReachClasses; ++k)
                 pooled[m].squared[k] += sums[m].squared[k], pooled[m].pixels[k] += sums[m].pixels[k];

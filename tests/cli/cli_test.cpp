@@ -719,8 +719,8 @@ TEST(Cli, BenchReachScoresEdgePixelsByRunLength) {
             fxaaGain = std::max(fxaaGain, j["gain_db"].get<double>());
     }
     EXPECT_EQ(methods, (std::set<std::string>{"no AA", "FXAA", "SMAA"}));
-    EXPECT_EQ(runs, (std::set<std::string>{"1-3", "4-15", "16-63", "64+"}));
-    EXPECT_EQ(rows, 2 * 4 * 3);  // pipe and all, 4 classes, 3 methods
+    EXPECT_EQ(runs, (std::set<std::string>{"1-3", "4-15", "16-63", "64+", "frame", "texture"}));
+    EXPECT_EQ(rows, 2 * 6 * 3);  // pipe and all, 4 run classes + frame + texture, 3 methods
     EXPECT_GT(fxaaGain, 0.5);
     expectOneLineError(run("bench reach --scenes nowhere", dir), "nowhere");
 }
