@@ -443,6 +443,8 @@ std::vector<MethodScores> scoreMethods(const std::vector<data::EvaluationItem>& 
                 reference.push_back(score);
                 continue;
             }
+            // A flat item (its input already data::kFlatItemPsnr from the truth) has nothing to harm.
+            if (reference[i].region[0].psnr >= data::kFlatItemPsnr) continue;
             const double gain = score.region[0].psnr - reference[i].region[0].psnr;
             s.harmed += gain < -kHarmDb;
             const int texture = int(data::Region::Texture);
@@ -1569,8 +1571,8 @@ std::string exportModel(const std::string& run, const std::string& modelPath,
         const json& d = runJson.at("dataset");
         md << "Data: `" << dataFolder << "`, made by `dejag data generate` with " << d.dump() << ".\n\n";
     }
-    md << "Data recipe: `make dataset` renders it (docs/data.md); `make models` reruns the training and this "
-          "export.\n\n";
+    md << "Data recipe: `make models` renders it (the Makefile's dataset targets, docs/data.md), then reruns "
+          "the training and this export.\n\n";
     md << "## Results\n\nPSNR and SSIM against the 128-sample truth, on sRGB-encoded values (data range 1), "
           "mean over images; "
           "edge = pixels within 1 px of a geometric edge, texture = detailed pixels at least 3 px from one "

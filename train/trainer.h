@@ -130,7 +130,8 @@ Image runNetwork(nn::FrameNetwork& network, const Image& rgb);
 // Scores methods on the items: returns a summary per method (same order as `methods`). The first
 // method is the reference of "harm" (the unfiltered frame, in every caller): an image is harmed by a
 // method whose PSNR on it is more than kHarmDb below the first method's, and its texture harmed when
-// the texture region's PSNR is below the first method's at all.
+// the texture region's PSNR is below the first method's at all. Flat items (data::kFlatItemPsnr) are
+// left out of both counts.
 inline constexpr double kHarmDb = 0.1;
 struct MethodScores {
     std::string name;
