@@ -72,11 +72,8 @@ std::vector<nlohmann::json> benchReach(const ReachBenchOptions& options) {
         truthOptions.samples = options.truthSamples, truthOptions.adaptive = true;
         const std::vector<float> truth = frameChannels(renderer.renderTruth(0, truthOptions), 0, 3, true);
         // The texture region, as the dataset evaluation defines it.
-        data::EvaluationItem regions;
-        regions.id = name;
-        regions.truth = Image(W, H, Image::defaultChannelNames(3));
-        regions.truth.pixels = truth;
-        data::computeRegionMasks(regions, imageFromFrame(rendered));
+        const data::EvaluationItem regions =
+            data::regionsOfFrame(name, truth, W, H, imageFromFrame(rendered));
         const Image& texture = regions.masks[int(data::Region::Texture)];
         std::vector<float> scratch(aliased.size());
         smaa.apply(aliased.data(), scratch.data(), W, H, 3);

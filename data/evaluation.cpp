@@ -55,6 +55,16 @@ Image lumaImage(const Image& rgb) {
     return out;
 }
 
+EvaluationItem regionsOfFrame(const std::string& name, const std::vector<float>& truth, int width, int height,
+                              const Image& buffers) {
+    EvaluationItem item;
+    item.id = name;
+    item.truth = Image(width, height, Image::defaultChannelNames(3));
+    item.truth.pixels = truth;
+    computeRegionMasks(item, buffers);
+    return item;
+}
+
 void computeRegionMasks(EvaluationItem& item, const Image& buffers) {
     const int W = item.truth.width, H = item.truth.height;
     const int id = buffers.findChannel("id.ID"), depth = buffers.findChannel("depth.Z");

@@ -38,6 +38,10 @@ std::vector<EvaluationItem> loadEvaluationItems(const std::string& folder, Split
 
 // Region masks of an item from its rendered buffers (id.ID, depth.Z) and its truth (sRGB RGB).
 void computeRegionMasks(EvaluationItem& item, const Image& buffers);
+// The masks of a rendered frame outside any dataset: `truth` is its sRGB RGB truth (width x height x 3),
+// `buffers` its id.ID and depth.Z. Returns the item with truth and masks set (`name` as its id).
+EvaluationItem regionsOfFrame(const std::string& name, const std::vector<float>& truth, int width, int height,
+                              const Image& buffers);
 
 // Luma 0.21 R + 0.72 G + 0.07 B of an RGB image (the seed network's grey input), one channel "Y".
 Image lumaImage(const Image& rgb);

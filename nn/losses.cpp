@@ -1,6 +1,8 @@
 // Losses: value and gradient side by side (see nn/losses.h).
 #include "nn/losses.h"
 
+#include <utility>
+
 #include <algorithm>
 #include <cmath>
 #include <cstdlib>
@@ -211,18 +213,27 @@ void ssimLossBackward(T* dpred, const T* pred, const T* target, const SsimLossDe
     });
 }
 
+namespace {
+// Sample n's mean squared errors of the prediction and of the input against the target.
+template <class T>
+std::pair<double, double> harmErrors(const T* pred, const T* input, const T* target, int64_t n,
+                                     int64_t perSample) {
+    const int64_t o = n * perSample;
+    double predicted = 0.0, given = 0.0;
+    for (int64_t i = 0; i < perSample; ++i) {
+        const double dp = double(pred[o + i]) - double(target[o + i]);
+        const double di = double(input[o + i]) - double(target[o + i]);
+        predicted += dp * dp, given += di * di;
+    }
+    return {predicted / double(perSample), given / double(perSample)};
+}
+}  // namespace
+
 template <class T>
 double harmLoss(const T* pred, const T* input, const T* target, int64_t batch, int64_t perSample) {
     double total = 0.0;
     for (int64_t n = 0; n < batch; ++n) {
-        const int64_t o = n * perSample;
-        double predicted = 0.0, given = 0.0;
-        for (int64_t i = 0; i < perSample; ++i) {
-            const double dp = double(pred[o + i]) - double(target[o + i]);
-            const double di = double(input[o + i]) - double(target[o + i]);
-            predicted += dp * dp, given += di * di;
-        }
-        predicted /= double(perSample), given /= double(perSample);
+        const auto [predicted, given] = harmErrors(pred, input, target, n, perSample);
         if (predicted > given) total += (predicted - given) / (given + kHarmEpsilon);
     }
     return total / double(batch);
@@ -232,16 +243,10 @@ template <class T>
 void harmLossBackward(T* dpred, const T* pred, const T* input, const T* target, int64_t batch,
                       int64_t perSample, double scale) {
     for (int64_t n = 0; n < batch; ++n) {
+        const auto [predicted, given] = harmErrors(pred, input, target, n, perSample);
+        if (!(predicted > given)) continue;  // the same comparison as the value
+        const double k = scale * 2.0 / (double(batch) * double(perSample) * (given + kHarmEpsilon));
         const int64_t o = n * perSample;
-        double predicted = 0.0, given = 0.0;
-        for (int64_t i = 0; i < perSample; ++i) {
-            const double dp = double(pred[o + i]) - double(target[o + i]);
-            const double di = double(input[o + i]) - double(target[o + i]);
-            predicted += dp * dp, given += di * di;
-        }
-        if (!(predicted > given)) continue;  // the same comparison as the value, on the sums
-        const double k =
-            scale * 2.0 / (double(batch) * double(perSample) * (given / double(perSample) + kHarmEpsilon));
         for (int64_t i = 0; i < perSample; ++i)
             dpred[o + i] += T(k * (double(pred[o + i]) - double(target[o + i])));
     }

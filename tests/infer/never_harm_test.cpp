@@ -81,11 +81,8 @@ TEST(NeverHarm, FineTextZonePlatesAndDenseTextures) {
         render::TruthOptions truthOptions;
         truthOptions.samples = 64;
         const std::vector<float> truth = frameChannels(renderer.renderTruth(0, truthOptions), 0, 3, true);
-        data::EvaluationItem regions;
-        regions.id = probe.name;
-        regions.truth = Image(W, H, Image::defaultChannelNames(3));
-        regions.truth.pixels = truth;
-        data::computeRegionMasks(regions, imageFromFrame(rendered));
+        const data::EvaluationItem regions =
+            data::regionsOfFrame(probe.name, truth, W, H, imageFromFrame(rendered));
 
         infer::Frame frame;
         frame.width = W, frame.height = H, frame.colour = aliased.data();
