@@ -86,7 +86,9 @@ TEST(GradCheck, HarmTermHarmedAndHelpedSamples) {
             p += (pred[i] - target[i]) * (pred[i] - target[i]),
                 g += (input[i] - target[i]) * (input[i] - target[i]);
         p /= double(per), g /= double(per);
-        if (s % 2 == 0) EXPECT_GT(p, g);
+        if (s % 2 == 0) {
+            EXPECT_GT(p, g);
+        }
         expected += std::max(0.0, p - g) / (g + kHarmEpsilon);
     }
     EXPECT_NEAR(harmLoss(pred.data(), input.data(), target.data(), d.batch, int64_t(per)), expected / d.batch,
