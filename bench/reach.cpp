@@ -64,16 +64,10 @@ std::vector<nlohmann::json> benchReach(const ReachBenchOptions& options) {
     for (const std::string& name : options.scenes) {
         const render::Scene scene = render::buildScene(name, {});
         render::Renderer renderer(*context, scene, W, H);
-        render::FrameRequest request;
-        request.buffers = render::BufferSet::parse("color,depth,id");
-        const render::Frame rendered = renderer.render(request);
-        const std::vector<float> aliased = frameChannels(rendered, 0, 3, true);
-        render::TruthOptions truthOptions;
-        truthOptions.samples = options.truthSamples, truthOptions.adaptive = true;
-        const std::vector<float> truth = frameChannels(renderer.renderTruth(0, truthOptions), 0, 3, true);
+        const RenderedPair pair = renderPair(renderer, options.truthSamples, true);
+        const std::vector<float>&aliased = pair.aliased, &truth = pair.truth;
         // The texture region, as the dataset evaluation defines it.
-        const data::EvaluationItem regions =
-            data::regionsOfFrame(name, truth, W, H, imageFromFrame(rendered));
+        const data::EvaluationItem regions = data::regionsOfFrame(name, truth, W, H, pair.buffers);
         const Image& texture = regions.masks[int(data::Region::Texture)];
         std::vector<float> scratch(aliased.size());
         smaa.apply(aliased.data(), scratch.data(), W, H, 3);

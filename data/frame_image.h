@@ -35,4 +35,23 @@ inline std::vector<float> frameChannels(const render::Frame& frame, int first, i
     return out;
 }
 
+// A frame rendered once a pixel with its depth and IDs, and its accumulated truth: what scoring a method
+// on a rendered frame needs (sRGB-encoded RGB of each, the buffers as an image with id.ID and depth.Z).
+struct RenderedPair {
+    std::vector<float> aliased, truth;
+    Image buffers;
+};
+inline RenderedPair renderPair(render::Renderer& renderer, int truthSamples, bool adaptive) {
+    render::FrameRequest request;
+    request.buffers = render::BufferSet::parse("color,depth,id");
+    render::Frame frame = renderer.render(request);
+    render::TruthOptions options;
+    options.samples = truthSamples, options.adaptive = adaptive;
+    RenderedPair pair;
+    pair.aliased = frameChannels(frame, 0, 3, true);
+    pair.truth = frameChannels(renderer.renderTruth(0, options), 0, 3, true);
+    pair.buffers = imageFromFrame(std::move(frame));
+    return pair;
+}
+
 }  // namespace dejag

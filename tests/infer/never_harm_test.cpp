@@ -74,15 +74,9 @@ TEST(NeverHarm, FineTextZonePlatesAndDenseTextures) {
             };
         }
         render::Renderer renderer(*context, scene, W, H);
-        render::FrameRequest request;
-        request.buffers = render::BufferSet::parse("color,depth,id");
-        const render::Frame rendered = renderer.render(request);
-        const std::vector<float> aliased = frameChannels(rendered, 0, 3, true);
-        render::TruthOptions truthOptions;
-        truthOptions.samples = 64;
-        const std::vector<float> truth = frameChannels(renderer.renderTruth(0, truthOptions), 0, 3, true);
-        const data::EvaluationItem regions =
-            data::regionsOfFrame(probe.name, truth, W, H, imageFromFrame(rendered));
+        const RenderedPair pair = renderPair(renderer, 64, false);
+        const std::vector<float>&aliased = pair.aliased, &truth = pair.truth;
+        const data::EvaluationItem regions = data::regionsOfFrame(probe.name, truth, W, H, pair.buffers);
 
         infer::Frame frame;
         frame.width = W, frame.height = H, frame.colour = aliased.data();
