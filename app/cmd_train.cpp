@@ -3,6 +3,7 @@
 #include <cstdio>
 #include <memory>
 #include <sstream>
+#include <tuple>
 
 #include "app/cli.h"
 #include "app/commands.h"
@@ -108,6 +109,9 @@ void registerTrainCommand(CLI::App& app) {
     trainCommand->add_option("--input-method", config->inputMethod,
                              "a single-frame method the network runs after (e.g. smaa): its patches and "
                              "validation images pass through it, and dejag filter runs it first");
+    trainCommand->add_option("--guide-method", config->guideMethod,
+                             "a single-frame method (e.g. smaa) whose result the network reads beside the "
+                             "frame and may blend in per pixel (kpn family: kpn:WxD+guide)");
     trainCommand
         ->add_option(
             "--arch", config->arch,
@@ -230,12 +234,15 @@ void registerTrainCommand(CLI::App& app) {
         faults.poisonSteps = parseSteps(*poison);
         config->families = splitList(*families);
         config->commandLine = invocation();
-        if (!config->inputMethod.empty()) {
-            const std::string method = config->inputMethod;
-            const auto check = infer::makeFilter(method, {});  // an unknown method: one line, now
+        for (auto [flag, method, transform] :
+             {std::tuple{"--input-method", &config->inputMethod, &config->inputTransform},
+              std::tuple{"--guide-method", &config->guideMethod, &config->guideTransform}}) {
+            if (method->empty()) continue;
+            const auto check = infer::makeFilter(*method, {});  // an unknown method: one line, now
             if (check->needs() != 0 || check->temporal() || !check->stages().empty())
-                throw Error("--input-method: " + method + " is not a single-frame method on colour alone");
-            config->inputTransform = inputTransform(method);
+                throw Error(std::string(flag) + ": " + *method +
+                            " is not a single-frame method on colour alone");
+            *transform = inputTransform(*method);
         }
         const train::TrainResult r = train::trainModel(*config, standardBaselines(), faults);
         if (config->json)

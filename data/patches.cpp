@@ -41,6 +41,7 @@ uint16_t encode(float linear) {
 PatchSampler::PatchSampler(const std::string& folder, const PatchOptions& options) : options_(options) {
     if (options.patchSize < 8 || options.batchSize < 1)
         throw Error("patch size must be >= 8 and batch size >= 1");
+    if (options.guideTransform && options.grayscale) throw Error("a guide goes beside RGB patches, not luma");
     const int P = options.patchSize;
     auto loadItem = [&](const nlohmann::json& record, Item& item) {
         item.index = record["index"].get<int>();
@@ -87,13 +88,17 @@ PatchSampler::PatchSampler(const std::string& folder, const PatchOptions& option
                 item.aliasing[p] = source;
                 if (source) item.aliasingPixels.push_back(int(p));
             }
-        if (options.inputTransform) {
+        auto transformed = [&](const auto& transform) {
             std::vector<float> rgb(n * 3);
             for (size_t i = 0; i < rgb.size(); ++i) rgb[i] = float(item.input[i]) / 65535.0f;
-            options.inputTransform(rgb.data(), item.width, item.height);
+            transform(rgb.data(), item.width, item.height);
+            std::vector<uint16_t> result(n * 3);
             for (size_t i = 0; i < rgb.size(); ++i)
-                item.input[i] = uint16_t(std::lround(std::clamp(rgb[i], 0.0f, 1.0f) * 65535.0f));
-        }
+                result[i] = uint16_t(std::lround(std::clamp(rgb[i], 0.0f, 1.0f) * 65535.0f));
+            return result;
+        };
+        if (options.inputTransform) item.input = transformed(options.inputTransform);
+        if (options.guideTransform) item.guide = transformed(options.guideTransform);
     };
     // Items load in parallel (reading EXRs dominates), each into its own slot: the order stays the
     // manifest's whatever the thread count.
@@ -162,9 +167,10 @@ Batch PatchSampler::next() {
 
 Batch PatchSampler::assemble(uint64_t index) const {
     const int P = options_.patchSize, N = options_.batchSize, C = channels();
+    const bool guided = bool(options_.guideTransform);
     Random random(mix(options_.seed ^ mix(index + 0x1234)));
     Batch batch;
-    batch.input = nn::Tensor({N, C, P, P});
+    batch.input = nn::Tensor({N, guided ? 2 * C : C, P, P});
     batch.target = nn::Tensor({N, C, P, P});
     int64_t edgePixels = 0;
     for (int n = 0; n < N; ++n) {
@@ -205,6 +211,10 @@ Batch PatchSampler::assemble(uint64_t index) const {
                 } else {
                     for (int c = 0; c < 3; ++c)
                         batch.input.at(n, c, y, x) = in[c], batch.target.at(n, c, y, x) = out[c];
+                    if (guided)
+                        for (int c = 0; c < 3; ++c)
+                            batch.input.at(n, 3 + c, y, x) = float(
+                                std::min(1.0, item.guide[p * 3 + size_t(c)] / 65535.0 * channelGain[c]));
                 }
             }
     }

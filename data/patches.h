@@ -36,11 +36,14 @@ struct PatchOptions {
     // Applied to each item's input (sRGB-encoded RGB, (height, width, 3) interleaved) once at loading,
     // after its aliasing sources are found: a method the network runs after (dejag train --input-method).
     std::function<void(float* rgb, int width, int height)> inputTransform;
+    // A guide beside the input (dejag train --guide-method): this method's result on each item's input,
+    // made once at loading, becomes channels 3..5 of the batch's input (augmented with it). RGB only.
+    std::function<void(float* rgb, int width, int height)> guideTransform;
 };
 
 // Values are sRGB-encoded in [0, 1] (the networks see display-referred images, like FXAA).
 struct Batch {
-    nn::Tensor input, target;  // (N, C, P, P), C = 3 or 1
+    nn::Tensor input, target;  // (N, C, P, P), C = 3 or 1; a guided input: 6 (the frame, the guide)
     std::vector<int> items;    // manifest index of each patch
     double edgeFraction = 0;   // fraction of the batch's pixels marked as aliasing sources
 };
@@ -56,7 +59,7 @@ class PatchSampler {
 
     Batch next();  // the next batch, in order
     int itemCount() const { return int(items_.size()); }
-    int channels() const { return options_.grayscale ? 1 : 3; }
+    int channels() const { return options_.grayscale ? 1 : 3; }  // of the target (and the frame)
 
     // Batch `index` computed on the calling thread (what next() returns as its index-th batch).
     Batch assemble(uint64_t index) const;
@@ -65,6 +68,7 @@ class PatchSampler {
     struct Item {
         int index = 0, width = 0, height = 0;
         std::vector<uint16_t> input, truth;  // sRGB-encoded RGB, value * 65535
+        std::vector<uint16_t> guide;         // the guide method's result on the input (if any), as input
         std::vector<uint8_t> aliasing;       // 1 where a pixel is an aliasing source
         std::vector<int> aliasingPixels;     // their positions y * width + x
     };

@@ -93,7 +93,7 @@ void CnnFilter::apply(const float* in, float* out, int width, int height, int ch
     const size_t C = size_t(channels);
     // The luma of a grey model's input is computed here (the gate computes what it needs of it itself,
     // and stops at a tile's first step, which on most frames comes early).
-    m.network.beginFrame(in, width, height, channels);
+    m.network.beginFrame(in, width, height, channels, buffers.guide);
 
     const int tilesX = (width + T - 1) / T, tilesY = (height + T - 1) / T;
     m.tileCount = tilesX * tilesY;
@@ -176,7 +176,9 @@ namespace {
 class CnnMethodFilter final : public Filter {
   public:
     // inputMethod: the method the network was trained to run after ("": none), run here first.
-    CnnMethodFilter(CnnFilter cnn, std::string model, std::string gate, const std::string& inputMethod)
+    // guideMethod: the method whose result the network reads beside the frame ("": none).
+    CnnMethodFilter(CnnFilter cnn, std::string model, std::string gate, const std::string& inputMethod,
+                    const std::string& guideMethod)
         : Filter("cnn"), cnn_(std::move(cnn)) {
         figures_.settings = {{"model", std::move(model)},
                              {"gate", std::move(gate)},
@@ -184,6 +186,10 @@ class CnnMethodFilter final : public Filter {
         if (!inputMethod.empty()) {
             input_ = makeFilter(inputMethod, {});
             figures_.settings.push_back({"input_method", inputMethod});
+        }
+        if (!guideMethod.empty()) {
+            guide_ = makeFilter(guideMethod, {});
+            figures_.settings.push_back({"guide_method", guideMethod});
         }
     }
     BufferSet needs() const override { return 0; }
@@ -198,15 +204,23 @@ class CnnMethodFilter final : public Filter {
             input_->apply(frame, inputFrame_.data());
             through.colour = inputFrame_.data();
         }
-        cnn_.apply(through.colour, out, frame.width, frame.height, frame.channels, {frame.depth, frame.ids});
+        const float* guide = nullptr;
+        if (guide_) {
+            const size_t floats = size_t(frame.width) * size_t(frame.height) * size_t(frame.channels);
+            if (guideFrame_.size() < floats) guideFrame_.resize(floats);
+            guide_->apply(through, guideFrame_.data());
+            guide = guideFrame_.data();
+        }
+        cnn_.apply(through.colour, out, frame.width, frame.height, frame.channels,
+                   {frame.depth, frame.ids, guide});
         figures_.processedFraction = cnn_.processedFraction();
         figures_.extra = {{"tiles", double(cnn_.tileCount())},
                           {"tiles_processed", double(cnn_.tilesProcessed())},
                           {"passed_through_fraction", cnn_.passedThroughFraction()}};
     }
     CnnFilter cnn_;
-    std::unique_ptr<Filter> input_;
-    std::vector<float> inputFrame_;
+    std::unique_ptr<Filter> input_, guide_;
+    std::vector<float> inputFrame_, guideFrame_;
 };
 
 }  // namespace
@@ -248,9 +262,10 @@ MethodSpec cnnMethod() {
         const std::string path = p.path("model");
         nn::Model model = nn::loadModel(path);
         const std::string inputMethod = model.architecture().value("input_method", "");
+        const std::string guideMethod = model.architecture().value("guide_method", "");
         try {
             return std::make_unique<CnnMethodFilter>(CnnFilter(std::move(model), options), path, gate,
-                                                     inputMethod);
+                                                     inputMethod, guideMethod);
         } catch (const Error& e) {
             throw Error("--model '" + path + "': " + e.what());
         }

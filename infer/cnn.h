@@ -53,6 +53,9 @@ const char* precisionName(nn::InferencePrecision precision);
 struct CnnBuffers {
     const float* depth = nullptr;
     const float* ids = nullptr;
+    // A guided model's guide: its guide method's result on the frame, in the frame's layout (required
+    // for such a model: nn/frame_network.h).
+    const float* guide = nullptr;
 };
 
 class CnnFilter {
@@ -85,7 +88,9 @@ class CnnFilter {
 };
 
 // The method "cnn" of infer/filter.h: parameters model, gate (off | auto | a luma threshold), tile,
-// precision, pass-span; uses the depth and id buffers for gating when the frame has them.
+// precision, pass-span; uses the depth and id buffers for gating when the frame has them. A model trained
+// after an input method runs after it; a guided one reads its guide method's result beside the frame.
+// Both methods run on the whole frame, gated tiles included.
 MethodSpec cnnMethod();
 
 }  // namespace dejag::infer

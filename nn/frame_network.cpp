@@ -80,7 +80,8 @@ struct FrameRows final : OutputRowSink {
 // The rows of a region, as the network reads them: planes of R, G, B (or the luma of a grey network),
 // rows and columns past the frame repeating its last ones.
 struct RegionRows final : InputRowSource {
-    const float* in = nullptr;  // the frame (interleaved, C channels)
+    const float* in = nullptr;     // the frame (interleaved, C channels)
+    const float* guide = nullptr;  // a guided network's guide (the frame's layout), as channels 3..5
     const float* luma = nullptr;
     size_t C = 3, width = 0;
     int height = 0, rx0 = 0, ry0 = 0, RW = 0;  // the region's origin and width
@@ -94,7 +95,10 @@ struct RegionRows final : InputRowSource {
         else
             DEJAG_SIMD_CALL(splitRgbRow, in + (frameRow + size_t(rx0)) * C, int(C), inside, channels[0],
                             channels[1], channels[2]);
-        for (int c = 0; c < (grey ? 1 : 3); ++c)
+        if (guide)
+            DEJAG_SIMD_CALL(splitRgbRow, guide + (frameRow + size_t(rx0)) * C, int(C), inside, channels[3],
+                            channels[4], channels[5]);
+        for (int c = 0; c < (grey ? 1 : guide ? 6 : 3); ++c)
             std::fill(channels[c] + inside, channels[c] + RW, channels[c][inside - 1]);
     }
 };
@@ -140,10 +144,12 @@ struct FrameNetwork::Impl {
     ReceptiveField field;
     int halo = 0;
     bool grey = false;
+    std::string guideMethod;  // a guided network's (channels 3..5 are the guide)
     // by (height, width) of a region
     std::map<std::pair<int, int>, std::unique_ptr<InferencePlan>> plans;
     std::vector<float> luma;  // (H, W) luma of the frame (grey networks)
     const float* in = nullptr;
+    const float* guide = nullptr;
     int width = 0, height = 0, channels = 3;
 
     Impl(std::unique_ptr<Model> m, InferencePrecision p) : owned(std::move(m)), model(*owned), precision(p) {}
@@ -180,10 +186,17 @@ FrameNetwork FrameNetwork::borrowing(const Model& model, InferencePrecision prec
 void FrameNetwork::Impl::check() {
     const Model& m = model;
     const int c = m.inputChannels();
-    if ((c != 1 && c != 3) || m.outputChannels() != c)
+    guideMethod = m.architecture().value("guide_method", "");
+    if (!guideMethod.empty() && (c != 6 || m.outputChannels() != 3))
+        throw Error("model '" + m.name() +
+                    "' names a guide method, so it must take 6 channels (the frame's "
+                    "R G B and the guide's) and return 3; it takes " +
+                    std::to_string(c) + " and returns " + std::to_string(m.outputChannels()));
+    if (guideMethod.empty() && ((c != 1 && c != 3) || m.outputChannels() != c))
         throw Error("a network filter needs a model taking and returning 1 (luma) or 3 (RGB) channels; '" +
                     m.name() + "' takes " + std::to_string(c) + " and returns " +
-                    std::to_string(m.outputChannels()));
+                    std::to_string(m.outputChannels()) +
+                    (c == 6 ? " (a guided model names its guide method in its architecture)" : ""));
     if (precision == InferencePrecision::BFloat16 && !bf16Available())
         throw Error(
             "bf16 inference needs a CPU with AVX-512 BF16 (this one, or the SIMD level forced, has none)");
@@ -212,6 +225,9 @@ const Model& FrameNetwork::model() const {
 bool FrameNetwork::grey() const {
     return impl_->grey;
 }
+const std::string& FrameNetwork::guideMethod() const {
+    return impl_->guideMethod;
+}
 int FrameNetwork::halo() const {
     return impl_->halo;
 }
@@ -222,11 +238,15 @@ InferencePrecision FrameNetwork::precision() const {
     return impl_->precision;
 }
 
-void FrameNetwork::beginFrame(const float* in, int width, int height, int channels) {
+void FrameNetwork::beginFrame(const float* in, int width, int height, int channels, const float* guide) {
     if (width < 1 || height < 1 || channels < 3 || !in)
         throw Error("a network filter needs an RGB frame of at least 1x1 pixel");
     Impl& m = *impl_;
+    if (!m.guideMethod.empty() && !guide)
+        throw Error("model '" + m.model.name() + "' reads " + m.guideMethod +
+                    "'s result beside the frame, and none was given");
     m.in = in, m.width = width, m.height = height, m.channels = channels;
+    m.guide = m.guideMethod.empty() ? nullptr : guide;
     if (!m.grey) return;
     // A grey model's input: the frame's luma.
     const size_t pixels = size_t(width) * size_t(height), C = size_t(channels);
@@ -252,7 +272,8 @@ FrameNetwork::RegionFigures FrameNetwork::runRegion(float* out, int cx0, int cy0
     InferencePlan& plan = m.planFor(ry1 - ry0, rx1 - rx0);
     const int RW = rx1 - rx0, RH = ry1 - ry0;
     RegionRows region;
-    region.in = m.in, region.luma = m.luma.data(), region.C = C, region.width = size_t(width);
+    region.in = m.in, region.guide = m.guide, region.luma = m.luma.data(), region.C = C;
+    region.width = size_t(width);
     region.height = height, region.rx0 = rx0, region.ry0 = ry0, region.RW = RW, region.grey = grey;
     FrameRows rows;
     rows.in = m.in, rows.out = out, rows.luma = m.luma.data(), rows.C = C, rows.width = size_t(width);
@@ -263,9 +284,10 @@ FrameNetwork::RegionFigures FrameNetwork::runRegion(float* out, int cx0, int cy0
         plan.runStreamed(region, rows, cy0 - ry0, cy1 - ry0);
     } else {
         parallelFor(0, RH, 8, [&](int64_t j0, int64_t j1) {
-            float* planes[3];
+            float* planes[6];
+            const int planeCount = grey ? 1 : m.guide ? 6 : 3;
             for (int64_t j = j0; j < j1; ++j) {
-                for (int c = 0; c < (grey ? 1 : 3); ++c) planes[c] = plan.inputRow(0, c, j);
+                for (int c = 0; c < planeCount; ++c) planes[c] = plan.inputRow(0, c, j);
                 region.row(0, j, planes);
             }
         });
@@ -277,8 +299,8 @@ FrameNetwork::RegionFigures FrameNetwork::runRegion(float* out, int cx0, int cy0
     return figures;
 }
 
-void FrameNetwork::run(const float* in, float* out, int width, int height, int channels) {
-    beginFrame(in, width, height, channels);
+void FrameNetwork::run(const float* in, float* out, int width, int height, int channels, const float* guide) {
+    beginFrame(in, width, height, channels, guide);
     const size_t C = size_t(channels);
     if (C > 3)
         parallelFor(0, height, 16, [&](int64_t y0, int64_t y1) {

@@ -7,12 +7,17 @@
 // stride by repeating its last row and column, as a tile near the border is padded. Outputs are clamped
 // to [0, 1]; channels after R G B are not touched (run() copies them through).
 //
+// A guided network (a kpn model built with a guide, its architecture naming "guide_method") takes six
+// channels: the frame's R G B and the guide's, another method's result on the same frame, which the
+// caller makes and passes beside the frame (interleaved, the frame's channel count, R G B first).
+//
 // A region of the frame (a tile) runs with a halo of the network's receptive field around it, clipped at
 // the padded frame's border, so a tiled run equals the whole-frame one to float rounding.
 #pragma once
 
 #include <map>
 #include <memory>
+#include <string>
 #include <utility>
 #include <vector>
 
@@ -39,8 +44,8 @@ void checkWeightsForFrames(const Model& model);
 class FrameNetwork {
   public:
     // Throws dejag::Error unless the model takes and returns 1 (luma) or 3 (RGB) channels of the same
-    // count, at the size it is given (a super-resolution or downscaling graph is no anti-aliasing
-    // filter), or for BFloat16 on a CPU without AVX-512 BF16.
+    // count (or, guided, takes 6 and returns 3), at the size it is given (a super-resolution or downscaling
+    // graph is no anti-aliasing filter), or for BFloat16 on a CPU without AVX-512 BF16.
     explicit FrameNetwork(Model model, InferencePrecision precision = InferencePrecision::Float32);
     // Runs a model it does not own (training's validation: the model under training, which must outlive
     // it and keep its weights while it runs).
@@ -52,13 +57,16 @@ class FrameNetwork {
 
     const Model& model() const;
     bool grey() const;
+    // The method whose result a guided network reads beside the frame ("": none).
+    const std::string& guideMethod() const;
     int halo() const;       // the receptive field, rounded up to the stride
     int alignment() const;  // the total stride: regions start at multiples of it
     InferencePrecision precision() const;
 
     // The frame the next regions are cut from (a grey network's luma is computed here). `in` must stay
-    // valid until the last runRegion() of the frame.
-    void beginFrame(const float* in, int width, int height, int channels);
+    // valid until the last runRegion() of the frame, and so must `guide` (a guided network's; its layout
+    // is the frame's; required for a guided network, ignored otherwise).
+    void beginFrame(const float* in, int width, int height, int channels, const float* guide = nullptr);
     // Runs the core [x0, x1) x [y0, y1) of the frame begun (x0, y0 multiples of alignment()) with its
     // halo and writes R G B of those pixels of `out`. passSpan: a kernel-predicting network passes
     // through flat runs of pixels (InferencePlan::setPassThrough; 0: off). Returns the pixels made (the
@@ -68,7 +76,7 @@ class FrameNetwork {
     };
     RegionFigures runRegion(float* out, int x0, int y0, int x1, int y1, float passSpan = 0);
     // The whole frame at once, channels after R G B copied from `in` (in and out must not overlap).
-    void run(const float* in, float* out, int width, int height, int channels);
+    void run(const float* in, float* out, int width, int height, int channels, const float* guide = nullptr);
 
   private:
     struct Impl;

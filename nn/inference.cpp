@@ -249,6 +249,7 @@ struct InferencePlan::Impl {
     // gathered from x into a scratch row and the row is filtered from the caller's planar input straight
     // into the planar output. x's step index, or -1.
     int kernelSource = -1;
+    int kernelGuideFrom = -1;  // a guided kpn's: the input channel its guide starts at (the history's rows)
     int kernelFactor = 1;
     KernelFilterDesc kernelFilter;
     // ... and when x is a 1x1 convolution read by nothing else (a KPN's head), that convolution is fused
@@ -387,7 +388,8 @@ InferencePlan::InferencePlan(const Model& model, const Shape& inputShape, Infere
     }
     for (int node :
          {residual ? residual->add : -1, residual ? residual->shuffle : -1, kernel ? kernel->filter : -1,
-          kernel ? kernel->shuffle : -1, kernel && kernel->features >= 0 ? kernel->source : -1})
+          kernel ? kernel->shuffle : -1, kernel && kernel->features >= 0 ? kernel->source : -1,
+          kernel ? kernel->frameSlice : -1, kernel ? kernel->guideSlice : -1})
         if (node >= 0) m.steps[size_t(node)].fusedIntoOutput = true;
     m.shapeActivations(g, planarInput);
     if (precision == InferencePrecision::BFloat16) m.assignPrecision(g);
@@ -403,7 +405,8 @@ void InferencePlan::Impl::useOutputStages(const std::optional<plan::ResidualOutp
     if (!kernel) return;
     kernelSource = kernel->source, kernelFactor = kernel->factor;
     kernelFilter = kernel->desc;
-    kernelScratch = Tensor({kRowParts, kernelFilter.taps(), inputShape[3]});
+    kernelGuideFrom = kernel->guideFrom;
+    kernelScratch = Tensor({kRowParts, kernelFilter.weights(), inputShape[3]});
     kernelFeatures = kernel->features, kernelFeatureChannels = kernel->featureChannels;
     kernelHeadWeights = std::move(kernel->headWeights);
     kernelHeadBias = std::move(kernel->headBias);
@@ -534,7 +537,9 @@ void InferencePlan::Impl::planStreaming(const plan::PlanGraph& g, bool planarInp
     int64_t bandFloats = 0;
     for (int i = 0; i < g.size(); ++i)
         for (int source : g.node(i).inputs) {
-            if (source >= 0 || (kernel && i == kernel->filter) || (residual && i == residual->add)) continue;
+            if (source >= 0 || (residual && i == residual->add) ||
+                (kernel && (i == kernel->filter || i == kernel->frameSlice || i == kernel->guideSlice)))
+                continue;
             const Step& step = steps[size_t(i)];
             if (g.opOf(i) == GraphOp::Conv2d && step.conv && step.conv->canBandInput())
                 bandFloats = std::max(bandFloats, step.conv->bandShape(inputBlocked).floatCount());
@@ -1124,7 +1129,7 @@ void InferencePlan::Impl::finish(const float* planes, OutputRowSink* sink, int64
         const float* source = m.data(m.kernelSource);
         const KernelFilterDesc& d = m.kernelFilter;
         const int64_t f = m.kernelFactor;
-        const int k = d.kernel, r = k / 2, taps = k * k;
+        const int k = d.kernel, r = k / 2, taps = int(d.weights());  // a guide's weight after the taps
         forEachOutputRow([&](int64_t part, int64_t n, int64_t y) {
             // A row passed through whole is copied by the sink from the frame, when it can: no input
             // rows, logits or filter for it.
@@ -1140,6 +1145,7 @@ void InferencePlan::Impl::finish(const float* planes, OutputRowSink* sink, int64
             float* logits = m.kernelScratch.data() + part * taps * W;
             const float* in[kKernelMaxChannels * 7];
             float* out[kKernelMaxChannels];
+            const float* guide[kKernelMaxChannels];
             KernelFilterRowArgs args;
             args.out = out, args.in = in, args.logits = logits;
             args.width = W, args.channels = int(C), args.kernel = k, args.centreBias = d.centreBias;
@@ -1148,7 +1154,9 @@ void InferencePlan::Impl::finish(const float* planes, OutputRowSink* sink, int64
                 for (int dy = -r; dy <= r; ++dy)
                     in[c * k + dy + r] = inputRow(part, n, c, std::clamp<int64_t>(y + dy, 0, H - 1));
                 out[c] = outputRow(part, n, c, y);
+                if (m.kernelGuideFrom >= 0) guide[c] = inputRow(part, n, m.kernelGuideFrom + c, y);
             }
+            if (m.kernelGuideFrom >= 0) args.history = guide;
             uint8_t* flat = nullptr;
             if (m.flatMarked) {  // marked before the layers ran
                 flat = m.flatRows.data() + y * m.passGroupsPerRow;

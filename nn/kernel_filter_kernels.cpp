@@ -219,7 +219,8 @@ inline void passPixels(const KernelFilterRowArgs& a, int64_t x) {
     for (int c = 0; c < a.channels; ++c) storeu(a.out[c] + x, loadu<V>(a.in[c * K + K / 2] + x));
 }
 
-template <int K>
+// History: with a history's (a guide's) weight after the taps (kernel_filter with a history).
+template <int K, bool History = false>
 void filterRow(const KernelFilterRowArgs& a) {
     constexpr int kRadius = K / 2;
     const int64_t W = a.width;
@@ -228,13 +229,13 @@ void filterRow(const KernelFilterRowArgs& a) {
         if (flat && flat[x / kPassGroup])
             passPixels<float, K>(a, x);
         else
-            filterPixels<float, int32_t, K>(a, x, true);
+            filterPixels<float, int32_t, K, History>(a, x, true);
     };
     int64_t x = 0;
     for (; x < std::min<int64_t>(kRadius, W); ++x) onePixel(x);
     for (; x + kFloatLanes + kRadius <= W; x += kFloatLanes) {
         if (!flat) {
-            filterPixels<VFloat, VInt, K>(a, x, false);
+            filterPixels<VFloat, VInt, K, History>(a, x, false);
             continue;
         }
         // The vector's lanes lie in one or two groups.
@@ -243,7 +244,7 @@ void filterRow(const KernelFilterRowArgs& a) {
             passPixels<VFloat, K>(a, x);
             continue;
         }
-        filterPixels<VFloat, VInt, K>(a, x, false);
+        filterPixels<VFloat, VInt, K, History>(a, x, false);
         if (flat[first] || flat[last]) {  // the passed lanes back to their inputs
             VInt lane;
 #if defined(DEJAG_SIMD_LEVEL_scalar)
@@ -560,6 +561,11 @@ void kernelFilterRow(const KernelFilterRowArgs& args) {
     if (args.history && (args.kept || args.keptInterleaved)) {  // accumulate
         if (args.kernel == 3) return filterRowWithHistory<3, true>(args);
         if (args.kernel == 1) return filterRowWithHistory<1, true>(args);
+        return;
+    }
+    if (args.history && args.flatGroups) {  // a guided kpn's, gated: flat groups passed through
+        if (args.kernel == 3) return filterRow<3, true>(args);
+        if (args.kernel == 1) return filterRow<1, true>(args);
         return;
     }
     if (args.history) {

@@ -20,8 +20,9 @@ struct KernelFilterRowArgs {
     // through — each pixel its centre input, bit for bit — as kernelFlatGroups() marks them.
     const uint8_t* flatGroups = nullptr;
     // A history (null: none): [C] rows at the output's row. The logits then have kernel^2 + 1 rows, the
-    // last one weighting the history's own pixel (kernel_filter with a history, nn/layers.h). No
-    // pass-through with a history.
+    // last one weighting the history's own pixel (kernel_filter with a history, nn/layers.h); with
+    // flatGroups, those groups pass their centre input through (a guided kpn: the guide lies within the
+    // flat neighbourhood's range). Accumulate has no pass-through.
     const float* const* history = nullptr;
     // Accumulate (null: off; needs a history, kernel 1 or 3): the row of accumulate (nn/layers.h). The
     // logits' last row is then the trust, the softmax spans the kernel^2 taps only, the history's rows

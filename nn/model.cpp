@@ -289,7 +289,16 @@ nlohmann::json Model::builtinArchitecture(const std::string& name, const ModelOp
         if (w < 2 || w % 2 != 0 || w > kMaxChannels || levels < 2 || levels > 6 || c < 1)
             throw Error("the fast and kpn families need an even width from 2 to " +
                         std::to_string(kMaxChannels) + " and a depth (levels) in 2..6");
+        const bool guided = options.guide;
+        if (guided && (name != "kpn" || c != 3)) throw Error("a guide is for the RGB kpn family");
         json nodes = json::array();
+        if (guided) {
+            // The frame (channels 0..2) and the guide (3..5): the trunk sees both, the blend reads each.
+            nodes.push_back(
+                {{"name", "frame"}, {"op", "slice"}, {"inputs", {"input"}}, {"from", 0}, {"to", 3}});
+            nodes.push_back(
+                {{"name", "guide"}, {"op", "slice"}, {"inputs", {"input"}}, {"from", 3}, {"to", 6}});
+        }
         const std::string previous = unet(nodes, "input", w, levels);
         // The head, the same size for both: a last conv at 1/2 starting at 0.1x its initialisation
         // (the network starts near the identity), then a pixel shuffle to full resolution.
@@ -300,13 +309,20 @@ nlohmann::json Model::builtinArchitecture(const std::string& name, const ModelOp
             // Kernel-predicting: per full-resolution pixel, the 9 logits of a 3x3 kernel (a 1x1 conv makes 4
             // pixels' worth at 1/2); the output is the input filtered by those kernels (kernel_filter). A
             // softmax of near-zero logits with the centre raised by 4 puts 87 % of the weight in the centre.
-            nodes.push_back(conv(head, previous, 4 * 9, 1, "none"));
+            // A guide adds a tenth logit per pixel: the weight of the guide's own pixel.
+            nodes.push_back(conv(head, previous, 4 * (guided ? 10 : 9), 1, "none"));
         } else {
             nodes.push_back(conv(head, previous, 4 * c, 3, "none"));  // residual: output = input + correction
         }
         nodes.back()["init_scale"] = 0.1;
         nodes.push_back({{"name", "shuffle"}, {"op", "pixel_shuffle"}, {"inputs", {head}}, {"factor", 2}});
-        if (kernels)
+        if (kernels && guided)
+            nodes.push_back({{"name", output},
+                             {"op", "kernel_filter"},
+                             {"inputs", {"frame", "shuffle", "guide"}},
+                             {"kernel", 3},
+                             {"centre_bias", 4.0}});
+        else if (kernels)
             nodes.push_back({{"name", output},
                              {"op", "kernel_filter"},
                              {"inputs", {"input", "shuffle"}},
@@ -314,14 +330,17 @@ nlohmann::json Model::builtinArchitecture(const std::string& name, const ModelOp
                              {"centre_bias", 4.0}});
         else
             nodes.push_back({{"name", output}, {"op", "add"}, {"inputs", {"input", "shuffle"}}});
+        json family = {{"width", w}, {"depth", levels}};
+        if (guided) family["guide"] = true;
         return {{"name", name},
-                {"input_channels", c},
-                {"input_colour", "sRGB-encoded RGB"},
+                {"input_channels", guided ? 6 : c},
+                {"input_colour", guided ? "sRGB-encoded RGB frame, then the guide method's result on it (RGB)"
+                                        : "sRGB-encoded RGB"},
                 {"normalisation", "[0, 1]"},
                 {"init", "he_normal"},
                 {"nodes", nodes},
                 {"output", output},
-                {"family", {{"width", w}, {"depth", levels}}}};
+                {"family", family}};
     }
     if (name == "accumulate") {
         // The temporal family's trunk with a TAA's running mean for its blend (docs/train.md). The output,

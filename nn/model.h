@@ -102,6 +102,9 @@ struct ModelOptions {
     float maxCount = 32.0f;   // accumulate: the most samples its history's mean holds
     bool depthInput = false;  // accumulate: the frame's depth and the previous frame's, warped, as inputs
     bool clip = false;        // accumulate: the history clamped to the frame's neighbourhood (AccumulateDesc)
+    // kpn: a guide (another method's result on the frame, RGB) beside the frame as input channels 3..5;
+    // each pixel's blend is its 3x3 kernel over the frame plus one weight on the guide's own pixel.
+    bool guide = false;
 };
 
 class Model {

@@ -42,18 +42,31 @@ std::optional<ResidualOutput> fuseResidualOutput(const PlanGraph& g) {
 
 std::optional<KernelOutput> fuseKernelOutput(const PlanGraph& g) {
     const GraphNode& out = g.node(g.output);
-    if (out.op != GraphOp::KernelFilter || out.inputs.size() != 2 || out.inputs[0] >= 0 ||
-        out.inputs[1] < 0 || g.input[1] > kKernelMaxChannels)
-        return std::nullopt;
+    if (out.op != GraphOp::KernelFilter || out.inputs.size() < 2 || out.inputs[1] < 0) return std::nullopt;
+    KernelOutput k;
+    if (out.inputs.size() == 2) {
+        if (out.inputs[0] >= 0 || g.input[1] > kKernelMaxChannels) return std::nullopt;
+        k.desc = out.kernelFilterDesc(g.input);
+    } else {
+        // A guided kpn: the frame and the guide, channel slices of the input read by the filter alone.
+        auto inputSlice = [&](int node, int64_t from, int64_t to) {
+            return node >= 0 && g.opOf(node) == GraphOp::Slice && g.node(node).inputs[0] < 0 &&
+                   g.node(node).sliceFrom == from && g.shapeOf(node)[1] == to - from && g.readers(node) == 1;
+        };
+        const int64_t C = g.shapeOf(out.inputs[0])[1];
+        if (C > kKernelMaxChannels || g.input[1] != 2 * C || !inputSlice(out.inputs[0], 0, C) ||
+            !inputSlice(out.inputs[2], C, 2 * C))
+            return std::nullopt;
+        k.frameSlice = out.inputs[0], k.guideSlice = out.inputs[2], k.guideFrom = int(C);
+        k.desc = out.kernelFilterDesc(g.shapeOf(out.inputs[0]), true);
+    }
     const int shuffle = out.inputs[1];
     if (g.opOf(shuffle) != GraphOp::PixelShuffle || g.node(shuffle).inputs[0] < 0 ||
         g.readers(shuffle) != 1 || g.readers(g.output) != 0)
         return std::nullopt;
-    KernelOutput k;
     k.filter = g.output, k.shuffle = shuffle;
     k.source = g.node(shuffle).inputs[0];
     k.factor = g.node(shuffle).factor;
-    k.desc = out.kernelFilterDesc(g.input);
     return k;
 }
 
@@ -64,7 +77,7 @@ void fuseKernelHead(const PlanGraph& g, KernelOutput& k) {
     const GraphNode& n = g.node(head);
     const Shape& in = g.shapeOf(n.inputs[0]);
     const Conv2dDesc d = n.convDesc(in);
-    const int64_t f = k.factor, taps = k.desc.taps();
+    const int64_t f = k.factor, taps = k.desc.weights();  // a guide's weight after the kernel's taps
     if (d.kernelHeight != 1 || d.kernelWidth != 1 || d.strideH != 1 || d.strideW != 1 || d.padTop != 0 ||
         d.padBottom != 0 || d.padLeft != 0 || d.padRight != 0 || n.activation.kind != Activation::None ||
         d.outChannels != taps * f * f || in[1] > 16)
@@ -91,7 +104,7 @@ bool planarInput(const PlanGraph& g, const std::optional<ResidualOutput>& residu
     for (int i = 0; i < g.size(); ++i)
         for (int source : g.node(i).inputs)
             if (source < 0 && !g.isConvolution(i) && !(residual && i == residual->add) &&
-                !(kernel && i == kernel->filter))
+                !(kernel && (i == kernel->filter || i == kernel->frameSlice || i == kernel->guideSlice)))
                 return false;
     return true;
 }
@@ -235,6 +248,9 @@ ArenaTensors arenaTensors(const PlanGraph& g, const std::vector<NodePlan>& nodes
             lastUse[size_t(input + 1)] = std::max(lastUse[size_t(input + 1)], i);
     for (int node : readAfterLastStep)
         if (node >= 0) lastUse[size_t(node + 1)] = count;
+    for (int i = 0; i < count; ++i)  // what the output stage reads for the nodes fused into it (a guide's
+        if (nodes[size_t(i)].fusedIntoOutput)  // slices read the input)
+            for (int input : g.node(i).inputs) lastUse[size_t(input + 1)] = count;
     ArenaTensors a;
     a.tensors.push_back({bufferFloats[0], 0, lastUse[0]});
     a.buffer.push_back(-1);

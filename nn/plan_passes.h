@@ -70,13 +70,17 @@ std::optional<ResidualOutput> fuseResidualOutput(const PlanGraph& g);
 
 // ---- Fuse the kernel output and its head -------------------------------------------------------------
 // The output is kernel_filter(input, pixel_shuffle(x)) on an input of at most kKernelMaxChannels
-// channels with nothing else reading the shuffle: each output row's logits are gathered from x.
+// channels with nothing else reading the shuffle: each output row's logits are gathered from x. Or, a
+// guided kpn's, kernel_filter(slice [0, C) of the input, pixel_shuffle(x), slice [C, 2C) of it) with
+// nothing else reading the slices: the stage reads the guide's rows from the input's channels C...
 inline constexpr int kKernelMaxChannels = 4;
 struct KernelOutput {
     int filter = -1, shuffle = -1;
     int source = -1;  // x
     int factor = 1;
     KernelFilterDesc desc;
+    int frameSlice = -1, guideSlice = -1;  // a guided kpn's slices (fused with the filter)
+    int guideFrom = -1;                    // ... and the input channel its guide starts at
     // fuseKernelHead: x is a 1x1 convolution (no activation, taps * factor^2 outputs, at most 16
     // inputs) read by nothing else; the stage computes the logits from its input `features`. The
     // weights are ordered by row phase: [factor][taps][factor][featureChannels], the bias likewise.

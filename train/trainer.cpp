@@ -71,14 +71,16 @@ nlohmann::json architectureFor(const std::string& arch) {
         nn::ModelOptions options;
         std::string spec = arch.substr(family.size() + 1);
         // accumulate:WxD[+depth][+clip]: with the depth inputs; the history clamped to the neighbourhood.
-        auto suffix = [&](const std::string& s) {
+        // kpn:WxD+guide: a guide method's result beside the frame (--guide-method).
+        auto suffix = [&](const std::string& s, const std::string& of) {
             const bool has =
-                family == "accumulate" && spec.size() > s.size() && spec.substr(spec.size() - s.size()) == s;
+                family == of && spec.size() > s.size() && spec.substr(spec.size() - s.size()) == s;
             if (has) spec.resize(spec.size() - s.size());
             return has;
         };
-        options.clip = suffix("+clip");
-        options.depthInput = suffix("+depth");
+        options.guide = suffix("+guide", "kpn");
+        options.clip = suffix("+clip", "accumulate");
+        options.depthInput = suffix("+depth", "accumulate");
         size_t used = 0, usedDepth = 0;
         try {
             options.width = std::stoi(spec, &used);
@@ -92,7 +94,10 @@ nlohmann::json architectureFor(const std::string& arch) {
         if (used == 0 || used != spec.size())
             throw Error("--arch '" + arch + "': expected " + family + ":WIDTH or " + family +
                         ":WIDTHxDEPTH (e.g. " + family + ":12x3" +
-                        (family == "accumulate" ? ", or accumulate:8x2+depth+clip" : "") + ")");
+                        (family == "accumulate" ? ", or accumulate:8x2+depth+clip"
+                         : family == "kpn"      ? ", or kpn:8x3+guide"
+                                                : "") +
+                        ")");
         return nn::Model::builtinArchitecture(family, options);
     }
     if (!fs::exists(arch))
@@ -415,12 +420,34 @@ bool allFinite(const nn::Tensor& t) {
 
 // ---- Running a model on whole images ------------------------------------------------------------------
 
-Image runNetwork(nn::FrameNetwork& network, const Image& rgb) {
+Image runNetwork(nn::FrameNetwork& network, const Image& rgb, const Image* guide) {
     if (rgb.channels() != 3) throw Error("the network filter needs an RGB image, got " + rgb.describe());
+    if (guide && (guide->width != rgb.width || guide->height != rgb.height || guide->channels() != 3))
+        throw Error("the guide " + guide->describe() + " does not match the image " + rgb.describe());
     Image result(rgb.width, rgb.height, Image::defaultChannelNames(3), rgb.storage);
-    network.run(rgb.pixels.data(), result.pixels.data(), rgb.width, rgb.height, 3);
+    network.run(rgb.pixels.data(), result.pixels.data(), rgb.width, rgb.height, 3,
+                guide ? guide->pixels.data() : nullptr);
     return result;
 }
+
+namespace {
+
+using Transform = std::function<void(float* rgb, int width, int height)>;
+
+// The network on an RGB image as dejag filter runs it: after the input method (if any), beside the guide
+// method's result on the frame it sees (if any).
+Image runThrough(nn::FrameNetwork& network, const Image& rgb, const Transform& input,
+                 const Transform& guide) {
+    if (!input && !guide) return runNetwork(network, rgb);
+    Image frame = rgb;
+    if (input) input(frame.pixels.data(), frame.width, frame.height);
+    if (!guide) return runNetwork(network, frame);
+    Image guideImage = frame;
+    guide(guideImage.pixels.data(), guideImage.width, guideImage.height);
+    return runNetwork(network, frame, &guideImage);
+}
+
+}  // namespace
 
 std::vector<MethodScores> scoreMethods(const std::vector<data::EvaluationItem>& items,
                                        const std::vector<Method>& methods, bool grey) {
@@ -580,11 +607,29 @@ DatasetSizeCheck datasetSize(const std::string& folder) {
 
 // The network --arch names, checked for what training does with it.
 nn::Model buildModel(const TrainConfig& config, bool temporal) {
-    nlohmann::json architecture = architectureFor(config.arch);
+    std::string arch = config.arch;
+    if (!config.guideMethod.empty()) {
+        if (temporal) throw Error("--guide-method is for single-frame networks");
+        if (!config.inputMethod.empty()) throw Error("--guide-method and --input-method: choose one");
+        // kpn and kpn:WxD get their guide here; an architecture file must declare its own.
+        if (arch == "kpn") arch = "kpn:16x3";
+        if (arch.rfind("kpn:", 0) == 0 && arch.find("+guide") == std::string::npos) arch += "+guide";
+    }
+    nlohmann::json architecture = architectureFor(arch);
     if (!config.inputMethod.empty()) {
         if (temporal) throw Error("--input-method is for single-frame networks");
         architecture["input_method"] = config.inputMethod;
     }
+    if (!config.guideMethod.empty()) architecture["guide_method"] = config.guideMethod;
+    const bool guided = architecture.value("input_channels", 0) == 6 && !temporal;
+    if (guided && config.guideMethod.empty())
+        throw Error("--arch '" + config.arch +
+                    "' reads a guide beside the frame: name its method (--guide-method)");
+    if (!config.guideMethod.empty() && !guided)
+        throw Error(
+            "--guide-method needs a network taking 6 channels (the frame and the guide), as "
+            "kpn:WxD+guide does; --arch '" +
+            config.arch + "' does not");
     nn::Model model = nn::Model::fromArchitecture(architecture);
     if (temporal) {
         const TemporalLayout layout = temporalLayout(model);  // throws for a single-frame network
@@ -596,10 +641,12 @@ nn::Model buildModel(const TrainConfig& config, bool temporal) {
     }
     if (!config.inputMethod.empty() && model.inputChannels() != 3)
         throw Error("--input-method needs an RGB network");
-    if (model.inputChannels() != 1 && model.inputChannels() != 3)
+    if (guided) {
+        nn::FrameNetwork::borrowing(model);  // throws unless it takes the frame and guide and returns RGB
+    } else if (model.inputChannels() != 1 && model.inputChannels() != 3)
         throw Error("the architecture takes " + std::to_string(model.inputChannels()) +
                     " channels; dejag trains on RGB (3) or luma (1)");
-    if (model.outputChannels() != model.inputChannels())
+    if (model.outputChannels() != (guided ? 3 : model.inputChannels()))
         throw Error("the architecture outputs " + std::to_string(model.outputChannels()) + " channels for " +
                     std::to_string(model.inputChannels()) + " in");
     // The network learns to map a patch to its truth: its output has the patch's size (the loss and the
@@ -686,6 +733,7 @@ class Batches {
         patches.grayscale = grey, patches.firstBatch = uint64_t(cleanBatches_);
         patches.families = config.families;
         patches.inputTransform = config.inputTransform;
+        patches.guideTransform = config.guideTransform;
         sampler_.emplace(config.data, patches);
     }
     AdversarialKind kindAt(int64_t step) const {
@@ -937,9 +985,13 @@ class Validation {
             return summary.nonFiniteImages;
         }
         auto network = nn::FrameNetwork::borrowing(model);
-        const std::vector<MethodScores> s = scoreMethods(
-            items_, {{"network", [&](const Image& im) { return runNetwork(network, throughInput(im)); }}},
-            grey_);
+        const std::vector<MethodScores> s =
+            scoreMethods(items_,
+                         {{"network",
+                           [&](const Image& im) {
+                               return runThrough(network, im, config_.inputTransform, config_.guideTransform);
+                           }}},
+                         grey_);
         row.evaluated = true;
         for (int k = 0; k < int(data::Region::Count); ++k)
             row.psnr[k] = s[0].summary.psnr[k], row.ssim[k] = s[0].summary.ssim[k];
@@ -969,13 +1021,6 @@ class Validation {
     }
 
   private:
-    // A validation image as the network sees it: through the input method, if any.
-    Image throughInput(const Image& image) const {
-        if (!config_.inputTransform) return image;
-        Image copy = image;
-        config_.inputTransform(copy.pixels.data(), copy.width, copy.height);
-        return copy;
-    }
     const TrainConfig& config_;
     bool grey_;
     std::optional<data::SequenceSampler> sequences_;
@@ -1099,7 +1144,7 @@ TrainResult trainModel(const TrainConfig& config, const std::vector<Method>& bas
     double lossSum = 0;
     int64_t lossCount = 0;
     double lastLoss = NAN;
-    nn::Tensor dout;
+    nn::Tensor dout, frameOnly;  // frameOnly: a guided batch's frames, for the harm term
     int64_t sessionSteps = 0;
     bool stop = config.patience > 0 && state.evaluationsSinceBest >= config.patience;  // finished early
     result.stoppedEarly = stop;
@@ -1121,7 +1166,15 @@ TrainResult trainModel(const TrainConfig& config, const std::vector<Method>& bas
             if (dout.shape() != out.shape()) dout = nn::Tensor(out.shape());
             dout.zero();
             const nn::SsimLossDesc desc{out.dim(0), out.dim(1), out.dim(2), out.dim(3), 1.0};
-            const nn::Tensor& given = step.batch.input;
+            // The harm term measures against the frame (a guided input's first three channels).
+            if (loss.needsInput() && step.batch.input.dim(1) == 6 && out.dim(1) == 3) {
+                const nn::Tensor& in = step.batch.input;
+                if (frameOnly.shape() != out.shape()) frameOnly = nn::Tensor(out.shape());
+                const int64_t plane = in.dim(2) * in.dim(3);
+                for (int64_t n = 0; n < in.dim(0); ++n)
+                    std::copy_n(in.data() + n * 6 * plane, 3 * plane, frameOnly.data() + n * 3 * plane);
+            }
+            const nn::Tensor& given = step.batch.input.dim(1) == 6 ? frameOnly : step.batch.input;
             if (loss.needsInput() && given.shape() != out.shape())
                 throw Error(
                     "the loss's harm term compares the output with the input, and this network's "
@@ -1492,23 +1545,24 @@ std::string exportModel(const std::string& run, const std::string& modelPath,
     nn::Model model = nn::loadModel(bestPath, &metadata);
     // A network trained after an input method is scored after it, as dejag filter runs it.
     const std::string inputName = model.architecture().value("input_method", "");
-    std::function<void(float*, int, int)> through;
+    const std::string guideName = model.architecture().value("guide_method", "");
+    Transform through, guide;
     if (!inputName.empty()) {
         if (!inputMethod)
             throw Error("the network runs after " + inputName + ", which this export cannot make");
         through = inputMethod(inputName);
+    }
+    if (!guideName.empty()) {
+        if (!inputMethod)
+            throw Error("the network reads " + guideName + "'s result, which this export cannot make");
+        guide = inputMethod(guideName);
     }
     const bool grey = model.inputChannels() == 1;
     const std::string dataFolder = runJson.at("config").at("data");
     std::vector<Method> methods;
     for (const Method& b : baselines) methods.push_back(b);
     auto network = nn::FrameNetwork::borrowing(model);
-    methods.push_back({"network", [&](const Image& im) {
-                           if (!through) return runNetwork(network, im);
-                           Image copy = im;
-                           through(copy.pixels.data(), copy.width, copy.height);
-                           return runNetwork(network, copy);
-                       }});
+    methods.push_back({"network", [&](const Image& im) { return runThrough(network, im, through, guide); }});
     if (!quiet)
         std::fprintf(stderr, "scoring on the validation and test splits of '%s'...\n", dataFolder.c_str());
     const std::vector<std::string> families =
@@ -1547,6 +1601,11 @@ std::string exportModel(const std::string& run, const std::string& modelPath,
            << "`): `dejag filter --method cnn` runs " << inputName
            << " on the frame first, and the scores below "
            << "are of the pair.\n";
+    if (!guideName.empty())
+        md << "\nThe network reads " << guideName
+           << "'s result beside the frame (trained with `--guide-method " << guideName
+           << "`): each pixel is a blend of the frame's 3x3 neighbourhood and " << guideName
+           << "'s pixel, and `dejag filter --method cnn` runs " << guideName << " on the frame first.\n";
     md << "\n## Training\n\n";
     md << "Command:\n\n```\n" << runJson.at("command").get<std::string>() << "\n```\n\n";
     std::snprintf(

@@ -70,6 +70,11 @@ struct TrainConfig {
     // reach the network through it, and the filter runs it before the network.
     std::string inputMethod;
     std::function<void(float* rgb, int width, int height)> inputTransform;
+    // A single-frame method whose result the network reads beside the frame (recorded as "guide_method";
+    // the kpn family with a guide, kpn:WxD+guide, which --guide-method picks for kpn and kpn:WxD): its
+    // result on each patch and validation image is the network's channels 3..5.
+    std::string guideMethod;
+    std::function<void(float* rgb, int width, int height)> guideTransform;
 };
 
 // The batches `--adversarial` mixes in. Constant: every patch one grey level, input = target; noise:
@@ -125,7 +130,8 @@ nlohmann::json architectureFor(const std::string& arch);
 
 // Runs a network on a whole sRGB RGB image through the contract every caller uses (nn/frame_network.h):
 // RGB out for RGB and grey models alike (a grey model's change of the luma on R, G and B).
-Image runNetwork(nn::FrameNetwork& network, const Image& rgb);
+// guide: a guided network's guide image (the guide method's result on `rgb`), required for one.
+Image runNetwork(nn::FrameNetwork& network, const Image& rgb, const Image* guide = nullptr);
 
 // Scores methods on the items: returns a summary per method (same order as `methods`). The first
 // method is the reference of "harm" (the unfiltered frame, in every caller): an image is harmed by a
@@ -156,9 +162,9 @@ struct SequenceMethod {
     std::string name;
     std::function<std::vector<nn::Tensor>(const data::SequenceBatch&)> apply;
 };
-// inputMethod: makes, by name, the method a network trained with --input-method runs after (the model's
-// architecture names it); its validation and test images pass through it before the network. Null: such a
-// model is refused.
+// inputMethod: makes, by name, the method a network trained with --input-method runs after, or reads
+// beside the frame (--guide-method) (the model's architecture names it); its validation and test images
+// pass through it before the network, or it makes their guides. Null: such a model is refused.
 using InputMethodFactory =
     std::function<std::function<void(float* rgb, int width, int height)>(const std::string&)>;
 std::string exportModel(const std::string& run, const std::string& modelPath,

@@ -845,8 +845,9 @@ TEST(Cli, RenderListsTheScenes) {
         EXPECT_NE(r.out.find(scene), std::string::npos) << scene;
 }
 
-// A network trained after SMAA: the model records it, dejag filter runs SMAA first (tests/infer/cnn_test.cpp
-// checks the outputs), its card says so, and a method that needs buffers is refused.
+// A network trained after SMAA, or reading it beside the frame: the model records it, dejag filter runs
+// SMAA first (tests/infer/cnn_test.cpp checks the outputs), its card says so, and a method that needs
+// buffers, or a network that cannot take a guide, is refused.
 TEST(Cli, TrainAfterAnInputMethodRecordsIt) {
     testing::TempDir dir;
     const std::string data = dir.file("data"), runFolder = dir.file("run");
@@ -872,6 +873,39 @@ TEST(Cli, TrainAfterAnInputMethodRecordsIt) {
     EXPECT_NE(text.str().find("The network runs after smaa"), std::string::npos);
     expectOneLineError(run(train + "taa --out '" + dir.file("run2") + "'", dir), "--input-method: taa");
     expectOneLineError(run(train + "blur --out '" + dir.file("run3") + "'", dir), "blur");
+    // Beside the frame instead: the kpn family takes the guide, the card says so, the filter runs it.
+    const std::string guided = dir.file("guided");
+    const std::string besides = "train --data '" + data +
+                                "' --arch kpn:8x2 --steps 4 --batch 2 --patch 32 --eval-every 2 "
+                                "--checkpoint-every 2 --val-images 2 --quiet --loss 'ssim+0.1*harm' ";
+    r = run(besides + "--guide-method smaa --out '" + guided + "'", dir);
+    ASSERT_EQ(r.exitCode, 0) << r.err;
+    const nn::Model model = nn::loadModel(guided + "/final.safetensors");
+    EXPECT_EQ(model.architecture().value("guide_method", ""), "smaa");
+    EXPECT_EQ(model.inputChannels(), 6);
+    r = run("train export '" + guided + "' '" + dir.file("g.safetensors") + "' --quiet", dir);
+    ASSERT_EQ(r.exitCode, 0) << r.err;
+    std::ifstream guidedCard(dir.file("g.md"));
+    std::stringstream guidedText;
+    guidedText << guidedCard.rdbuf();
+    EXPECT_NE(guidedText.str().find("The network reads smaa's result beside the frame"), std::string::npos);
+    expectOneLineError(run(besides + "--guide-method taa --out '" + dir.file("run4") + "'", dir),
+                       "--guide-method: taa");
+    expectOneLineError(
+        run(besides + "--guide-method smaa --input-method smaa --out '" + dir.file("run5") + "'", dir),
+        "choose one");
+    expectOneLineError(run("train --data '" + data +
+                               "' --arch fast:8x2 --steps 4 --batch 2 --patch 32 --quiet "
+                               "--guide-method smaa --out '" +
+                               dir.file("run6") + "'",
+                           dir),
+                       "6 channels");
+    expectOneLineError(run("train --data '" + data +
+                               "' --arch kpn:8x2+guide --steps 4 --batch 2 --patch 32 "
+                               "--quiet --out '" +
+                               dir.file("run7") + "'",
+                           dir),
+                       "--guide-method");
 }
 
 TEST(Cli, TrainLogsJsonResumesAndExportsAModelCard) {

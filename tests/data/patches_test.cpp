@@ -108,6 +108,36 @@ TEST_F(Patches, WithoutAugmentationAPatchIsTheItemCropAndGreyIsLuma) {
                         1e-6);
 }
 
+// A guide beside the input: channels 3..5 are the guide method's result on the item, cut, flipped and
+// scaled with the frame's (here a transform inverting the colours), the frame and the target unchanged.
+TEST_F(Patches, AGuideGoesBesideTheFrameAugmentedWithIt) {
+    PatchOptions options;
+    options.patchSize = 24, options.batchSize = 6, options.seed = 5, options.brightnessJitter = 0.2;
+    PatchSampler plain(folder_, options);
+    options.guideTransform = [](float* rgb, int width, int height) {
+        for (size_t i = 0; i < size_t(width) * size_t(height) * 3; ++i) rgb[i] = 0.5f * (1.0f - rgb[i]);
+    };
+    PatchSampler guided(folder_, options);
+    const Batch a = plain.assemble(3), b = guided.assemble(3);
+    ASSERT_EQ(b.input.dim(1), 6);
+    EXPECT_TRUE(same(a.target, b.target));
+    for (int n = 0; n < 6; ++n)
+        for (int y = 0; y < 24; ++y)
+            for (int x = 0; x < 24; ++x)
+                for (int c = 0; c < 3; ++c) {
+                    ASSERT_EQ(b.input.at(n, c, y, x), a.input.at(n, c, y, x));
+                    // The gain g scales both: g * 0.5 * (1 - v), where the frame is g * v (unclamped).
+                    const float frame = a.input.at(n, c, y, x), guide = b.input.at(n, 3 + c, y, x);
+                    if (frame < 0.99f) {
+                        const float gain = guide + 0.5f * frame;  // = 0.5 g
+                        ASSERT_GT(gain, 0.5f * 0.77f);
+                        ASSERT_LT(gain, 0.5f * 1.24f);
+                    }
+                }
+    options.grayscale = true;
+    EXPECT_THROW(PatchSampler(folder_, options), Error);
+}
+
 TEST_F(Patches, SplitsAndErrors) {
     PatchOptions options;
     options.patchSize = 32, options.batchSize = 8;

@@ -310,6 +310,59 @@ TEST(Cnn, RunsTheInputMethodItWasTrainedAfter) {
     EXPECT_TRUE(named);
 }
 
+// A guided network (its architecture's "guide_method") reads that method's result on the frame beside
+// it: the filter equals the model card's run with the guide made by the method, bit for bit, whole or in
+// tiles; without a guide the network refuses the frame.
+TEST(Cnn, ReadsTheGuideMethodsResultBesideTheFrame) {
+    testing::TempDir dir;
+    nn::ModelOptions options;
+    options.width = 8, options.guide = true;
+    nlohmann::json arch = nn::Model::builtinArchitecture("kpn", options);
+    arch["guide_method"] = "smaa";
+    nn::Model model = nn::Model::fromArchitecture(arch);
+    model.initialize(7);
+    nn::saveModel(dir.file("guided.safetensors"), model);
+    const int W = 203, H = 141;
+    const std::vector<float> frame = testFrame(W, H, 3);
+    Frame f;
+    f.width = W, f.height = H, f.channels = 3, f.colour = frame.data();
+    Image image(W, H, {"R", "G", "B"}, PixelType::Float), guide = image;
+    image.pixels = frame;
+    guide.pixels.resize(frame.size());
+    makeFilter("smaa", {})->apply(f, guide.pixels.data());
+    auto network = nn::FrameNetwork::borrowing(model);
+    const Image card = train::runNetwork(network, image, &guide);
+    EXPECT_THROW(train::runNetwork(network, image), Error);
+    for (const char* tile : {"2048", "64"}) {
+        const auto filter = makeFilter("cnn", {{"model", dir.file("guided.safetensors")},
+                                               {"gate", "off"},
+                                               {"tile", tile},
+                                               {"precision", "fp32"}});
+        std::vector<float> got(frame.size());
+        filter->apply(f, got.data());
+        float worst = 0;
+        for (size_t i = 0; i < got.size(); ++i) worst = std::max(worst, std::abs(got[i] - card.pixels[i]));
+        EXPECT_LE(worst, tile[0] == '2' ? 0.0f : 1e-5f) << "tile " << tile;
+        bool named = false;
+        for (const auto& [key, value] : filter->figures().settings)
+            named = named || (key == "guide_method" && value == "smaa");
+        EXPECT_TRUE(named);
+    }
+    // Gated, flat runs pass through (the guide lies within a flat neighbourhood's range): every element
+    // is the ungated result or the frame's, and that within the span of it.
+    const auto gated = makeFilter("cnn", {{"model", dir.file("guided.safetensors")}, {"precision", "fp32"}});
+    std::vector<float> passed(frame.size());
+    gated->apply(f, passed.data());
+    int changed = 0;
+    for (size_t i = 0; i < frame.size(); ++i) {
+        if (passed[i] == card.pixels[i]) continue;
+        ASSERT_EQ(passed[i], frame[i]) << "element " << i;
+        ASSERT_LE(std::abs(card.pixels[i] - frame[i]), CnnOptions().passSpan * 1.001f) << "element " << i;
+        ++changed;
+    }
+    EXPECT_GT(changed, 0);
+}
+
 TEST(Cnn, RefusesModelsItCannotRun) {
     nlohmann::json arch = nn::Model::builtinArchitecture("fast", {8, 3, 4});
     EXPECT_THROW(CnnFilter(nn::Model::fromArchitecture(arch)), Error);  // 4 channels

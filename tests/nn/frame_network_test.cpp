@@ -9,6 +9,7 @@
 #include <bit>
 #include <cmath>
 #include <random>
+#include <string>
 
 #include "base/error.h"
 #include "nn/frame_network_kernels.h"
@@ -79,28 +80,49 @@ TEST(FrameNetwork, ReceptiveFieldOfTheShippedArchitectures) {
 
 // The frame padded by repeating its last row and column up to a multiple of the stride, the network's
 // reference forward (nn::Model::forward) run on it, the result cropped and clamped to [0, 1] (a grey
-// model's luma change added to R, G and B); alpha copied through.
+// model's luma change added to R, G and B); alpha copied through. A guided model's guide (the frame's
+// layout) is channels 3..5 of its input, replicated alike.
 class FrameNetworkOn : public ::testing::TestWithParam<const char*> {};
+
+// A built-in architecture by name; "kpn+guide": kpn reading a guide beside the frame.
+Model builtinForFrames(const std::string& name) {
+    if (name != "kpn+guide") return Model::builtin(name);
+    ModelOptions options;
+    options.width = 8, options.guide = true;
+    nlohmann::json architecture = Model::builtinArchitecture("kpn", options);
+    architecture["guide_method"] = "smaa";
+    return Model::fromArchitecture(architecture);
+}
 
 TEST_P(FrameNetworkOn, AWholeFrameIsTheModelOnTheReplicatedFrame) {
     const int W = 75, H = 53, C = 4;  // not a multiple of any stride
-    std::vector<float> frame(size_t(W) * H * C);
+    std::vector<float> frame(size_t(W) * H * C), guide(frame.size());
     std::mt19937 rng(11);
     std::uniform_real_distribution<float> u(0.0f, 1.0f);
     for (size_t i = 0; i < frame.size(); ++i) frame[i] = i % C == 3 ? 0.5f : u(rng);
-    Model model = Model::builtin(GetParam());
+    for (size_t i = 0; i < frame.size(); ++i) guide[i] = i % C == 3 ? -9.0f : u(rng);
+    Model model = builtinForFrames(GetParam());
     model.initialize(5);
     FrameNetwork network = FrameNetwork::borrowing(model);
+    const bool guided = model.inputChannels() == 6;
+    EXPECT_EQ(network.guideMethod(), guided ? "smaa" : "");
+    if (guided) {
+        std::vector<float> out(frame.size());
+        EXPECT_THROW(network.run(frame.data(), out.data(), W, H, C), Error) << "a guided run without a guide";
+    }
     std::vector<float> got(frame.size(), -1.0f);
-    network.run(frame.data(), got.data(), W, H, C);
+    network.run(frame.data(), got.data(), W, H, C, guide.data());
     const int a = network.alignment(), PW = (W + a - 1) / a * a, PH = (H + a - 1) / a * a;
     const bool grey = model.inputChannels() == 1;
     auto luma = [](const float* p) { return 0.21f * p[0] + 0.72f * p[1] + 0.07f * p[2]; };
     Tensor input({1, model.inputChannels(), PH, PW});
     for (int y = 0; y < PH; ++y)
         for (int x = 0; x < PW; ++x) {
-            const float* p = &frame[(size_t(std::min(y, H - 1)) * W + size_t(std::min(x, W - 1))) * C];
-            for (int c = 0; c < model.inputChannels(); ++c) input.at(0, c, y, x) = grey ? luma(p) : p[c];
+            const size_t at = (size_t(std::min(y, H - 1)) * W + size_t(std::min(x, W - 1))) * C;
+            const float* p = &frame[at];
+            for (int c = 0; c < std::min(3, model.inputChannels()); ++c)
+                input.at(0, c, y, x) = grey ? luma(p) : p[c];
+            for (int c = 3; c < model.inputChannels(); ++c) input.at(0, c, y, x) = guide[at + size_t(c - 3)];
         }
     const Tensor& result = model.forward(input);
     float worst = 0;
@@ -117,7 +139,42 @@ TEST_P(FrameNetworkOn, AWholeFrameIsTheModelOnTheReplicatedFrame) {
     EXPECT_LE(worst, 1e-5f);
 }
 
-INSTANTIATE_TEST_SUITE_P(Architectures, FrameNetworkOn, ::testing::Values("seed2020", "fast", "kpn"));
+INSTANTIATE_TEST_SUITE_P(Architectures, FrameNetworkOn,
+                         ::testing::Values("seed2020", "fast", "kpn", "kpn+guide"), [](const auto& test) {
+                             std::string name = test.param;
+                             std::replace(name.begin(), name.end(), '+', '_');
+                             return name;
+                         });
+
+// A guided kpn blends the frame's 3x3 neighbourhood with the guide's pixel: with the guide's logit far
+// above the kernel's, it returns the guide; far below, a filter of the frame alone.
+TEST(FrameNetwork, AGuidedKpnBlendsTheFrameWithTheGuide) {
+    Model model = builtinForFrames("kpn+guide");
+    model.initialize(3);
+    const int W = 40, H = 24, C = 3;
+    std::vector<float> frame(size_t(W) * H * C), guide(frame.size());
+    for (size_t i = 0; i < frame.size(); ++i) frame[i] = 0.25f, guide[i] = float(i % 7) / 8.0f;
+    // The head: the last convolution before the pixel shuffle, its bias per logit (tap j of the 10 at
+    // shuffle phase p is channel j * 4 + p).
+    const auto& nodes = model.architecture()["nodes"];
+    std::string head;
+    for (const auto& n : nodes)
+        if (n["op"] == "pixel_shuffle") head = n["inputs"][0];
+    ASSERT_FALSE(head.empty());
+    for (const float guideLogit : {60.0f, -60.0f}) {
+        // Zero weights: the logits are the biases alone.
+        Model copy = Model::fromArchitecture(model.architecture());
+        copy.initialize(3);
+        for (int64_t i = 0; i < copy.parameterCount(); ++i) copy.parameterData()[i] = 0.0f;
+        float* bias = copy.parameterData() + copy.parameter(head + ".bias").offset;
+        for (int p = 0; p < 4; ++p) bias[9 * 4 + p] = guideLogit;
+        FrameNetwork network = FrameNetwork::borrowing(copy);
+        std::vector<float> out(frame.size());
+        network.run(frame.data(), out.data(), W, H, C, guide.data());
+        for (size_t i = 0; i < out.size(); ++i)
+            ASSERT_NEAR(out[i], guideLogit > 0 ? guide[i] : 0.25f, 1e-5f) << i;
+    }
+}
 
 TEST(FrameNetwork, RefusesWhatIsNoFilterOfFrames) {
     EXPECT_THROW(FrameNetwork(Model::fromArchitecture(Model::builtinArchitecture("fast", {8, 3, 4}))), Error);

@@ -237,6 +237,13 @@ TEST_P(Inference, KpnFamilyMatchesTheReference) {
     // read by transposes).
     Model fast = Model::builtin("kpn", {8, 3});
     expectPlanMatchesReference(fast, {1, 3, 16, 80});
+    // With a guide beside the frame (channels 3..5, the blend's tenth weight): fused and streamed too.
+    ModelOptions guidedOptions;
+    guidedOptions.width = 8, guidedOptions.guide = true;
+    Model guided = Model::builtin("kpn", guidedOptions);
+    expectPlanMatchesReference(guided, {1, 6, 16, 80});
+    expectPlanMatchesReference(guided, {2, 6, 24, 40});
+    EXPECT_TRUE(InferencePlan(guided, {1, 6, 16, 80}).canStreamInput());
     // The output stage with a 5x5 kernel, a factor of 3 and a width that is no multiple of a vector.
     using nlohmann::json;
     const json nodes =
