@@ -252,6 +252,69 @@ void harmLossBackward(T* dpred, const T* pred, const T* input, const T* target, 
     }
 }
 
+namespace {
+// Calls f(offset of the block's first element in sample n's plane c, block width, block height, n) for
+// every block of every sample; the element (c, y, x) of the block is at offset + c * H * W + y * W + x.
+template <class F>
+void forEachHarmTile(const SsimLossDesc& d, int tile, F&& f) {
+    for (int64_t n = 0; n < d.batch; ++n)
+        for (int64_t y0 = 0; y0 < d.height; y0 += tile)
+            for (int64_t x0 = 0; x0 < d.width; x0 += tile)
+                f(n * d.channels * d.height * d.width + y0 * d.width + x0,
+                  std::min<int64_t>(tile, d.width - x0), std::min<int64_t>(tile, d.height - y0));
+}
+
+int64_t harmTileCount(const SsimLossDesc& d, int tile) {
+    return d.batch * ((d.height + tile - 1) / tile) * ((d.width + tile - 1) / tile);
+}
+
+// A block's mean squared errors of the prediction and of the input against the target.
+template <class T>
+std::pair<double, double> tileErrors(const T* pred, const T* input, const T* target, const SsimLossDesc& d,
+                                     int64_t at, int64_t w, int64_t h) {
+    double predicted = 0.0, given = 0.0;
+    for (int64_t c = 0; c < d.channels; ++c)
+        for (int64_t y = 0; y < h; ++y)
+            for (int64_t x = 0; x < w; ++x) {
+                const int64_t i = at + (c * d.height + y) * d.width + x;
+                const double dp = double(pred[i]) - double(target[i]),
+                             di = double(input[i]) - double(target[i]);
+                predicted += dp * dp, given += di * di;
+            }
+    const double count = double(d.channels * w * h);
+    return {predicted / count, given / count};
+}
+}  // namespace
+
+template <class T>
+double harmTilesLoss(const T* pred, const T* input, const T* target, const SsimLossDesc& d, int tile) {
+    if (tile < 1) throw Error("harm: the block side must be at least 1");
+    double total = 0.0;
+    forEachHarmTile(d, tile, [&](int64_t at, int64_t w, int64_t h) {
+        const auto [predicted, given] = tileErrors(pred, input, target, d, at, w, h);
+        if (predicted > given) total += (predicted - given) / (given + kHarmEpsilon);
+    });
+    return total / double(harmTileCount(d, tile));
+}
+
+template <class T>
+void harmTilesLossBackward(T* dpred, const T* pred, const T* input, const T* target, const SsimLossDesc& d,
+                           int tile, double scale) {
+    if (tile < 1) throw Error("harm: the block side must be at least 1");
+    const double tiles = double(harmTileCount(d, tile));
+    forEachHarmTile(d, tile, [&](int64_t at, int64_t w, int64_t h) {
+        const auto [predicted, given] = tileErrors(pred, input, target, d, at, w, h);
+        if (!(predicted > given)) return;  // the same comparison as the value
+        const double k = scale * 2.0 / (tiles * double(d.channels * w * h) * (given + kHarmEpsilon));
+        for (int64_t c = 0; c < d.channels; ++c)
+            for (int64_t y = 0; y < h; ++y)
+                for (int64_t x = 0; x < w; ++x) {
+                    const int64_t i = at + (c * d.height + y) * d.width + x;
+                    dpred[i] += T(k * (double(pred[i]) - double(target[i])));
+                }
+    });
+}
+
 CompositeLoss CompositeLoss::parse(const std::string& text) {
     CompositeLoss loss;
     size_t start = 0;
@@ -278,8 +341,12 @@ CompositeLoss CompositeLoss::parse(const std::string& text) {
             t.kind = LossKind::Mse;
         else if (name == "harm")
             t.kind = LossKind::Harm;
+        else if (name.rfind("harm", 0) == 0 && name.size() > 4 && name.size() <= 8 &&
+                 std::all_of(name.begin() + 4, name.end(), [](char ch) { return ch >= '0' && ch <= '9'; }) &&
+                 std::stoi(name.substr(4)) >= 1)
+            t.kind = LossKind::Harm, t.tile = std::stoi(name.substr(4));
         else
-            throw Error("loss '" + text + "': unknown term '" + name + "' (ssim, l1, mse, harm)");
+            throw Error("loss '" + text + "': unknown term '" + name + "' (ssim, l1, mse, harm, harmN)");
         loss.terms.push_back(t);
     }
     return loss;
@@ -292,10 +359,11 @@ std::string CompositeLoss::describe() const {
         std::ostringstream weight;
         weight << t.weight;
         text += weight.str() + " * " +
-                (t.kind == LossKind::Ssim   ? "(1 - SSIM)"
-                 : t.kind == LossKind::L1   ? "L1"
-                 : t.kind == LossKind::Harm ? "harm"
-                                            : "MSE");
+                (t.kind == LossKind::Ssim ? "(1 - SSIM)"
+                 : t.kind == LossKind::L1 ? "L1"
+                 : t.kind == LossKind::Harm
+                     ? (t.tile > 0 ? "harm per " + std::to_string(t.tile) + " px block" : std::string("harm"))
+                     : "MSE");
     }
     return text;
 }
@@ -327,6 +395,12 @@ double CompositeLoss::evaluate(T* dpred, const T* pred, const T* target, const S
                 break;
             case LossKind::Harm: {
                 if (!input) throw Error("the loss's harm term needs the network's input");
+                if (t.tile > 0) {
+                    value += t.weight * harmTilesLoss(pred, input, target, shape, t.tile);
+                    if (dpred)
+                        harmTilesLossBackward(dpred, pred, input, target, shape, t.tile, scale * t.weight);
+                    break;
+                }
                 const int64_t perSample = n / shape.batch;
                 value += t.weight * harmLoss(pred, input, target, shape.batch, perSample);
                 if (dpred)
@@ -338,16 +412,19 @@ double CompositeLoss::evaluate(T* dpred, const T* pred, const T* target, const S
     return value;
 }
 
-#define DEJAG_INSTANTIATE(T)                                                                        \
-    template double l1Loss<T>(const T*, const T*, int64_t);                                         \
-    template void l1LossBackward<T>(T*, const T*, const T*, int64_t, double);                       \
-    template double mseLoss<T>(const T*, const T*, int64_t);                                        \
-    template void mseLossBackward<T>(T*, const T*, const T*, int64_t, double);                      \
-    template double ssimLoss<T>(const T*, const T*, const SsimLossDesc&);                           \
-    template void ssimLossBackward<T>(T*, const T*, const T*, const SsimLossDesc&, double);         \
-    template double harmLoss<T>(const T*, const T*, const T*, int64_t, int64_t);                    \
-    template void harmLossBackward<T>(T*, const T*, const T*, const T*, int64_t, int64_t, double);  \
-    template double CompositeLoss::evaluate<T>(T*, const T*, const T*, const SsimLossDesc&, double, \
+#define DEJAG_INSTANTIATE(T)                                                                           \
+    template double l1Loss<T>(const T*, const T*, int64_t);                                            \
+    template void l1LossBackward<T>(T*, const T*, const T*, int64_t, double);                          \
+    template double mseLoss<T>(const T*, const T*, int64_t);                                           \
+    template void mseLossBackward<T>(T*, const T*, const T*, int64_t, double);                         \
+    template double ssimLoss<T>(const T*, const T*, const SsimLossDesc&);                              \
+    template void ssimLossBackward<T>(T*, const T*, const T*, const SsimLossDesc&, double);            \
+    template double harmLoss<T>(const T*, const T*, const T*, int64_t, int64_t);                       \
+    template void harmLossBackward<T>(T*, const T*, const T*, const T*, int64_t, int64_t, double);     \
+    template double harmTilesLoss<T>(const T*, const T*, const T*, const SsimLossDesc&, int);          \
+    template void harmTilesLossBackward<T>(T*, const T*, const T*, const T*, const SsimLossDesc&, int, \
+                                           double);                                                    \
+    template double CompositeLoss::evaluate<T>(T*, const T*, const T*, const SsimLossDesc&, double,    \
                                                const T*) const;
 DEJAG_INSTANTIATE(float)
 DEJAG_INSTANTIATE(double)

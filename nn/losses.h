@@ -49,13 +49,23 @@ double harmLoss(const T* pred, const T* input, const T* target, int64_t batch, i
 template <class T>
 void harmLossBackward(T* dpred, const T* pred, const T* input, const T* target, int64_t batch,
                       int64_t perSample, double scale);
+// Harm by tiles ("harmN"): the same hinge on each N x N block of each sample (all its channels; the last
+// blocks of a row or column as wide as what is left), averaged over every block of the batch. A network
+// that helps most of a patch cannot buy harm in one corner of it with that gain: local harm, a texture
+// blurred beside an edge made smooth, is paid where it happens.
+template <class T>
+double harmTilesLoss(const T* pred, const T* input, const T* target, const SsimLossDesc& d, int tile);
+template <class T>
+void harmTilesLossBackward(T* dpred, const T* pred, const T* input, const T* target, const SsimLossDesc& d,
+                           int tile, double scale);
 
-// A weighted sum of the losses above, e.g. "ssim" or "0.84*ssim+0.16*l1" (or "...+0.5*harm", which
-// needs the input the prediction was made from).
+// A weighted sum of the losses above, e.g. "ssim" or "0.84*ssim+0.16*l1" (or "...+0.5*harm" or
+// "...+0.5*harm16", which need the input the prediction was made from).
 enum class LossKind { Ssim, L1, Mse, Harm };
 struct LossTerm {
     LossKind kind = LossKind::Ssim;
     double weight = 1.0;
+    int tile = 0;  // harm: per N x N block ("harmN"; 0: per sample)
 };
 struct CompositeLoss {
     std::vector<LossTerm> terms;

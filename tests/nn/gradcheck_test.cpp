@@ -100,5 +100,52 @@ TEST(GradCheck, HarmTermHarmedAndHelpedSamples) {
     EXPECT_EQ(zero, Vec(n, 0.0));
 }
 
+// Harm per block ("harm5" on 11 x 12 samples: blocks of 5, 5 and a last 1 or 2 wide): the gradient
+// against finite differences; the value by hand; a block the size of the sample is the per-sample term.
+TEST(GradCheck, HarmTermPerBlock) {
+    std::mt19937 rng(12);
+    SsimLossDesc d;
+    d.batch = 2, d.channels = 3, d.height = 11, d.width = 12;
+    const size_t n = size_t(d.batch * d.channels * d.height * d.width);
+    Vec target = randomValues(n, rng, 0.0, 1.0), input(n), pred(n);
+    std::normal_distribution<double> noise(0.0, 1.0);
+    for (size_t i = 0; i < n; ++i) {
+        const size_t x = i % size_t(d.width);
+        input[i] = target[i] + 0.05 * noise(rng);
+        pred[i] = target[i] + (x < 5 ? 0.02 : 0.09) * noise(rng);  // the left blocks helped, the rest harmed
+    }
+    const CompositeLoss loss = CompositeLoss::parse("0.84*ssim+0.5*harm5");
+    ASSERT_EQ(loss.terms[1].tile, 5);
+    Vec dpred(n);
+    loss.evaluate(dpred.data(), pred.data(), target.data(), d, 1.0, input.data());
+    auto value = [&] {
+        return loss.evaluate<double>(nullptr, pred.data(), target.data(), d, 1.0, input.data());
+    };
+    EXPECT_LE(checkGradient(pred, dpred, value, rng, 60, 1e-5), kTolerance);
+    double expected = 0;
+    int blocks = 0;
+    for (int s = 0; s < d.batch; ++s)
+        for (int y0 = 0; y0 < d.height; y0 += 5)
+            for (int x0 = 0; x0 < d.width; x0 += 5, ++blocks) {
+                double p = 0, g = 0;
+                int count = 0;
+                for (int c = 0; c < d.channels; ++c)
+                    for (int y = y0; y < std::min(y0 + 5, int(d.height)); ++y)
+                        for (int x = x0; x < std::min(x0 + 5, int(d.width)); ++x, ++count) {
+                            const size_t i = size_t(((s * d.channels + c) * d.height + y) * d.width + x);
+                            p += (pred[i] - target[i]) * (pred[i] - target[i]);
+                            g += (input[i] - target[i]) * (input[i] - target[i]);
+                        }
+                p /= count, g /= count;
+                expected += std::max(0.0, p - g) / (g + kHarmEpsilon);
+            }
+    EXPECT_EQ(blocks, 2 * 3 * 3);
+    EXPECT_NEAR(harmTilesLoss(pred.data(), input.data(), target.data(), d, 5), expected / blocks, 1e-12);
+    EXPECT_NEAR(harmTilesLoss(pred.data(), input.data(), target.data(), d, 12),
+                harmLoss(pred.data(), input.data(), target.data(), d.batch, int64_t(n) / d.batch), 1e-12);
+    EXPECT_THROW(CompositeLoss::parse("harm0"), Error);
+    EXPECT_THROW(CompositeLoss::parse("harmx"), Error);
+}
+
 }  // namespace
 }  // namespace dejag::nn
