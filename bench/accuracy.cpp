@@ -49,10 +49,17 @@ std::vector<float> accuracyTestFrame(int width, int height) {
 
 namespace {
 
-// The test frame as the model's input (N = 1): RGB, or the luma for a grey model.
+// The test frame as the model's input (N = 1): RGB, or the luma for a grey model; a guided model's guide
+// is the frame itself (what a guide method gives where it finds no edge).
 std::vector<float> modelInput(const nn::Model& model, int width, int height) {
     std::vector<float> rgb = accuracyTestFrame(width, height);
     if (model.inputChannels() == 3) return rgb;
+    if (model.inputChannels() == 6) {
+        const size_t floats = rgb.size();
+        rgb.resize(2 * floats);
+        std::copy_n(rgb.begin(), floats, rgb.begin() + std::ptrdiff_t(floats));
+        return rgb;
+    }
     const size_t plane = size_t(width) * size_t(height);
     std::vector<float> luma(plane);
     for (size_t i = 0; i < plane; ++i) luma[i] = ::dejag::luma(rgb[i], rgb[plane + i], rgb[2 * plane + i]);

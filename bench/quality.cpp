@@ -159,7 +159,7 @@ StillMethods::StillMethods(const Options& options) : impl_(std::make_unique<Impl
         for (const std::string& other : options.models)
             if (other != path && fs::path(other).stem() == fs::path(path).stem())
                 name = (fs::path(path).parent_path().filename() / fs::path(path).stem()).string();
-        const bool rgb = nn::loadModel(path).inputChannels() == 3;
+        const bool rgb = nn::loadModel(path).inputChannels() != 1;  // RGB, or RGB and a guide
         for (int variant = 0; variant < 5; ++variant) {
             const bool gate = variant != 1 && variant != 4, chain = variant == 2, bf16 = variant >= 3;
             if (!gate && (!rgb || !options.ungated)) continue;
