@@ -74,6 +74,10 @@ SEED_RECIPE = --arch seed2020 --families shapes --loss ssim --steps 16000 --batc
 	--uniform-patches 0.5 --eval-every 1000 --checkpoint-every 1000 --val-images 0 --threads 2
 FAST_RECIPE = --arch kpn:8x3 --loss '0.84*ssim+0.16*l1+0.1*harm' --steps 6000 --batch 12 --patch 128 --lr 2e-3 \
 	--eval-every 1000 --checkpoint-every 1000 --val-images 48 --threads 2
+# dejag-guided: dejag-fast's recipe reading SMAA's result beside the frame (trained on 1 thread: the
+# shipped weights are that run's, and a run is bit-for-bit reproducible at its thread count).
+GUIDED_RECIPE = --arch kpn:8x3 --guide-method smaa --loss '0.84*ssim+0.16*l1+0.1*harm' --steps 6000 --batch 12 \
+	--patch 128 --lr 2e-3 --eval-every 1000 --checkpoint-every 1000 --val-images 48 --threads 1
 TEMPORAL_RECIPE = --arch accumulate:8x2+depth --steps 10000 --batch 8 --patch 64 --frames 8 --lr 2e-3 --warmup 300 \
 	--temporal-loss 0.2 --eval-every 1000 --checkpoint-every 1000 --threads 2
 models: dataset dataset-fast sequences
@@ -81,6 +85,8 @@ models: dataset dataset-fast sequences
 	$(BUILD_DIR)/dejag train export $(RUNS)/seed2020-gray models/seed2020-gray.safetensors
 	$(BUILD_DIR)/dejag train --data $(DATASET_FAST) --out $(RUNS)/dejag-fast $(FAST_RECIPE) --resume
 	$(BUILD_DIR)/dejag train export $(RUNS)/dejag-fast models/dejag-fast.safetensors
+	$(BUILD_DIR)/dejag train --data $(DATASET_FAST) --out $(RUNS)/dejag-guided $(GUIDED_RECIPE) --resume
+	$(BUILD_DIR)/dejag train export $(RUNS)/dejag-guided models/dejag-guided.safetensors
 	$(BUILD_DIR)/dejag train --data $(SEQUENCES) --out $(RUNS)/dejag-temporal $(TEMPORAL_RECIPE) --resume
 	$(BUILD_DIR)/dejag train export $(RUNS)/dejag-temporal models/dejag-temporal.safetensors
 	$(BUILD_DIR)/dejag bench taa --jitter-spread 1.0 --json --temporal-model models/dejag-temporal.safetensors \

@@ -91,7 +91,7 @@ std::vector<nlohmann::json> writeQualityReport(const ReportOptions& options,
 
 // The shipped models, as `dejag demo` and `dejag bench quality` look for them by default.
 inline constexpr const char* kShippedModels =
-    "models/dejag-fast.safetensors,models/seed2020-gray.safetensors";
+    "models/dejag-fast.safetensors,models/dejag-guided.safetensors,models/seed2020-gray.safetensors";
 
 // Prints rows as JSON lines, or as a table (the "mean" rows only, or all rows).
 void printQualityRows(const std::vector<nlohmann::json>& rows, bool json, bool meansOnly);

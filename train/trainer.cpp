@@ -1590,7 +1590,9 @@ std::string exportModel(const std::string& run, const std::string& modelPath,
                       std::to_string(kLumaGreen).substr(0, 4) + " G + " +
                       std::to_string(kLumaBlue).substr(0, 4) + " B"
                 : std::string("RGB"))
-       << " of sRGB-encoded values in [0, 1]; output: the same, anti-aliased.\n\n";
+       << " of sRGB-encoded values in [0, 1]"
+       << (guideName.empty() ? "" : ", and " + guideName + "'s result on it (RGB) beside it")
+       << "; output: " << (guideName.empty() ? "the same" : "RGB") << ", anti-aliased.\n\n";
     md << "## Architecture\n\n";
     std::snprintf(line, sizeof line, "`%s`: %lld parameters, %.0f multiply-adds per input pixel.\n\n",
                   model.name().c_str(), (long long)model.parameterCount(),

@@ -2,14 +2,16 @@
 // that takes detail for edges does damage — fine text, a zone plate, a frequency sweep, thin spokes and
 // dense textures at one sample a pixel — its output is never more than 0.1 dB below the aliased frame
 // against the supersampled truth, nor are the texture pixels (data/evaluation.h's region: detail at least
-// 3 px from a geometric edge) below the aliased frame's. The model is models/dejag-fast.safetensors;
-// DEJAG_TEST_FAST_MODEL names another file to hold to the same bar (how candidates are checked before
-// they ship).
+// 3 px from a geometric edge) below the aliased frame's. The models are the shipped single-frame ones,
+// models/dejag-fast.safetensors and models/dejag-guided.safetensors; DEJAG_TEST_FAST_MODEL names another
+// file to hold to the same bar in dejag-fast's place (how candidates are checked before they ship).
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdlib>
 #include <memory>
+#include <string>
 
 #include "data/evaluation.h"
 #include "data/frame_image.h"
@@ -43,9 +45,14 @@ double psnr(const std::vector<float>& a, const std::vector<float>& b, const Imag
     return mse > 0 ? 10 * std::log10(1.0 / mse) : 100.0;
 }
 
-TEST(NeverHarm, FineTextZonePlatesAndDenseTextures) {
+class NeverHarm : public ::testing::TestWithParam<const char*> {};
+
+TEST_P(NeverHarm, FineTextZonePlatesAndDenseTextures) {
     const char* other = std::getenv("DEJAG_TEST_FAST_MODEL");
-    const std::string model = other && *other ? other : testing::sourcePath("models/dejag-fast.safetensors");
+    const std::string shipped = GetParam();
+    const std::string model = other && *other && shipped == "dejag-fast"
+                                  ? other
+                                  : testing::sourcePath("models/" + shipped + ".safetensors");
     const std::unique_ptr<infer::Filter> network = infer::makeFilter("cnn", {{"model", model}});
     const auto context = render::createOsMesaContext();
     const std::vector<Probe> probes = {
@@ -95,6 +102,13 @@ TEST(NeverHarm, FineTextZonePlatesAndDenseTextures) {
                     after - before);
     }
 }
+
+INSTANTIATE_TEST_SUITE_P(ShippedModels, NeverHarm, ::testing::Values("dejag-fast", "dejag-guided"),
+                         [](const auto& test) {
+                             std::string name = test.param;
+                             std::replace(name.begin(), name.end(), '-', '_');
+                             return name;
+                         });
 
 }  // namespace
 }  // namespace dejag
