@@ -167,6 +167,7 @@ void registerBenchCommand(CLI::App& app) {
         int repeat = 15;
         std::string threads = "1,2", size = "1920x1080";
         std::string temporalModel = "models/dejag-temporal.safetensors";
+        std::string fastModel = "models/dejag-fast.safetensors,models/dejag-guided.safetensors";
         bool json = false;
     };
     auto filterArgs = std::make_shared<FilterBenchArguments>();
@@ -182,6 +183,11 @@ void registerBenchCommand(CLI::App& app) {
         ->add_option("--temporal-model", filterArgs->temporalModel,
                      "the temporal network timed as dejag-temporal ('' or a missing default: not timed)")
         ->capture_default_str();
+    filterBench
+        ->add_option("--fast-model", filterArgs->fastModel,
+                     "single-frame networks timed, comma-separated, each named by its file's stem ('' or a "
+                     "missing default: none)")
+        ->capture_default_str();
     filterBench->add_flag("--json", filterArgs->json, "One JSON object per case");
     filterBench->callback([filterArgs, filterBench] {
         bench::FilterBenchOptions options;
@@ -195,15 +201,21 @@ void registerBenchCommand(CLI::App& app) {
                 throw Error("--temporal-model: no model file " + options.temporalModel);
             options.temporalModel.clear();  // the shipped model is timed when it is there
         }
+        for (const std::string& model : splitList(filterArgs->fastModel)) {
+            if (std::filesystem::exists(model))
+                options.frameModels.push_back(model);
+            else if (filterBench->count("--fast-model"))
+                throw Error("--fast-model: no model file " + model);  // a missing default is skipped
+        }
         const std::vector<nlohmann::json> rows = bench::benchFilters(options);
         if (filterArgs->json) {
             for (const nlohmann::json& row : rows) std::printf("%s\n", row.dump().c_str());
             return;
         }
-        std::printf("%-22s %3s %10s %8s %9s %10s  %s\n", "case", "thr", "median ms", "target", "floor ms",
+        std::printf("%-34s %3s %10s %8s %9s %10s  %s\n", "case", "thr", "median ms", "target", "floor ms",
                     "processed", "PSNR vs 64-sample truth");
         for (const nlohmann::json& row : rows) {
-            std::printf("%-22s %3d %10.2f %8.1f %9.2f %9.1f%%", row["name"].get<std::string>().c_str(),
+            std::printf("%-34s %3d %10.2f %8.1f %9.2f %9.1f%%", row["name"].get<std::string>().c_str(),
                         row["threads"].get<int>(), row["ms"].get<double>(), row["target_ms"].get<double>(),
                         row["floor_ms"].get<double>(), 100 * row["processed_fraction"].get<double>());
             if (row.contains("psnr_after"))

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <filesystem>
 #include <map>
 
 #include "base/peak.h"
@@ -11,6 +12,7 @@
 #include "base/timer.h"
 #include "bench/bench.h"
 #include "data/frame_image.h"
+#include "infer/cnn.h"
 #include "infer/filter.h"
 #include "nn/model.h"
 #include "render/renderer.h"
@@ -195,6 +197,63 @@ std::vector<nlohmann::json> benchFilters(const FilterBenchOptions& options) {
                                 {"peak_gmacs", peak.gmacsTotal},
                                 {"floor_ms", pixels * macsPerPixel / (peak.gmacsTotal * 1e6)}});
             }
+    }
+    // The single-frame networks on the colour frame; floor: multiply-adds at the FMA peak measured here.
+    for (const std::string& path : options.frameModels) {
+        const nn::Model model = nn::loadModel(path);
+        const std::string name = std::filesystem::path(path).stem().string();
+        const double macsPerPixel =
+            double(model.macs({1, model.inputChannels(), options.height, options.width})) / pixels;
+        const std::string guideMethod = model.architecture().value("guide_method", "");
+        std::vector<float> guide;
+        if (!guideMethod.empty()) {
+            guide.resize(colour.size());
+            infer::Frame plain;
+            plain.width = options.width, plain.height = options.height, plain.colour = colour.data();
+            infer::makeFilter(guideMethod, {})->apply(plain, guide.data());
+        }
+        std::vector<std::pair<std::string, double>> precisions = {{"fp32", 33.0}};
+        if (bf16Available()) precisions.push_back({"bf16", 16.7});
+        infer::Frame plain;
+        plain.width = options.width, plain.height = options.height, plain.colour = colour.data();
+        for (const auto& [precision, target] : precisions)
+            for (const bool gate : {true, false})
+                for (const bool alone : {false, true}) {
+                    if (alone && guide.empty()) continue;
+                    for (const int threads : options.threads) {
+                        setThreadCount(threads);
+                        const FmaPeak peak = measureFmaPeak();
+                        double ms = 0;
+                        if (alone) {  // the network with its guide given: what the guide method adds, apart
+                            infer::CnnOptions cnnOptions;
+                            cnnOptions.gate = gate, cnnOptions.precision = infer::cnnPrecision(precision);
+                            infer::CnnFilter network(nn::loadModel(path), cnnOptions);
+                            ms = medianMilliseconds(options.repeat, [&] {
+                                network.apply(colour.data(), out.data(), options.width, options.height, 3,
+                                              {nullptr, nullptr, guide.data()});
+                            });
+                        } else {
+                            const auto network = infer::makeFilter(
+                                "cnn",
+                                {{"model", path}, {"precision", precision}, {"gate", gate ? "auto" : "off"}});
+                            ms = medianMilliseconds(options.repeat,
+                                                    [&] { network->apply(plain, out.data()); });
+                        }
+                        rows.push_back({{"name", name + " " + precision + (gate ? "" : " ungated") +
+                                                     (alone ? " (" + guideMethod + " given)" : "")},
+                                        {"threads", threads},
+                                        {"width", options.width},
+                                        {"height", options.height},
+                                        {"ms", ms},
+                                        {"target_ms", gate ? target : 60.0},
+                                        {"processed_fraction", 1.0},
+                                        {"macs_per_pixel", macsPerPixel},
+                                        {"peak_gmacs", peak.gmacsTotal},
+                                        {"floor_ms", pixels * macsPerPixel / (peak.gmacsTotal * 1e6)},
+                                        {"psnr_before", floatPsnr(colour, truth)},
+                                        {"psnr_after", floatPsnr(out, truth)}});
+                    }
+                }
     }
     setThreadCount(0);
     return rows;

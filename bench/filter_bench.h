@@ -13,6 +13,9 @@ struct FilterBenchOptions {
     // The temporal network (cnn-temporal), timed in float32 and, where the CPU has AVX-512 BF16, in
     // bfloat16 ("": not timed).
     std::string temporalModel;
+    // Single-frame networks (cnn), each timed gated and ungated, in float32 and (where the CPU has AVX-512
+    // BF16) bfloat16; a guided one also without its guide method (the guide made before the clock).
+    std::vector<std::string> frameModels;
 };
 
 // One JSON object per case: name, threads, ms (median), target_ms, processed_fraction, psnr gain; floor_ms

@@ -699,6 +699,22 @@ TEST(Cli, BenchFilterPrintsEveryMethod) {
                                         "smaa medium", "smaa high", "smaa ultra", "u-taa", "u-taa zoom",
                                         "u-taa random motion", "t-taa", "t-taa zoom", "t-taa random motion",
                                         "taa-hq", "taa-hq zoom", "taa-hq random motion"}));
+    // A guided single-frame network: gated and ungated, with its guide method timed and given.
+    const RunResult g =
+        run("bench filter --size 96x64 --repeat 1 --threads 1 --json --temporal-model '' "
+            "--fast-model '" DEJAG_SOURCE_DIR "/models/dejag-guided.safetensors'",
+            dir);
+    ASSERT_EQ(g.exitCode, 0) << g.err;
+    std::set<std::string> networks;
+    for (const nlohmann::json& j : jsonLines(g.out))
+        if (j.contains("macs_per_pixel")) {
+            networks.insert(j["name"].get<std::string>());
+            EXPECT_GT(j["psnr_after"].get<double>(), j["psnr_before"].get<double>()) << j.dump();
+        }
+    for (const char* name : {"dejag-guided fp32", "dejag-guided fp32 (smaa given)",
+                             "dejag-guided fp32 ungated", "dejag-guided fp32 ungated (smaa given)"})
+        EXPECT_TRUE(networks.count(name)) << name;
+    expectOneLineError(run("bench filter --size 96x64 --fast-model nowhere.safetensors", dir), "nowhere");
 }
 
 TEST(Cli, BenchReachScoresEdgePixelsByRunLength) {
