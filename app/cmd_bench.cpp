@@ -635,10 +635,12 @@ void registerBenchCommand(CLI::App& app) {
     });
 
     struct ReachArguments {
-        std::string size = "1920x1080", fastModel = "models/dejag-fast.safetensors";
+        std::string size = "1920x1080",
+                    fastModel = "models/dejag-fast.safetensors,models/dejag-guided.safetensors";
         std::vector<std::string> scenes;
         int truth = 64;
         bool json = false, quiet = false;
+        RuntimeOptions runtime;
     };
     auto reachArgs = std::make_shared<ReachArguments>();
     CLI::App* reach = bench->add_subcommand(
@@ -658,7 +660,9 @@ void registerBenchCommand(CLI::App& app) {
         ->capture_default_str();
     reach->add_flag("--json", reachArgs->json, "one JSON object per row");
     reach->add_flag("--quiet", reachArgs->quiet, "no progress bar");
+    addRuntimeOptions(reach, reachArgs->runtime);
     reach->callback([reachArgs, reach] {
+        applyRuntimeOptions(reachArgs->runtime);
         bench::ReachBenchOptions options;
         const Size size = parseSize(reachArgs->size, "--size");
         options.width = size.width, options.height = size.height;
@@ -667,12 +671,11 @@ void registerBenchCommand(CLI::App& app) {
             render::buildScene(scene, {});  // unknown: one line, now
         options.truthSamples = reachArgs->truth;
         options.quiet = reachArgs->quiet || reachArgs->json;
-        if (!reachArgs->fastModel.empty() &&
-            !(reach->count("--fast-model") == 0 && !std::filesystem::exists(reachArgs->fastModel))) {
-            for (const std::string& model : splitList(reachArgs->fastModel)) {
-                if (!std::filesystem::exists(model)) throw Error("--fast-model: no model file " + model);
+        for (const std::string& model : splitList(reachArgs->fastModel)) {
+            if (std::filesystem::exists(model))
                 options.fastModels.push_back(model);
-            }
+            else if (reach->count("--fast-model"))
+                throw Error("--fast-model: no model file " + model);  // a missing default is skipped
         }
         const std::vector<nlohmann::json> rows = bench::benchReach(options);
         if (reachArgs->json) {
