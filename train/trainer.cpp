@@ -612,7 +612,9 @@ nn::Model buildModel(const TrainConfig& config, bool temporal) {
         if (temporal) throw Error("--guide-method is for single-frame networks");
         if (!config.inputMethod.empty()) throw Error("--guide-method and --input-method: choose one");
         // kpn and kpn:WxD get their guide here; an architecture file must declare its own.
-        if (arch == "kpn") arch = "kpn:16x3";
+        if (arch == "kpn")  // the built-in kpn's own size
+            arch = "kpn:" + std::to_string(nn::ModelOptions().width) + "x" +
+                   std::to_string(nn::ModelOptions().depth);
         if (arch.rfind("kpn:", 0) == 0 && arch.find("+guide") == std::string::npos) arch += "+guide";
     }
     nlohmann::json architecture = architectureFor(arch);
