@@ -124,8 +124,10 @@ void registerTrainCommand(CLI::App& app) {
         ->capture_default_str();
     trainCommand->add_option("--out", config->out, "run folder (checkpoints, logs, plots)");
     trainCommand
-        ->add_option("--loss", config->loss,
-                     "ssim | l1 | mse | ssim+l1 | weighted sums like 0.84*ssim+0.16*l1")
+        ->add_option(
+            "--loss", config->loss,
+            "ssim | l1 | mse | ssim+l1 | weighted sums like 0.84*ssim+0.16*l1; harm, harmN (per N px "
+            "block) and texharm (on texture pixels) penalise an output worse than its input")
         ->capture_default_str();
     trainCommand->add_option("--steps", config->steps, "optimizer steps");
     trainCommand->add_option("--epochs", config->epochs,

@@ -8,6 +8,7 @@
 #include "base/luma.h"
 #include "base/random.h"
 #include "base/thread_pool.h"
+#include "data/evaluation.h"
 #include "data/image.h"
 
 namespace dejag::data {
@@ -97,6 +98,19 @@ PatchSampler::PatchSampler(const std::string& folder, const PatchOptions& option
                 result[i] = uint16_t(std::lround(std::clamp(rgb[i], 0.0f, 1.0f) * 65535.0f));
             return result;
         };
+        if (options.textureMask) {
+            if (id < 0 || depth < 0)
+                throw Error("the loss's texharm term needs id and depth buffers, and item " +
+                            record["id"].get<std::string>() + " has none");
+            EvaluationItem regions;
+            regions.id = record["id"].get<std::string>();
+            regions.truth = Image(item.width, item.height, Image::defaultChannelNames(3));
+            for (size_t i = 0; i < n * 3; ++i) regions.truth.pixels[i] = float(item.truth[i]) / 65535.0f;
+            computeRegionMasks(regions, input);
+            const Image& mask = regions.masks[int(Region::Texture)];
+            item.texture.resize(n);
+            for (size_t p = 0; p < n; ++p) item.texture[p] = mask.pixels[p] > 0.5f;
+        }
         if (options.inputTransform) item.input = transformed(options.inputTransform);
         if (options.guideTransform) item.guide = transformed(options.guideTransform);
     };
@@ -172,6 +186,7 @@ Batch PatchSampler::assemble(uint64_t index) const {
     Batch batch;
     batch.input = nn::Tensor({N, guided ? 2 * C : C, P, P});
     batch.target = nn::Tensor({N, C, P, P});
+    if (options_.textureMask) batch.texture = nn::Tensor({N, 1, P, P});
     int64_t edgePixels = 0;
     for (int n = 0; n < N; ++n) {
         const Item& item = items_[size_t(random.below(int(items_.size())))];
@@ -200,6 +215,7 @@ Batch PatchSampler::assemble(uint64_t index) const {
                 if (orientation & 2) sy = P - 1 - sy;
                 const size_t p = size_t(y0 + sy) * size_t(item.width) + size_t(x0 + sx);
                 edgePixels += item.aliasing[p];
+                if (options_.textureMask) batch.texture.at(n, 0, y, x) = float(item.texture[p]);
                 float in[3], out[3];
                 for (int c = 0; c < 3; ++c) {
                     in[c] = float(std::min(1.0, item.input[p * 3 + size_t(c)] / 65535.0 * channelGain[c]));

@@ -39,11 +39,16 @@ struct PatchOptions {
     // A guide beside the input (dejag train --guide-method): this method's result on each item's input,
     // made once at loading, becomes channels 3..5 of the batch's input (augmented with it). RGB only.
     std::function<void(float* rgb, int width, int height)> guideTransform;
+    // Each batch carries its patches' texture masks (the texture region of data/evaluation.h: pixels 3 px
+    // or more from every geometric edge whose truth has detail), for the loss's texharm term. Needs the
+    // items' id and depth buffers.
+    bool textureMask = false;
 };
 
 // Values are sRGB-encoded in [0, 1] (the networks see display-referred images, like FXAA).
 struct Batch {
     nn::Tensor input, target;  // (N, C, P, P), C = 3 or 1; a guided input: 6 (the frame, the guide)
+    nn::Tensor texture;        // (N, 1, P, P): 1 on texture pixels (PatchOptions::textureMask), else empty
     std::vector<int> items;    // manifest index of each patch
     double edgeFraction = 0;   // fraction of the batch's pixels marked as aliasing sources
 };
@@ -70,6 +75,7 @@ class PatchSampler {
         std::vector<uint16_t> input, truth;  // sRGB-encoded RGB, value * 65535
         std::vector<uint16_t> guide;         // the guide method's result on the input (if any), as input
         std::vector<uint8_t> aliasing;       // 1 where a pixel is an aliasing source
+        std::vector<uint8_t> texture;        // 1 on a texture pixel (PatchOptions::textureMask)
         std::vector<int> aliasingPixels;     // their positions y * width + x
     };
     void produce();

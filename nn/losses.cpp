@@ -1,6 +1,7 @@
 // Losses: value and gradient side by side (see nn/losses.h).
 #include "nn/losses.h"
 
+#include <array>
 #include <utility>
 
 #include <algorithm>
@@ -315,6 +316,59 @@ void harmTilesLossBackward(T* dpred, const T* pred, const T* input, const T* tar
     });
 }
 
+namespace {
+// Sample n's masked mean squared errors of the prediction and of the input, and the mask's sum.
+template <class T>
+std::array<double, 3> maskedErrors(const T* pred, const T* input, const T* target, const T* mask,
+                                   const SsimLossDesc& d, int64_t n) {
+    const int64_t plane = d.height * d.width;
+    double predicted = 0.0, given = 0.0, weight = 0.0;
+    const T* m = mask + n * plane;
+    for (int64_t i = 0; i < plane; ++i) weight += double(m[i]);
+    if (!(weight > 0)) return {0.0, 0.0, 0.0};
+    for (int64_t c = 0; c < d.channels; ++c) {
+        const int64_t o = (n * d.channels + c) * plane;
+        for (int64_t i = 0; i < plane; ++i) {
+            if (m[i] == T(0)) continue;
+            const double dp = double(pred[o + i]) - double(target[o + i]),
+                         di = double(input[o + i]) - double(target[o + i]);
+            predicted += double(m[i]) * dp * dp, given += double(m[i]) * di * di;
+        }
+    }
+    const double count = double(d.channels) * weight;
+    return {predicted / count, given / count, weight};
+}
+}  // namespace
+
+template <class T>
+double maskedHarmLoss(const T* pred, const T* input, const T* target, const T* mask, const SsimLossDesc& d) {
+    double total = 0.0;
+    for (int64_t n = 0; n < d.batch; ++n) {
+        const auto [predicted, given, weight] = maskedErrors(pred, input, target, mask, d, n);
+        if (weight > 0 && predicted > given) total += (predicted - given) / (given + kHarmEpsilon);
+    }
+    return total / double(d.batch);
+}
+
+template <class T>
+void maskedHarmLossBackward(T* dpred, const T* pred, const T* input, const T* target, const T* mask,
+                            const SsimLossDesc& d, double scale) {
+    const int64_t plane = d.height * d.width;
+    for (int64_t n = 0; n < d.batch; ++n) {
+        const auto [predicted, given, weight] = maskedErrors(pred, input, target, mask, d, n);
+        if (!(weight > 0 && predicted > given)) continue;  // the same comparison as the value
+        const double k =
+            scale * 2.0 / (double(d.batch) * double(d.channels) * weight * (given + kHarmEpsilon));
+        const T* m = mask + n * plane;
+        for (int64_t c = 0; c < d.channels; ++c) {
+            const int64_t o = (n * d.channels + c) * plane;
+            for (int64_t i = 0; i < plane; ++i)
+                if (m[i] != T(0))
+                    dpred[o + i] += T(k * double(m[i]) * (double(pred[o + i]) - double(target[o + i])));
+        }
+    }
+}
+
 CompositeLoss CompositeLoss::parse(const std::string& text) {
     CompositeLoss loss;
     size_t start = 0;
@@ -341,12 +395,15 @@ CompositeLoss CompositeLoss::parse(const std::string& text) {
             t.kind = LossKind::Mse;
         else if (name == "harm")
             t.kind = LossKind::Harm;
+        else if (name == "texharm")
+            t.kind = LossKind::MaskedHarm;
         else if (name.rfind("harm", 0) == 0 && name.size() > 4 && name.size() <= 8 &&
                  std::all_of(name.begin() + 4, name.end(), [](char ch) { return ch >= '0' && ch <= '9'; }) &&
                  std::stoi(name.substr(4)) >= 1)
             t.kind = LossKind::Harm, t.tile = std::stoi(name.substr(4));
         else
-            throw Error("loss '" + text + "': unknown term '" + name + "' (ssim, l1, mse, harm, harmN)");
+            throw Error("loss '" + text + "': unknown term '" + name +
+                        "' (ssim, l1, mse, harm, harmN, texharm)");
         loss.terms.push_back(t);
     }
     return loss;
@@ -363,20 +420,27 @@ std::string CompositeLoss::describe() const {
                  : t.kind == LossKind::L1 ? "L1"
                  : t.kind == LossKind::Harm
                      ? (t.tile > 0 ? "harm per " + std::to_string(t.tile) + " px block" : std::string("harm"))
-                     : "MSE");
+                 : t.kind == LossKind::MaskedHarm ? "harm on texture pixels"
+                                                  : "MSE");
     }
     return text;
 }
 
 bool CompositeLoss::needsInput() const {
     for (const LossTerm& t : terms)
-        if (t.kind == LossKind::Harm) return true;
+        if (t.kind == LossKind::Harm || t.kind == LossKind::MaskedHarm) return true;
+    return false;
+}
+
+bool CompositeLoss::needsMask() const {
+    for (const LossTerm& t : terms)
+        if (t.kind == LossKind::MaskedHarm) return true;
     return false;
 }
 
 template <class T>
 double CompositeLoss::evaluate(T* dpred, const T* pred, const T* target, const SsimLossDesc& shape,
-                               double scale, const T* input) const {
+                               double scale, const T* input, const T* mask) const {
     const int64_t n = shape.batch * shape.channels * shape.height * shape.width;
     double value = 0.0;
     for (const LossTerm& t : terms) {
@@ -407,25 +471,34 @@ double CompositeLoss::evaluate(T* dpred, const T* pred, const T* target, const S
                     harmLossBackward(dpred, pred, input, target, shape.batch, perSample, scale * t.weight);
                 break;
             }
+            case LossKind::MaskedHarm:
+                if (!input || !mask)
+                    throw Error("the loss's texharm term needs the network's input and a mask");
+                value += t.weight * maskedHarmLoss(pred, input, target, mask, shape);
+                if (dpred) maskedHarmLossBackward(dpred, pred, input, target, mask, shape, scale * t.weight);
+                break;
         }
     }
     return value;
 }
 
-#define DEJAG_INSTANTIATE(T)                                                                           \
-    template double l1Loss<T>(const T*, const T*, int64_t);                                            \
-    template void l1LossBackward<T>(T*, const T*, const T*, int64_t, double);                          \
-    template double mseLoss<T>(const T*, const T*, int64_t);                                           \
-    template void mseLossBackward<T>(T*, const T*, const T*, int64_t, double);                         \
-    template double ssimLoss<T>(const T*, const T*, const SsimLossDesc&);                              \
-    template void ssimLossBackward<T>(T*, const T*, const T*, const SsimLossDesc&, double);            \
-    template double harmLoss<T>(const T*, const T*, const T*, int64_t, int64_t);                       \
-    template void harmLossBackward<T>(T*, const T*, const T*, const T*, int64_t, int64_t, double);     \
-    template double harmTilesLoss<T>(const T*, const T*, const T*, const SsimLossDesc&, int);          \
-    template void harmTilesLossBackward<T>(T*, const T*, const T*, const T*, const SsimLossDesc&, int, \
-                                           double);                                                    \
-    template double CompositeLoss::evaluate<T>(T*, const T*, const T*, const SsimLossDesc&, double,    \
-                                               const T*) const;
+#define DEJAG_INSTANTIATE(T)                                                                                 \
+    template double l1Loss<T>(const T*, const T*, int64_t);                                                  \
+    template void l1LossBackward<T>(T*, const T*, const T*, int64_t, double);                                \
+    template double mseLoss<T>(const T*, const T*, int64_t);                                                 \
+    template void mseLossBackward<T>(T*, const T*, const T*, int64_t, double);                               \
+    template double ssimLoss<T>(const T*, const T*, const SsimLossDesc&);                                    \
+    template void ssimLossBackward<T>(T*, const T*, const T*, const SsimLossDesc&, double);                  \
+    template double harmLoss<T>(const T*, const T*, const T*, int64_t, int64_t);                             \
+    template void harmLossBackward<T>(T*, const T*, const T*, const T*, int64_t, int64_t, double);           \
+    template double harmTilesLoss<T>(const T*, const T*, const T*, const SsimLossDesc&, int);                \
+    template void harmTilesLossBackward<T>(T*, const T*, const T*, const T*, const SsimLossDesc&, int,       \
+                                           double);                                                          \
+    template double maskedHarmLoss<T>(const T*, const T*, const T*, const T*, const SsimLossDesc&);          \
+    template void maskedHarmLossBackward<T>(T*, const T*, const T*, const T*, const T*, const SsimLossDesc&, \
+                                            double);                                                         \
+    template double CompositeLoss::evaluate<T>(T*, const T*, const T*, const SsimLossDesc&, double,          \
+                                               const T*, const T*) const;
 DEJAG_INSTANTIATE(float)
 DEJAG_INSTANTIATE(double)
 #undef DEJAG_INSTANTIATE

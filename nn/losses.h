@@ -59,9 +59,21 @@ template <class T>
 void harmTilesLossBackward(T* dpred, const T* pred, const T* input, const T* target, const SsimLossDesc& d,
                            int tile, double scale);
 
-// A weighted sum of the losses above, e.g. "ssim" or "0.84*ssim+0.16*l1" (or "...+0.5*harm" or
-// "...+0.5*harm16", which need the input the prediction was made from).
-enum class LossKind { Ssim, L1, Mse, Harm };
+// Harm on masked pixels ("texharm": the mask marks a patch's texture pixels, docs/train.md "Never harm"):
+// per sample, the hinge of harmLoss on the weighted mean squared errors
+//   E = sum over pixels of m * (sum over channels of (v - target)^2) / (channels * sum of m),
+// mask m (N, 1, H, W) in [0, 1]; a sample whose mask is empty adds 0. Mean over the batch. It asks the
+// network never to make a patch's texture worse than its input even where the patch as a whole gains.
+template <class T>
+double maskedHarmLoss(const T* pred, const T* input, const T* target, const T* mask, const SsimLossDesc& d);
+template <class T>
+void maskedHarmLossBackward(T* dpred, const T* pred, const T* input, const T* target, const T* mask,
+                            const SsimLossDesc& d, double scale);
+
+// A weighted sum of the losses above, e.g. "ssim" or "0.84*ssim+0.16*l1" (or "...+0.5*harm",
+// "...+0.5*harm16" or "...+0.5*texharm", which need the input the prediction was made from; texharm also
+// a mask).
+enum class LossKind { Ssim, L1, Mse, Harm, MaskedHarm };
 struct LossTerm {
     LossKind kind = LossKind::Ssim;
     double weight = 1.0;
@@ -72,12 +84,13 @@ struct CompositeLoss {
     static CompositeLoss parse(const std::string& text);  // throws dejag::Error on a bad spec
     std::string describe() const;
     bool needsInput() const;  // a harm term: evaluate() needs `input`
+    bool needsMask() const;   // a texharm term: evaluate() needs `mask`
     // Value of the weighted sum; if dpred is non-null, adds its gradient (times scale) into dpred.
     // `input` (the prediction's shape) is what the network was given; only a harm term reads it, and
-    // throws dejag::Error if it is null.
+    // throws dejag::Error if it is null. `mask` (N, 1, H, W): only texharm reads it, likewise.
     template <class T>
     double evaluate(T* dpred, const T* pred, const T* target, const SsimLossDesc& shape, double scale = 1.0,
-                    const T* input = nullptr) const;
+                    const T* input = nullptr, const T* mask = nullptr) const;
 };
 
 }  // namespace dejag::nn

@@ -718,7 +718,7 @@ class Batches {
   public:
     // depth: a temporal network that takes the depth buffers.
     Batches(const TrainConfig& config, const TrainFaults& faults, bool grey, int64_t stepsDone, bool temporal,
-            bool depth = false)
+            bool depth = false, bool textureMask = false)
         : config_(config), faults_(faults) {
         for (int64_t s = 0; s < stepsDone; ++s) cleanBatches_ += kindAt(s) == AdversarialKind::None;
         if (temporal) {
@@ -736,6 +736,7 @@ class Batches {
         patches.families = config.families;
         patches.inputTransform = config.inputTransform;
         patches.guideTransform = config.guideTransform;
+        patches.textureMask = textureMask;
         sampler_.emplace(config.data, patches);
     }
     AdversarialKind kindAt(int64_t step) const {
@@ -1105,7 +1106,7 @@ TrainResult trainModel(const TrainConfig& config, const std::vector<Method>& bas
     }
 
     const bool depthInput = temporal && temporalLayout(model).depth;
-    Batches batches(config, faults, grey, state.step, temporal, depthInput);
+    Batches batches(config, faults, grey, state.step, temporal, depthInput, loss.needsMask());
     const int64_t cleanSteps = cleanStepsOf(config), totalSteps = batches.stepsFor(cleanSteps);
     runConfig["total_steps"] = totalSteps;
     nn::LrSchedule schedule;
@@ -1182,7 +1183,8 @@ TrainResult trainModel(const TrainConfig& config, const std::vector<Method>& bas
                     "the loss's harm term compares the output with the input, and this network's "
                     "output is not the input's shape");
             value = loss.evaluate(dout.data(), out.data(), step.batch.target.data(), desc, 1.0,
-                                  loss.needsInput() ? given.data() : nullptr);
+                                  loss.needsInput() ? given.data() : nullptr,
+                                  loss.needsMask() ? step.batch.texture.data() : nullptr);
             skip = guard.loss(value, dout);
         }
         if (!skip) {

@@ -9,6 +9,7 @@
 #include <filesystem>
 
 #include "base/error.h"
+#include "data/evaluation.h"
 #include "data/image.h"
 #include "tests/test_util.h"
 
@@ -136,6 +137,74 @@ TEST_F(Patches, AGuideGoesBesideTheFrameAugmentedWithIt) {
                 }
     options.grayscale = true;
     EXPECT_THROW(PatchSampler(folder_, options), Error);
+}
+
+// Texture masks (the loss's texharm term): each patch's mask is its item's texture region (data/evaluation.h)
+// cut, flipped and turned with the patch; found by matching the target against the item's truth.
+TEST_F(Patches, TextureMasksTravelWithTheirPatches) {
+    PatchOptions options;
+    options.patchSize = 24, options.batchSize = 8, options.seed = 7;
+    options.brightnessJitter = 0, options.hueJitter = 0, options.textureMask = true;
+    PatchSampler sampler(folder_, options);
+    const std::vector<nlohmann::json> records = readManifest(folder_);
+    int64_t texturePixels = 0;
+    for (uint64_t b = 0; b < 3; ++b) {
+        const Batch batch = sampler.assemble(b);
+        ASSERT_EQ(batch.texture.shape(), (nn::Shape{8, 1, 24, 24}));
+        for (int n = 0; n < 8; ++n) {
+            const nlohmann::json& record = records[size_t(batch.items[size_t(n)])];
+            const Image input =
+                readImage((fs::path(folder_) / record["files"]["input"]["path"].get<std::string>()).string());
+            const Image truth =
+                readImage((fs::path(folder_) / record["files"]["truth"]["path"].get<std::string>()).string());
+            EvaluationItem item;
+            item.id = record["id"].get<std::string>();
+            item.truth = Image(truth.width, truth.height, Image::defaultChannelNames(3));
+            for (int y = 0; y < truth.height; ++y)
+                for (int x = 0; x < truth.width; ++x)
+                    for (int c = 0; c < 3; ++c)
+                        item.truth.pixels[(size_t(y) * size_t(truth.width) + size_t(x)) * 3 + size_t(c)] =
+                            std::clamp(linearToSrgb(std::max(truth.at(x, y, c), 0.0f)), 0.0f, 1.0f);
+            computeRegionMasks(item, input);
+            const Image& mask = item.masks[int(Region::Texture)];
+            bool found = false;
+            for (int orientation = 0; orientation < 8 && !found; ++orientation)
+                for (int y0 = 0; y0 + 24 <= truth.height && !found; ++y0)
+                    for (int x0 = 0; x0 + 24 <= truth.width && !found; ++x0) {
+                        auto source = [&](int x, int y) {
+                            int sx = x, sy = y;
+                            if (orientation & 4) std::swap(sx, sy);
+                            if (orientation & 1) sx = 23 - sx;
+                            if (orientation & 2) sy = 23 - sy;
+                            return std::pair{x0 + sx, y0 + sy};
+                        };
+                        bool match = true;
+                        for (int y = 0; y < 24 && match; ++y)
+                            for (int x = 0; x < 24 && match; ++x) {
+                                const auto [sx, sy] = source(x, y);
+                                for (int c = 0; c < 3 && match; ++c)
+                                    match = std::abs(batch.target.at(n, c, y, x) - item.truth.at(sx, sy, c)) <
+                                            1.0f / 65535 + 1e-6f;
+                            }
+                        if (!match) continue;
+                        found = true;
+                        int differ = 0;
+                        for (int y = 0; y < 24; ++y)
+                            for (int x = 0; x < 24; ++x) {
+                                const auto [sx, sy] = source(x, y);
+                                differ += batch.texture.at(n, 0, y, x) != mask.at(sx, sy, 0);
+                                texturePixels += batch.texture.at(n, 0, y, x) == 1.0f;
+                            }
+                        // The sampler's truth is 16-bit: a 3x3 luma range within 1e-5 of the threshold may
+                        // fall the other side.
+                        EXPECT_LE(differ, 2) << "patch " << n << " of batch " << b;
+                    }
+            EXPECT_TRUE(found) << "patch " << n << " of batch " << b;
+        }
+    }
+    EXPECT_GT(texturePixels, 0);
+    options.textureMask = false;
+    EXPECT_EQ(PatchSampler(folder_, options).assemble(0).texture.numel(), 0);
 }
 
 TEST_F(Patches, SplitsAndErrors) {

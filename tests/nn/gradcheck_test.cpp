@@ -147,5 +147,68 @@ TEST(GradCheck, HarmTermPerBlock) {
     EXPECT_THROW(CompositeLoss::parse("harmx"), Error);
 }
 
+// Harm on masked pixels ("texharm"): the gradient against finite differences; the value by hand (only the
+// masked pixels count, weighted by the mask); an empty mask costs nothing; a full mask is the plain term.
+TEST(GradCheck, HarmTermOnMaskedPixels) {
+    std::mt19937 rng(13);
+    SsimLossDesc d;
+    d.batch = 3, d.channels = 3, d.height = 11, d.width = 12;
+    const int64_t plane = d.height * d.width;
+    const size_t n = size_t(d.batch * d.channels * plane);
+    Vec target = randomValues(n, rng, 0.0, 1.0), input(n), pred(n), mask(size_t(d.batch * plane), 0.0);
+    std::normal_distribution<double> noise(0.0, 1.0);
+    for (size_t i = 0; i < n; ++i) {
+        const size_t x = i % size_t(d.width);
+        input[i] = target[i] + 0.05 * noise(rng);
+        pred[i] = target[i] + (x < 6 ? 0.02 : 0.09) * noise(rng);  // the right half harmed
+    }
+    // Sample 0: the right half masked (harmed); 1: the left half (helped); 2: nothing. Some weights 0.5.
+    for (int64_t s = 0; s < 2; ++s)
+        for (int64_t i = 0; i < plane; ++i)
+            if ((i % d.width < 6) == (s == 1)) mask[size_t(s * plane + i)] = i % 5 == 0 ? 0.5 : 1.0;
+    const CompositeLoss loss = CompositeLoss::parse("0.84*ssim+0.5*texharm");
+    EXPECT_TRUE(loss.needsInput());
+    EXPECT_TRUE(loss.needsMask());
+    EXPECT_FALSE(CompositeLoss::parse("0.84*ssim+0.5*harm").needsMask());
+    EXPECT_THROW(loss.evaluate<double>(nullptr, pred.data(), target.data(), d, 1.0, input.data()), Error);
+    Vec dpred(n);
+    loss.evaluate(dpred.data(), pred.data(), target.data(), d, 1.0, input.data(), mask.data());
+    auto value = [&] {
+        return loss.evaluate<double>(nullptr, pred.data(), target.data(), d, 1.0, input.data(), mask.data());
+    };
+    EXPECT_LE(checkGradient(pred, dpred, value, rng, 60, 1e-5), kTolerance);
+    double expected = 0;
+    for (int64_t s = 0; s < d.batch; ++s) {
+        double p = 0, g = 0, w = 0;
+        for (int64_t c = 0; c < d.channels; ++c)
+            for (int64_t i = 0; i < plane; ++i) {
+                const size_t at = size_t((s * d.channels + c) * plane + i);
+                const double m = mask[size_t(s * plane + i)];
+                p += m * (pred[at] - target[at]) * (pred[at] - target[at]);
+                g += m * (input[at] - target[at]) * (input[at] - target[at]);
+                w += m;
+            }
+        if (w == 0) continue;
+        p /= w, g /= w;
+        if (s == 0) {
+            EXPECT_GT(p, g);
+        }
+        if (s == 1) {
+            EXPECT_LT(p, g);
+        }
+        expected += std::max(0.0, p - g) / (g + kHarmEpsilon);
+    }
+    EXPECT_GT(expected, 0);
+    EXPECT_NEAR(maskedHarmLoss(pred.data(), input.data(), target.data(), mask.data(), d), expected / d.batch,
+                1e-12);
+    Vec ones(mask.size(), 1.0), zero(n, 0.0);
+    EXPECT_NEAR(maskedHarmLoss(pred.data(), input.data(), target.data(), ones.data(), d),
+                harmLoss(pred.data(), input.data(), target.data(), d.batch, int64_t(n) / d.batch), 1e-12);
+    Vec none(mask.size(), 0.0);
+    EXPECT_EQ(maskedHarmLoss(pred.data(), input.data(), target.data(), none.data(), d), 0.0);
+    maskedHarmLossBackward(zero.data(), pred.data(), input.data(), target.data(), none.data(), d, 1.0);
+    EXPECT_EQ(zero, Vec(n, 0.0));
+}
+
 }  // namespace
 }  // namespace dejag::nn
