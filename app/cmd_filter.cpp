@@ -190,10 +190,15 @@ void runFilter(FilterArguments& args, const std::string& methods) {
     for (const std::string& c : args.channels) frameOptions.channels.assign(c);
     frameOptions.required = filter->needs();
     frameOptions.wanted = filter->uses();
-    // A method that reads buffers makes the frame its colour (and alpha); the others keep every channel.
-    frameOptions.keepExtraChannels = filter->needs() == 0;
-
     const std::vector<FramePair> pairs = framePairs(args.input, args.output);
+    // A method that reads buffers makes the frame its colour (and alpha); the others keep every channel,
+    // unless the output is a PNG or JPEG, which holds the colour alone.
+    std::string outputExtension = pairs.empty() ? "" : fs::path(pairs.front().output).extension().string();
+    std::transform(outputExtension.begin(), outputExtension.end(), outputExtension.begin(),
+                   [](unsigned char c) { return char(std::tolower(c)); });
+    frameOptions.keepExtraChannels = filter->needs() == 0 && outputExtension != ".png" &&
+                                     outputExtension != ".jpg" && outputExtension != ".jpeg";
+
     // The far plane depth is divided by: --depth-far, the render.json of a dejag render sequence, or the
     // largest finite depth of the first frame.
     nlohmann::json sidecar;

@@ -175,6 +175,12 @@ TEST(Cli, MetricsScoresADatasetInputOnTheColourChannelsItSharesWithTheTruth) {
     EXPECT_EQ(nlohmann::json::parse(swapped.out)["mse"].get<double>(), a["mse"].get<double>());
     const RunResult text = run("metrics " + dir.file("truth.exr") + " " + dir.file("input.exr"), dir);
     EXPECT_NE(text.out.find("matched by name"), std::string::npos) << text.out;
+    // Filtered, a dataset input keeps its buffers in an EXR and writes its colour alone to a PNG.
+    for (const char* name : {"f.exr", "f.png"})
+        ASSERT_EQ(run("filter --method fxaa " + dir.file("input.exr") + " " + dir.file(name), dir).exitCode,
+                  0);
+    EXPECT_EQ(readImage(dir.file("f.exr")).channels(), 7);
+    EXPECT_EQ(readImage(dir.file("f.png")).channelNames, (std::vector<std::string>{"R", "G", "B"}));
     // Channels neither image holds all of: still one error line naming both sets.
     Image other(24, 20, {"R", "G", "depth.Z", "id"}, PixelType::Float);
     writeImage(dir.file("other.exr"), other);
