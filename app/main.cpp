@@ -8,6 +8,7 @@
 #include "app/commands.h"
 #include "base/error.h"
 #include "base/files.h"
+#include "base/simd.h"
 #include "base/thread_pool.h"
 
 namespace {
@@ -22,6 +23,31 @@ std::string commandPath(const CLI::App& app) {
         path += " " + current->get_name();
     }
     return path;
+}
+
+// `dejag --version`: the version, how this binary was built, and what the CPU it runs on offers.
+std::string versionText() {
+#ifndef DEJAG_VERSION
+#define DEJAG_VERSION "unknown"
+#endif
+#ifndef DEJAG_BUILD_TYPE
+#define DEJAG_BUILD_TYPE ""
+#endif
+    std::string build = DEJAG_BUILD_TYPE;
+    if (build.empty()) build = "unnamed";
+#if defined(__clang__)
+    const std::string compiler = "clang " __clang_version__;
+#elif defined(__GNUC__)
+    const std::string compiler = "g++ " __VERSION__;
+#else
+    const std::string compiler = "an unknown compiler";
+#endif
+    std::string levels;
+    for (int level = int(dejag::cpuSimdLevel()); level >= 0; --level)
+        levels += std::string(levels.empty() ? "" : ", ") + dejag::simdLevelName(dejag::SimdLevel(level));
+    return std::string("dejag ") + DEJAG_VERSION + "\nbuild: " + build + ", " + compiler +
+           "\nSIMD on this CPU: " + levels + (dejag::bf16Available() ? " (with AVX-512 BF16)" : "") +
+           "; DEJAG_SIMD or --simd chooses one";
 }
 
 }  // namespace
@@ -39,7 +65,7 @@ int main(int argc, char** argv) {
         "Each subcommand has --help. Errors: one line on stderr, exit code 2."};
     app.name("dejag");
     app.require_subcommand(1);
-    app.set_version_flag("--version", "dejag 0.1.0");
+    app.set_version_flag("--version", versionText());
     dejag::cli::registerRenderCommand(app);
     dejag::cli::registerDataCommand(app);
     dejag::cli::registerTrainCommand(app);

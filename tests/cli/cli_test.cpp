@@ -31,6 +31,19 @@ std::vector<nlohmann::json> jsonLines(const std::string& out) {
     return objects;
 }
 
+// --version: the version, the build (type and compiler) and every SIMD level this CPU can run, best first.
+TEST(Cli, VersionNamesTheBuildAndTheCpusSimdLevels) {
+    testing::TempDir dir;
+    const RunResult r = run("--version", dir);
+    ASSERT_EQ(r.exitCode, 0) << r.err;
+    EXPECT_EQ(r.out.rfind("dejag 0.", 0), 0u) << r.out;
+    EXPECT_NE(r.out.find("\nbuild: "), std::string::npos) << r.out;
+    std::string levels;
+    for (int level = int(cpuSimdLevel()); level >= 0; --level)
+        levels += std::string(levels.empty() ? "" : ", ") + simdLevelName(SimdLevel(level));
+    EXPECT_NE(r.out.find("SIMD on this CPU: " + levels), std::string::npos) << r.out;
+}
+
 TEST(Cli, MetricsJsonHasTheDocumentedKeys) {
     testing::TempDir dir;
     const RunResult r =
