@@ -3,6 +3,7 @@
 #include <cmath>
 #include <cstdlib>
 #include <filesystem>
+#include <map>
 #include <regex>
 #include <sstream>
 
@@ -51,6 +52,52 @@ void guardNumericOptions(CLI::App& app) {
     }
     for (CLI::App* command : app.get_subcommands([](const CLI::App*) { return true; }))
         guardNumericOptions(*command);
+}
+
+namespace {
+// An example for each command, by its path below `dejag`.
+const std::map<std::string, std::string>& examples() {
+    static const std::map<std::string, std::string> table = {
+        {"", "dejag filter --method smaa frame.png smooth.png"},
+        {"render", "dejag render --scene atrium --size 1280x720 --truth 64 --out out/atrium"},
+        {"data", "dejag data generate --count 200 --out out/dataset"},
+        {"data generate",
+         "dejag data generate --families shapes,text --count 100 --size 256x256 --out out/small"},
+        {"data verify", "dejag data verify out/dataset"},
+        {"data stats", "dejag data stats --json out/dataset"},
+        {"train", "dejag train --data out/dataset --out runs/mine --arch kpn:8x3 --steps 6000"},
+        {"train export", "dejag train export runs/mine models/mine.safetensors"},
+        {"filter", "dejag filter --method cnn --model models/dejag-guided.safetensors frame.exr smooth.png"},
+        {"metrics", "dejag metrics --json truth.exr smooth.exr"},
+        {"bench", "dejag bench filter --threads 2"},
+        {"bench render", "dejag bench render --quick"},
+        {"bench filter", "dejag bench filter --threads 2 --size 1920x1080"},
+        {"bench stability", "dejag bench stability --configs 200"},
+        {"bench taa", "dejag bench taa --frames 32 --no-ghosting"},
+        {"bench quality", "dejag bench quality --data out/dataset --no-1080p"},
+        {"bench reach", "dejag bench reach --size 1280x720 --scenes atrium pipe"},
+        {"bench metrics", "dejag bench metrics --threads 1,2"},
+        {"demo", "dejag demo --scenes atrium,flowers --size 640x360"},
+    };
+    return table;
+}
+
+void finishHelp(CLI::App& command, const std::string& path) {
+    // (bench nn hands --help to dejag-bench-nn; a hidden command, one with no group, has no help to finish)
+    if (command.get_help_ptr() != nullptr && (path.empty() || !command.get_group().empty())) {
+        command.set_help_flag("-h,--help", "print this help message and exit");
+        const auto example = examples().find(path);
+        if (example == examples().end()) throw Error("internal: no --help example for 'dejag " + path + "'");
+        const std::string footer = command.get_footer();
+        command.footer(footer + (footer.empty() ? "" : "\n") + "Example: " + example->second);
+    }
+    for (CLI::App* sub : command.get_subcommands([](const CLI::App*) { return true; }))
+        finishHelp(*sub, path.empty() ? sub->get_name() : path + " " + sub->get_name());
+}
+}  // namespace
+
+void finishHelp(CLI::App& app) {
+    finishHelp(app, "");
 }
 
 std::string shippedModelPath(const std::string& path) {

@@ -19,6 +19,9 @@ void applyRuntimeOptions(const RuntimeOptions& options);
 // Every float option of `app` and its subcommands refuses NaN and infinities, every unsigned one a
 // negative number (which would wrap); called once, after all subcommands are registered.
 void guardNumericOptions(CLI::App& app);
+// One voice for every --help: the help flag's text in lower case like every option's, and an example
+// command at the end of each (sub)command's help (the table in cli.cpp; a command without one throws).
+void finishHelp(CLI::App& app);
 
 struct Size {
     int width = 0, height = 0;

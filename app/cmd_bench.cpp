@@ -111,7 +111,7 @@ void printRows(const std::vector<bench::Row>& rows, bool json) {
 
 void registerBenchCommand(CLI::App& app) {
     CLI::App* bench =
-        app.add_subcommand("bench", "Benchmarks: median times, throughput and the measured peak");
+        app.add_subcommand("bench", "benchmarks: median times, throughput and the measured peak");
     bench->require_subcommand(1);
 
     CLI::App* nn = bench->add_subcommand(
@@ -133,7 +133,7 @@ void registerBenchCommand(CLI::App& app) {
         ->check(CLI::Range(1, 1000))
         ->capture_default_str();
     renderBench->add_flag("--quick", renderArgs->quick, "small sizes and one scene (a smoke test)");
-    renderBench->add_flag("--json", renderArgs->json, "One JSON object per case");
+    renderBench->add_flag("--json", renderArgs->json, "one JSON object per case");
     renderBench->callback([renderArgs] {
         bench::RenderBenchOptions options;
         options.repeat = renderArgs->repeat;
@@ -176,9 +176,9 @@ void registerBenchCommand(CLI::App& app) {
     filterBench->add_option("--repeat", filterArgs->repeat, "Timed runs per case (median reported)")
         ->check(CLI::Range(1, 10000))
         ->capture_default_str();
-    filterBench->add_option("--threads", filterArgs->threads, "Comma-separated thread counts")
+    filterBench->add_option("--threads", filterArgs->threads, "comma-separated thread counts")
         ->capture_default_str();
-    filterBench->add_option("--size", filterArgs->size, "Frame size WIDTHxHEIGHT")->capture_default_str();
+    filterBench->add_option("--size", filterArgs->size, "frame size WIDTHxHEIGHT")->capture_default_str();
     filterBench
         ->add_option("--temporal-model", filterArgs->temporalModel,
                      "the temporal network timed as dejag-temporal ('' or a missing default: not timed)")
@@ -188,7 +188,7 @@ void registerBenchCommand(CLI::App& app) {
                      "single-frame networks timed, comma-separated, each named by its file's stem ('' or a "
                      "missing default: none)")
         ->capture_default_str();
-    filterBench->add_flag("--json", filterArgs->json, "One JSON object per case");
+    filterBench->add_flag("--json", filterArgs->json, "one JSON object per case");
     filterBench->callback([filterArgs, filterBench] {
         bench::FilterBenchOptions options;
         const Size size = parseSize(filterArgs->size, "--size");
@@ -251,16 +251,16 @@ void registerBenchCommand(CLI::App& app) {
         "against double on the same cases (exit 1 if a check exceeds 1e-6)");
     stability
         ->add_option("--configs", stabilityArgs->configurations,
-                     "Random configurations, round-robin over the kinds")
+                     "random configurations, round-robin over the kinds")
         ->check(CLI::Range(1, 1000000))
         ->capture_default_str();
-    stability->add_option("--seed", stabilityArgs->seed, "Seed of the configurations")->capture_default_str();
-    stability->add_flag("--json", stabilityArgs->json, "One JSON object per kind");
+    stability->add_option("--seed", stabilityArgs->seed, "seed of the configurations")->capture_default_str();
+    stability->add_flag("--json", stabilityArgs->json, "one JSON object per kind");
     stability->add_option("--model", stabilityArgs->model, "Model for the accumulation and denormal figures")
         ->capture_default_str();
     stability
         ->add_option("--frame", stabilityArgs->frame,
-                     "Frame of the accumulation figure (float32 inference against double)")
+                     "frame of the accumulation figure (float32 inference against double)")
         ->capture_default_str();
     stability->add_option("--denormal-frame", stabilityArgs->denormalFrame, "Frame of the denormal figure")
         ->capture_default_str();
@@ -270,7 +270,7 @@ void registerBenchCommand(CLI::App& app) {
     stability->add_option("--training-steps", stabilityArgs->trainingSteps, "Steps of the determinism check")
         ->check(CLI::Range(1, 100000))
         ->capture_default_str();
-    stability->add_flag("--no-model", stabilityArgs->noModel, "Layer and loss checks only");
+    stability->add_flag("--no-model", stabilityArgs->noModel, "layer and loss checks only");
     stability->callback([stabilityArgs] {
         bench::StabilityOptions options;
         options.configurations = stabilityArgs->configurations, options.seed = stabilityArgs->seed;
@@ -487,7 +487,7 @@ void registerBenchCommand(CLI::App& app) {
         ->check(CLI::Range(0.0, 4.0))
         ->capture_default_str();
     taaBench->add_option("--out", taaArgs->out, "folder for the static test's SSIM-map PNGs");
-    taaBench->add_flag("--json", taaArgs->json, "One JSON object per row");
+    taaBench->add_flag("--json", taaArgs->json, "one JSON object per row");
     taaBench->callback([taaArgs, taaBench] {
         bench::TaaBenchOptions options;
         const Size size = parseSize(taaArgs->size, "--size"),
@@ -704,14 +704,14 @@ void registerBenchCommand(CLI::App& app) {
     auto args = std::make_shared<BenchArguments>();
     CLI::App* metrics = bench->add_subcommand(
         "metrics", "SSIM and full metrics of two RGB images (target: SSIM at 1920x1080 <= 30 ms on 2 cores)");
-    metrics->add_option("--size", args->size, "Image size WIDTHxHEIGHT")->capture_default_str();
+    metrics->add_option("--size", args->size, "image size WIDTHxHEIGHT")->capture_default_str();
     metrics->add_option("--repeat", args->repeat, "Timed runs per case (median reported)")
         ->check(CLI::Range(1, 10000))
         ->capture_default_str();
-    metrics->add_option("--threads", args->threads, "Comma-separated thread counts")->capture_default_str();
+    metrics->add_option("--threads", args->threads, "comma-separated thread counts")->capture_default_str();
     metrics->add_option("--simd", args->runtime.simd, "Force a SIMD path: scalar, avx2 or avx512")
         ->check(CLI::IsMember({"scalar", "avx2", "avx512"}));
-    metrics->add_flag("--json", args->json, "One JSON object per case");
+    metrics->add_flag("--json", args->json, "one JSON object per case");
     metrics->callback([args] {
         applyRuntimeOptions(args->runtime);
         bench::Options options;

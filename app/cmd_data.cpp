@@ -92,7 +92,7 @@ void registerDataCommand(CLI::App& app) {
                      "families held out for the test split: default (architecture, foliage), none, or a list")
         ->capture_default_str();
     generate->add_option("--count", args->count, "number of items");
-    generate->add_option("--size", args->size, "WxH of every item")->capture_default_str();
+    generate->add_option("--size", args->size, "size of every item, WIDTHxHEIGHT")->capture_default_str();
     generate->add_option("--truth", args->truth, "samples accumulated for the truth")->capture_default_str();
     generate->add_flag("--adaptive", args->adaptive, "adaptive truth (stop converged tiles early)");
     generate->add_option("--out", args->out, "dataset folder (created; re-running resumes it)");

@@ -18,11 +18,11 @@ void registerDemoCommand(CLI::App& app) {
     auto scenes = std::make_shared<std::string>();
     auto models = std::make_shared<std::string>(bench::kShippedModels);
     auto json = std::make_shared<bool>(false);
-    CLI::App* command = app.add_subcommand(
-        "demo",
-        "render a scene set, run every method (FXAA, TAA, the shipped networks), write an HTML report");
+    CLI::App* command = app.add_subcommand("demo",
+                                           "render a scene set, run every method (FXAA, SMAA, the TAAs, the "
+                                           "shipped networks), write an HTML report");
     command->add_option("--out", options->out, "report folder")->capture_default_str();
-    command->add_option("--size", *size, "WxH of the frames")->capture_default_str();
+    command->add_option("--size", *size, "size of the frames, WIDTHxHEIGHT")->capture_default_str();
     command->add_option("--truth", options->truthSamples, "samples of the truth")->capture_default_str();
     command->add_option("--scenes", *scenes,
                         "comma-separated scenes (default: atrium,hard-edges,flowers,pipe,text-wall,planes)");

@@ -376,7 +376,7 @@ void listMethods(bool json) {
 void registerFilterCommand(CLI::App& app) {
     auto args = std::make_shared<FilterArguments>();
     CLI::App* command = app.add_subcommand(
-        "filter", "anti-alias images and sequences: FXAA 3.11, the CNN, U-TAA, T-TAA, alone or chained");
+        "filter", "anti-alias images and sequences: FXAA, SMAA, the networks, the TAAs, alone or chained");
     command->add_option(
         "--method", args->method,
         "none | fxaa | smaa | cnn | taa | taa-sobel | taa-hq | cnn-temporal (--list-methods)");

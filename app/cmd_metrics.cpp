@@ -318,7 +318,7 @@ void runSequenceMetrics(const MetricsArguments& args, const Image* mask) {
 void registerMetricsCommand(CLI::App& app) {
     auto args = std::make_shared<MetricsArguments>();
     CLI::App* command =
-        app.add_subcommand("metrics", "Score TEST against REF: MSE, RMSE, PSNR, SNR, SSIM (docs/metrics.md)");
+        app.add_subcommand("metrics", "score TEST against REF: MSE, RMSE, PSNR, SNR, SSIM (docs/metrics.md)");
     command->footer(
         "8-bit images are scored on the 0-255 scale (data range 255), 16-bit on 0-65535, float on their raw\n"
         "values with data range 1 unless --data-range is given. SSIM: 11x11 Gaussian window (sigma 1.5),\n"
@@ -334,16 +334,16 @@ void registerMetricsCommand(CLI::App& app) {
         "|(X_t - X_t-1) - (R_t - R_t-1)| over consecutive frames, an 8- or 16-bit image's values taken\n"
         "as 0-1.");
     command
-        ->add_option("REF", args->reference, "Reference image (the truth), or a sequence: folder or pattern")
+        ->add_option("REF", args->reference, "reference image (the truth), or a sequence: folder or pattern")
         ->required();
-    command->add_option("TEST", args->test, "Image to score, or a sequence: folder or pattern (f_%04d.png)")
+    command->add_option("TEST", args->test, "image to score, or a sequence: folder or pattern (f_%04d.png)")
         ->required();
-    command->add_flag("--json", args->json, "Print one JSON object (keys mse, rmse, psnr, snr, ssim, ...)");
-    command->add_option("--ssim-map", args->ssimMap, "Write the per-pixel SSIM map as a colour-mapped PNG");
+    command->add_flag("--json", args->json, "print one JSON object (keys mse, rmse, psnr, snr, ssim, ...)");
+    command->add_option("--ssim-map", args->ssimMap, "write the per-pixel SSIM map as a colour-mapped PNG");
     command->add_option("--mask", args->mask,
-                        "Score only pixels whose mask value is above 0.5 (first channel)");
+                        "score only pixels whose mask value is above 0.5 (first channel)");
     command
-        ->add_option("--data-range", args->dataRange, "Data range L on the reported scale (default: by type)")
+        ->add_option("--data-range", args->dataRange, "data range L on the reported scale (default: by type)")
         ->check(CLI::Validator(
             [](std::string& text) {
                 return std::strtod(text.c_str(), nullptr) > 0 ? std::string()

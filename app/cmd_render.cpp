@@ -210,7 +210,7 @@ void registerRenderCommand(CLI::App& app) {
                                            "PNG previews, accumulated ground truth");
     command->add_option("--scene", args->scene, "scene name (see --list)");
     command->add_flag("--list", args->list, "print the scenes and exit");
-    command->add_option("--size", args->size, "WxH")->capture_default_str();
+    command->add_option("--size", args->size, "frame size WIDTHxHEIGHT")->capture_default_str();
     command->add_option("--frames", args->frames, "number of frames (scene time 0, 1, 2, ...)")
         ->capture_default_str();
     command->add_option("--start", args->start, "first frame index")->capture_default_str();

@@ -135,7 +135,7 @@ void registerTrainCommand(CLI::App& app) {
     trainCommand->add_option("--batch", config->batch, "patches per batch")->capture_default_str();
     trainCommand->add_option("--patch", config->patch, "patch side in pixels (a multiple of 8)")
         ->capture_default_str();
-    trainCommand->add_option("--lr", config->learningRate, "Adam learning rate (cosine decay, warm-up)")
+    trainCommand->add_option("--lr", config->learningRate, "learning rate of Adam (cosine decay, warm-up)")
         ->capture_default_str();
     trainCommand->add_option("--warmup", config->warmupSteps, "warm-up steps")->capture_default_str();
     trainCommand->add_option("--clip", config->clipNorm, "gradient norm clip (0: off)")

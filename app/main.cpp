@@ -65,7 +65,8 @@ int main(int argc, char** argv) {
         "Each subcommand has --help. Errors: one line on stderr, exit code 2."};
     app.name("dejag");
     app.require_subcommand(1);
-    app.set_version_flag("--version", versionText());
+    app.set_version_flag("--version", versionText(),
+                         "print the version, the build and the CPU's SIMD levels");
     dejag::cli::registerRenderCommand(app);
     dejag::cli::registerDataCommand(app);
     dejag::cli::registerTrainCommand(app);
@@ -74,6 +75,7 @@ int main(int argc, char** argv) {
     dejag::cli::registerBenchCommand(app);
     dejag::cli::registerDemoCommand(app);
     dejag::cli::guardNumericOptions(app);
+    dejag::cli::finishHelp(app);
 
     try {
         app.parse(argc, argv);

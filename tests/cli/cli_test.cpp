@@ -44,6 +44,30 @@ TEST(Cli, VersionNamesTheBuildAndTheCpusSimdLevels) {
     EXPECT_NE(r.out.find("SIMD on this CPU: " + levels), std::string::npos) << r.out;
 }
 
+// Every command's --help ends with an example and speaks in one voice: option texts start in lower case
+// (an acronym or a placeholder such as WxH may stay in capitals).
+TEST(Cli, EveryHelpHasAnExampleAndOneCapitalisation) {
+    testing::TempDir dir;
+    for (const char* command :
+         {"", "render", "data", "data generate", "data verify", "data stats", "train", "train export",
+          "filter", "metrics", "bench", "bench render", "bench filter", "bench stability", "bench taa",
+          "bench quality", "bench reach", "bench metrics", "demo"}) {
+        SCOPED_TRACE(command);
+        const RunResult r = run(std::string(command) + " --help", dir);
+        ASSERT_EQ(r.exitCode, 0) << r.err;
+        EXPECT_NE(r.out.find("\nExample: dejag "), std::string::npos) << r.out;
+        std::istringstream lines(r.out);
+        for (std::string line; std::getline(lines, line);) {
+            // An option's line: two spaces, a dash, its names, and the text from column 31.
+            if (line.rfind("  -", 0) != 0 || line.size() <= 31 || line[29] != ' ') continue;
+            const std::string text = line.substr(30);
+            EXPECT_FALSE(text.size() > 1 && std::isupper(static_cast<unsigned char>(text[0])) &&
+                         std::islower(static_cast<unsigned char>(text[1])))
+                << line;
+        }
+    }
+}
+
 TEST(Cli, MetricsJsonHasTheDocumentedKeys) {
     testing::TempDir dir;
     const RunResult r =
