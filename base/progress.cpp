@@ -4,8 +4,28 @@
 
 #include <cmath>
 #include <cstdio>
+#include <mutex>
 
 namespace dejag {
+
+namespace {
+// The bar drawn last on the terminal (one at a time; bars nest only in sequence). Guarded: log lines
+// may come from worker threads.
+std::mutex activeMutex;
+Progress* active = nullptr;
+}  // namespace
+
+void printLine(std::FILE* stream, const std::string& line) {
+    std::lock_guard<std::mutex> lock(activeMutex);
+    Progress* bar = active;
+    if (bar && bar->drawn_) {
+        std::fputs("\r\033[K", stderr);
+        std::fflush(stderr);
+    }
+    std::fprintf(stream, "%s\n", line.c_str());
+    std::fflush(stream);
+    if (bar && bar->drawn_) bar->draw(false);
+}
 
 std::string formatDuration(double seconds) {
     if (!std::isfinite(seconds) || seconds < 0) return "?";
@@ -27,7 +47,13 @@ Progress::Progress(std::string label, int64_t total, bool quiet)
       lastDraw_(start_) {}
 
 Progress::~Progress() {
-    if (!finished_ && done_ > 0 && !quiet_ && terminal_) std::fputc('\n', stderr);
+    std::lock_guard<std::mutex> lock(activeMutex);
+    if (active == this) active = nullptr;
+    if (!finished_ && drawn_) std::fputc('\n', stderr);
+}
+
+void Progress::resumeAt(int64_t done) {
+    done_ = resumed_ = done;
 }
 
 void Progress::advance(int64_t count, const std::string& detail) {
@@ -36,20 +62,25 @@ void Progress::advance(int64_t count, const std::string& detail) {
     const auto now = std::chrono::steady_clock::now();
     const double sinceDraw = std::chrono::duration<double>(now - lastDraw_).count();
     if (done_ >= total_) return finish();
-    if (sinceDraw >= (terminal_ ? 0.1 : 10.0)) draw(false);
+    if (sinceDraw >= (terminal_ ? 0.1 : 10.0)) {
+        std::lock_guard<std::mutex> lock(activeMutex);
+        draw(false);
+    }
 }
 
 void Progress::finish() {
     if (finished_) return;
     finished_ = true;
+    std::lock_guard<std::mutex> lock(activeMutex);
     draw(true);
+    if (active == this) active = nullptr;
 }
 
 void Progress::draw(bool final) {
     lastDraw_ = std::chrono::steady_clock::now();
     if (quiet_) return;
     const double elapsed = std::chrono::duration<double>(lastDraw_ - start_).count();
-    const double rate = elapsed > 0 ? double(done_) / elapsed : 0.0;
+    const double rate = elapsed > 0 ? double(done_ - resumed_) / elapsed : 0.0;
     const double eta = rate > 0 ? double(total_ - done_) / rate : NAN;
     const int width = 24;
     const int filled = total_ > 0 ? int(double(width) * double(done_) / double(total_)) : width;
@@ -60,9 +91,11 @@ void Progress::draw(bool final) {
                   static_cast<long long>(done_), static_cast<long long>(total_), rate, final ? "took" : "ETA",
                   formatDuration(final ? elapsed : eta).c_str(), detail_.empty() ? "" : "  ",
                   detail_.c_str());
-    if (terminal_)
+    if (terminal_) {
         std::fprintf(stderr, "\r\033[K%s%s", line, final ? "\n" : "");
-    else
+        drawn_ = !final;
+        active = this;
+    } else
         std::fprintf(stderr, "%s\n", line);
     std::fflush(stderr);
 }

@@ -855,17 +855,19 @@ class StepGuard {
         else
             ++state_.badInRow;
         if (!s.badData) state_.learningRateScale *= 0.5;
-        if (config_.json)
-            std::printf("%s\n", json{{"event", "skipped"},
-                                     {"step", state_.step},
-                                     {"reason", s.reason},
-                                     {"lr_scale", state_.learningRateScale}}
-                                    .dump()
-                                    .c_str());
-        else
-            std::printf("step %6lld  skipped: %s; learning rate scale %s %.3g\n", (long long)state_.step,
-                        s.reason.c_str(), s.badData ? "stays" : "now", state_.learningRateScale);
-        std::fflush(stdout);
+        if (config_.json) {
+            printLine(stdout, json{{"event", "skipped"},
+                                   {"step", state_.step},
+                                   {"reason", s.reason},
+                                   {"lr_scale", state_.learningRateScale}}
+                                  .dump());
+        } else {
+            char line[512];
+            std::snprintf(line, sizeof line, "step %6lld  skipped: %s; learning rate scale %s %.3g",
+                          (long long)state_.step, s.reason.c_str(), s.badData ? "stays" : "now",
+                          state_.learningRateScale);
+            printLine(stdout, line);
+        }
         if (state_.badInRow >= config_.maxBadSteps)
             throw Error("training diverged: " + std::to_string(state_.badInRow) +
                         " bad steps in a row (last: " + s.reason + "); the last checkpoint in '" +
@@ -1005,7 +1007,7 @@ class Validation {
             json j = rowToJson(r);
             j["event"] = "evaluation";
             for (const MethodScores& b : baselineScores_) j["baseline_psnr_" + b.name] = b.summary.psnr[0];
-            std::printf("%s\n", j.dump().c_str());
+            printLine(stdout, j.dump());
         } else {
             std::string base;
             for (const MethodScores& b : baselineScores_) {
@@ -1014,13 +1016,22 @@ class Validation {
                               b.summary.psnr[0]);
                 base += t;
             }
-            std::printf(
-                "step %6lld  loss %.5f  val PSNR %.2f dB (%s)  SSIM %.4f  edge %.2f  texture %.2f  lr %.2e  "
-                "%s\n",
-                (long long)r.step, r.loss, r.psnr[0], base.c_str(), r.ssim[0], r.psnr[1], r.psnr[2],
-                r.learningRate, formatDuration(r.seconds).c_str());
+            // A figure with nothing to measure (no edge or texture pixels in the images scored) is "-".
+            auto figure = [](double value) {
+                char t[32];
+                if (!std::isfinite(value)) return std::string("-");
+                std::snprintf(t, sizeof t, "%.2f", value);
+                return std::string(t);
+            };
+            char line[768];
+            std::snprintf(line, sizeof line,
+                          "step %6lld  loss %.5f  val PSNR %.2f dB (%s)  SSIM %.4f  edge %s  texture %s  "
+                          "lr %.2e  %s",
+                          (long long)r.step, r.loss, r.psnr[0], base.c_str(), r.ssim[0],
+                          figure(r.psnr[1]).c_str(), figure(r.psnr[2]).c_str(), r.learningRate,
+                          formatDuration(r.seconds).c_str());
+            printLine(stdout, line);
         }
-        std::fflush(stdout);
     }
 
   private:
@@ -1137,7 +1148,7 @@ TrainResult trainModel(const TrainConfig& config, const std::vector<Method>& bas
     const int64_t logEvery =
         std::gcd(std::max<int64_t>(1, std::min<int64_t>(50, totalSteps / 200)), config.checkpointEvery);
     Progress progress("train", totalSteps, config.quiet);
-    progress.advance(state.step);
+    progress.resumeAt(state.step);
     const auto sessionStart = std::chrono::steady_clock::now();
     const double secondsBefore = state.seconds;
     auto elapsed = [&] {
@@ -1204,15 +1215,13 @@ TrainResult trainModel(const TrainConfig& config, const std::vector<Method>& bas
             lossSum += value, ++lossCount, lastLoss = value;
         }
         if (step.adversarial != AdversarialKind::None && config.json) {
-            std::printf("%s\n", json{{"event", "adversarial"},
-                                     {"step", state.step},
-                                     {"kind", adversarialKindName(step.adversarial)},
-                                     {"loss", std::isfinite(value) ? json(value) : json(nullptr)},
-                                     {"loss_average", state.loss.average},
-                                     {"taken", !skip}}
-                                    .dump()
-                                    .c_str());
-            std::fflush(stdout);
+            printLine(stdout, json{{"event", "adversarial"},
+                                   {"step", state.step},
+                                   {"kind", adversarialKindName(step.adversarial)},
+                                   {"loss", std::isfinite(value) ? json(value) : json(nullptr)},
+                                   {"loss_average", state.loss.average},
+                                   {"taken", !skip}}
+                                  .dump());
         }
         ++state.step;
         // 4. Log and evaluate.
@@ -1226,11 +1235,10 @@ TrainResult trainModel(const TrainConfig& config, const std::vector<Method>& bas
             if (evaluationStep) {
                 const int nonFinite = validation.evaluate(model, row);
                 if (nonFinite > 0)
-                    std::fprintf(
-                        stderr,
-                        "dejag train: step %lld: the network's output is not finite on %d validation "
-                        "images; scored as the worst, never kept as the best model\n",
-                        (long long)state.step, nonFinite);
+                    printLine(stderr,
+                              "dejag train: step " + std::to_string(state.step) +
+                                  ": the network's output is not finite on " + std::to_string(nonFinite) +
+                                  " validation images; scored as the worst, never kept as the best model");
                 if (nonFinite == 0 && row.psnr[0] > state.bestPsnr + kMinimumImprovementDb) {
                     state.bestPsnr = row.psnr[0], state.bestStep = state.step, state.evaluationsSinceBest = 0;
                     folder.saveModel("best.safetensors", model, config.commandLine, state.step);

@@ -968,6 +968,66 @@ TEST(Cli, TrainAfterAnInputMethodRecordsIt) {
                        "--guide-method");
 }
 
+// On a terminal (a pseudo-terminal from script(1)) the training progress bar and the log lines share the
+// screen cleanly: a log line clears the bar first, so no line shows both. After --resume the bar's rate
+// counts only the new steps (it once counted the resumed ones as done in the first moment).
+TEST(Cli, TrainProgressBarAndLogLinesShareATerminal) {
+    testing::TempDir dir;
+    const std::string data = dir.file("data"), runFolder = dir.file("run");
+    ASSERT_EQ(
+        run("data generate --families shapes,pipes,foliage --test-families foliage --count 9 --size 64x64 "
+            "--truth 8 --quiet --out '" +
+                data + "'",
+            dir)
+            .exitCode,
+        0);
+    auto onTerminal = [&](int steps, bool resume) {
+        const std::string screen = dir.file("screen.txt");
+        const std::string command =
+            "script -qec \"'" + std::string(DEJAG_BINARY) + "' train --data '" + data + "' --out '" +
+            runFolder + "' --arch fast --steps " + std::to_string(steps) +
+            " --batch 2 --patch 32 --eval-every 50 --checkpoint-every 50 --val-images 2" +
+            (resume ? " --resume" : "") + "\" /dev/null >'" + screen + "' 2>&1";
+        EXPECT_EQ(std::system(command.c_str()), 0);
+        return slurp(screen);
+    };
+    // What each screen line finally shows: the text after its last carriage return.
+    auto screenLines = [](const std::string& text) {
+        std::vector<std::string> lines;
+        std::istringstream in(text);
+        for (std::string line; std::getline(in, line);) {
+            while (!line.empty() && line.back() == '\r') line.pop_back();
+            const size_t cr = line.rfind('\r');
+            lines.push_back(cr == std::string::npos ? line : line.substr(cr + 1));
+        }
+        return lines;
+    };
+    auto rates = [](const std::string& text) {  // every "N.NN/s" the bar drew, in order
+        std::vector<double> found;
+        for (size_t at = text.find("/s  "); at != std::string::npos; at = text.find("/s  ", at + 1)) {
+            const size_t start = text.rfind(' ', at);
+            found.push_back(std::atof(text.substr(start + 1, at - start - 1).c_str()));
+        }
+        return found;
+    };
+    for (const auto& [steps, resume] : {std::pair{150, false}, std::pair{300, true}}) {
+        SCOPED_TRACE(resume ? "resumed" : "fresh");
+        const std::string text = onTerminal(steps, resume);
+        int logLines = 0;
+        for (const std::string& line : screenLines(text)) {
+            const bool log = line.find("val PSNR") != std::string::npos;
+            logLines += log;
+            EXPECT_FALSE(log && line.find("ETA") != std::string::npos) << line;
+            EXPECT_EQ(line.find("nan"), std::string::npos) << line;  // nothing to measure is "-"
+        }
+        EXPECT_EQ(logLines, 3);
+        const std::vector<double> drawn = rates(text);
+        ASSERT_GE(drawn.size(), 2u) << text;
+        // The last bar holds the whole session's rate; none before it may be far above it.
+        for (double rate : drawn) EXPECT_LE(rate, 2.5 * drawn.back()) << text;
+    }
+}
+
 TEST(Cli, TrainLogsJsonResumesAndExportsAModelCard) {
     testing::TempDir dir;
     const std::string data = dir.file("data"), runFolder = dir.file("run");
