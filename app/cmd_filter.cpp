@@ -37,7 +37,7 @@ struct FilterArguments {
     int tile = 2048;
     std::string preset = "39";
     bool greenLuma = false, json = false, noSharpen = false, quiet = false, listMethods = false;
-    bool motionBlur = false;
+    bool motionBlur = false, force = false;
     float motionBlurScale = 1.0f;
     std::vector<std::string> settings;  // --set NAME=VALUE
     std::string channelPreset = "dejag";
@@ -191,6 +191,19 @@ void runFilter(FilterArguments& args, const std::string& methods) {
     frameOptions.required = filter->needs();
     frameOptions.wanted = filter->uses();
     const std::vector<FramePair> pairs = framePairs(args.input, args.output);
+    // Nothing is overwritten unless asked: every output is checked before the first frame is read.
+    if (!args.force) {
+        int existing = 0;
+        std::string first;
+        std::error_code error;
+        for (const FramePair& pair : pairs)
+            if (fs::exists(pair.output, error) && existing++ == 0) first = pair.output;
+        if (existing > 0)
+            throw Error(
+                "'" + first + "' exists" +
+                (existing > 1 ? " (and " + std::to_string(existing - 1) + " more of the outputs)" : "") +
+                "; add --force to overwrite");
+    }
     // A method that reads buffers makes the frame its colour (and alpha); the others keep every channel,
     // unless the output is a PNG or JPEG, which holds the colour alone.
     std::string outputExtension = pairs.empty() ? "" : fs::path(pairs.front().output).extension().string();
@@ -442,6 +455,8 @@ void registerFilterCommand(CLI::App& app) {
                         "image, folder or pattern (out/f_%04d.exr); its extension decides what it holds");
     command->add_flag("--json", args->json, "print per-frame timing (and gating) as JSON");
     command->add_flag("--quiet", args->quiet, "no progress bar");
+    command->add_flag("--force", args->force,
+                      "overwrite outputs that exist (without it, refused before any work)");
     addRuntimeOptions(command, args->runtime);
     command->footer(
         "INPUT/OUTPUT: single images (PNG, JPEG, TIFF, EXR), folders (every image, same names), "

@@ -4,6 +4,7 @@
 
 #include <cstdio>
 #include <filesystem>
+#include <fstream>
 #include <limits>
 #include <nlohmann/json.hpp>
 
@@ -30,9 +31,61 @@ struct RenderArguments {
     uint64_t seed = 1;
     double spread = 1.7, tolerance = 1e-3, pixelTolerance = 2e-3;
     int tile = 8;
-    bool adaptive = false, list = false, json = false, quiet = false;
+    bool adaptive = false, list = false, json = false, quiet = false, force = false;
     RuntimeOptions runtime;
 };
+
+std::string framePath(const std::string& folder, const char* stem, int index, const char* extension) {
+    char name[64];
+    std::snprintf(name, sizeof name, "%s_%04d.%s", stem, index, extension);
+    return (std::filesystem::path(folder) / name).string();
+}
+
+// A render never mixes with another in one folder: an earlier render (its render.json) or a file this one
+// would write is refused unless --force; then the earlier render's files (those its render.json lists,
+// and their previews) are removed first, so no frame of it stays beside the new ones.
+void claimOutputFolder(const RenderArguments& args) {
+    namespace fs = std::filesystem;
+    const fs::path folder(args.out), sidecar = folder / "render.json";
+    std::error_code error;
+    std::vector<fs::path> earlier;
+    std::string what;
+    if (fs::exists(sidecar, error)) {
+        std::ifstream in(sidecar);
+        const nlohmann::json old = nlohmann::json::parse(in, nullptr, false);
+        what = "a render";
+        if (old.is_object() && old.contains("scene") && old["scene"].is_string()) {
+            what += " of " + old["scene"].get<std::string>();
+            if (old.contains("frames") && old["frames"].is_array()) {
+                what += ", " + std::to_string(old["frames"].size()) + " frame(s)";
+                for (const nlohmann::json& frame : old["frames"])
+                    for (const nlohmann::json* entry :
+                         {&frame, frame.contains("truth") ? &frame["truth"] : nullptr})
+                        if (entry && entry->is_object() && entry->contains("file") &&
+                            (*entry)["file"].is_string()) {
+                            const fs::path file =
+                                folder / fs::path((*entry)["file"].get<std::string>()).filename();
+                            earlier.push_back(file);
+                            earlier.push_back(fs::path(file).replace_extension(".png"));
+                        }
+            }
+        }
+        what += " (render.json)";
+        earlier.push_back(sidecar);
+    } else {
+        for (int index = args.start; index < args.start + args.frames && what.empty(); ++index)
+            for (const char* kind : {"frame", "truth"})
+                for (const char* extension : {"exr", "png"})
+                    if (const std::string path = framePath(args.out, kind, index, extension);
+                        what.empty() && fs::exists(path, error))
+                        what = "'" + fs::path(path).filename().string() + "'";
+    }
+    if (what.empty()) return;
+    if (!args.force)
+        throw Error("'" + args.out + "' already holds " + what +
+                    "; choose another --out, or add --force to replace it");
+    for (const fs::path& file : earlier) fs::remove(file, error);
+}
 
 // An sRGB 8-bit preview of the R, G, B channels.
 void writePreview(const std::string& path, const Image& image) {
@@ -44,12 +97,6 @@ void writePreview(const std::string& path, const Image& image) {
             preview.pixels[p * 3 + size_t(c)] = std::clamp(linearToSrgb(std::max(v, 0.0f)), 0.0f, 1.0f);
         }
     writeImage(path, preview);
-}
-
-std::string framePath(const std::string& folder, const char* stem, int index, const char* extension) {
-    char name[64];
-    std::snprintf(name, sizeof name, "%s_%04d.%s", stem, index, extension);
-    return (std::filesystem::path(folder) / name).string();
 }
 
 nlohmann::json vec(const render::Vec3& v) {
@@ -91,6 +138,7 @@ void runRender(const RenderArguments& args) {
     sceneOptions.texture = args.texture;
     const render::Scene scene = render::buildScene(args.scene, sceneOptions);
 
+    claimOutputFolder(args);
     std::error_code error;
     std::filesystem::create_directories(args.out, error);
     if (error || !std::filesystem::is_directory(args.out) || access(args.out.c_str(), W_OK) != 0)
@@ -243,6 +291,9 @@ void registerRenderCommand(CLI::App& app) {
         ->capture_default_str();
     command->add_flag("--json", args->json, "print the JSON sidecar on stdout");
     command->add_flag("--quiet", args->quiet, "no progress or summary");
+    command->add_flag(
+        "--force", args->force,
+        "replace an earlier render in --out (its frames are removed first); without it, refused");
     addRuntimeOptions(command, args->runtime);
     command->footer(
         "Writes per frame frame_NNNN.exr (float; channels R G B, albedo.R/G/B, depth.Z, motion.X/Y, id.ID,\n"

@@ -65,8 +65,8 @@ int main(int argc, char** argv) {
         "Each subcommand has --help. Errors: one line on stderr, exit code 2."};
     app.name("dejag");
     app.require_subcommand(1);
-    app.set_version_flag("--version", versionText(),
-                         "print the version, the build and the CPU's SIMD levels");
+    app.set_version_flag(  // (made when asked: a bad DEJAG_SIMD is then one error line)
+        "--version", [] { return versionText(); }, "print the version, the build and the CPU's SIMD levels");
     dejag::cli::registerRenderCommand(app);
     dejag::cli::registerDataCommand(app);
     dejag::cli::registerTrainCommand(app);

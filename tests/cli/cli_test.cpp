@@ -345,6 +345,58 @@ TEST(Cli, RenderWritesBuffersPreviewsTruthAndSidecar) {
     // The jitter of frame 1 is Halton point 1 times the spread: x = 0.5 -> 0, y = 2/3 -> 1.7/6 up.
     EXPECT_NEAR(sidecar["frames"][1]["jitter_pixels"][0].get<double>(), 0.0, 1e-12);
     EXPECT_NEAR(sidecar["frames"][1]["jitter_pixels"][1].get<double>(), -1.7 / 6, 1e-9);
+
+    // Another render into the folder is refused (one line, nothing touched); --force replaces the earlier
+    // render: its frames go, so no scene mixes with another.
+    const std::string before = slurp(out + "/frame_0001.exr");
+    expectOneLineError(run("render --scene atrium --size 64x48 --out '" + out + "'", dir),
+                       "already holds a render of pipe, 2 frame(s)");
+    EXPECT_EQ(slurp(out + "/frame_0001.exr"), before);
+    ASSERT_EQ(run("render --scene atrium --size 64x48 --quiet --force --out '" + out + "'", dir).exitCode, 0);
+    EXPECT_EQ(nlohmann::json::parse(slurp(out + "/render.json"))["scene"], "atrium");
+    for (const char* name : {"frame_0001.exr", "frame_0001.png", "truth_0001.exr", "truth_0000.png"})
+        EXPECT_FALSE(std::filesystem::exists(out + "/" + name)) << name;
+    EXPECT_TRUE(std::filesystem::exists(out + "/frame_0000.exr"));
+    // A frame file without a render.json beside it is refused too.
+    const std::string loose = dir.file("loose");
+    std::filesystem::create_directories(loose);
+    std::filesystem::copy_file(out + "/frame_0000.exr", loose + "/frame_0000.exr");
+    expectOneLineError(run("render --scene pipe --size 64x48 --out '" + loose + "'", dir),
+                       "already holds 'frame_0000.exr'");
+}
+
+// The filter overwrites nothing unless asked: an existing output, of one image or any frame of a sequence,
+// is one error line before any work, the file untouched; --force overwrites.
+TEST(Cli, FilterRefusesToOverwriteWithoutForce) {
+    testing::TempDir dir;
+    Image edge(40, 30, {"R", "G", "B"}, PixelType::UInt8);
+    for (int y = 0; y < 30; ++y)
+        for (int x = 0; x < 40; ++x)
+            for (int c = 0; c < 3; ++c) edge.at(x, y, c) = x * 3 > y * 4 ? 1.0f : 0.0f;
+    std::filesystem::create_directories(dir.file("in"));
+    for (const char* name : {"edge.png", "in/f_0001.png", "in/f_0002.png", "in/f_0003.png"})
+        writeImage(dir.file(name), edge);
+    writeImage(dir.file("out.png"), edge);
+    const std::string kept = slurp(dir.file("out.png"));
+    expectOneLineError(
+        run("filter --method fxaa '" + dir.file("edge.png") + "' '" + dir.file("out.png") + "'", dir),
+        "out.png' exists; add --force to overwrite");
+    EXPECT_EQ(slurp(dir.file("out.png")), kept);
+    ASSERT_EQ(run("filter --method fxaa --quiet --force '" + dir.file("edge.png") + "' '" +
+                      dir.file("out.png") + "'",
+                  dir)
+                  .exitCode,
+              0);
+    EXPECT_NE(slurp(dir.file("out.png")), kept);
+    // A sequence: the second and third frames' outputs exist; the first is not written either.
+    std::filesystem::create_directories(dir.file("out"));
+    writeImage(dir.file("out/g_0002.png"), edge);
+    writeImage(dir.file("out/g_0003.png"), edge);
+    expectOneLineError(
+        run("filter --method fxaa '" + dir.file("in/f_%04d.png") + "' '" + dir.file("out/g_%04d.png") + "'",
+            dir),
+        "g_0002.png' exists (and 1 more of the outputs)");
+    EXPECT_FALSE(std::filesystem::exists(dir.file("out/g_0001.png")));
 }
 
 TEST(Cli, RenderBadInputIsOneLineAndWritesNothing) {
@@ -722,7 +774,7 @@ TEST(Cli, FilterListsItsMethodsAndRefusesParametersNoMethodReads) {
                            dir),
                        "search-steps");
     expectOneLineError(run("filter --method smaa --set predication=on '" + dir.file("edge.png") + "' '" +
-                               dir.file("s.png") + "'",
+                               dir.file("p.png") + "'",
                            dir),
                        "depth");
 }

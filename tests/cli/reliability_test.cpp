@@ -163,10 +163,10 @@ TEST(Reliability, FilterSequenceAndSsimMapOnAFullDiskExitTwoAndLeaveNothingBehin
               0);
     const std::string good = testing::slurp(dir.file("out/one.png"));
     const std::string limited = "ulimit -f 64;";  // 32 or 64 KB, whatever the shell's block: below a frame
-    expectOneLineError(
-        run("filter --method fxaa '" + dir.file("in/f_0000.png") + "' '" + dir.file("out/one.png") + "'", dir,
-            limited),
-        "File too large");
+    expectOneLineError(run("filter --method fxaa --force '" + dir.file("in/f_0000.png") + "' '" +
+                               dir.file("out/one.png") + "'",
+                           dir, limited),
+                       "File too large");
     EXPECT_TRUE(testing::slurp(dir.file("out/one.png")) == good);
     expectOneLineError(run("filter --method fxaa --quiet '" + dir.file("in/f_%04d.png") + "' '" +
                                dir.file("out/g_%04d.png") + "'",
@@ -204,7 +204,7 @@ TEST(Reliability, AFullTmpfsIsNoSpaceLeftAndTheEarlierFileSurvives) {
         while (fill.write(block.data(), block.size())) {
         }
     }
-    expectOneLineError(run("filter --method fxaa '" + dir.file("in.png") + "' '" + out + "'", dir),
+    expectOneLineError(run("filter --method fxaa --force '" + dir.file("in.png") + "' '" + out + "'", dir),
                        "No space left on device");
     EXPECT_TRUE(testing::slurp(out) == good) << "the earlier output was lost";
     EXPECT_TRUE(temporaryFilesIn(disk).empty());
