@@ -14,9 +14,9 @@
 namespace dejag::cli {
 
 void addRuntimeOptions(CLI::App* command, RuntimeOptions& options) {
-    command->add_option("--threads", options.threads, "Worker threads (default: DEJAG_THREADS or all cores)")
+    command->add_option("--threads", options.threads, "worker threads (default: DEJAG_THREADS or all cores)")
         ->check(CLI::Range(1, 1024));
-    command->add_option("--simd", options.simd, "Force a SIMD path: scalar, avx2 or avx512 (default: best)")
+    command->add_option("--simd", options.simd, "force a SIMD path: scalar, avx2 or avx512 (default: best)")
         ->check(CLI::IsMember({"scalar", "avx2", "avx512"}));
 }
 
@@ -100,10 +100,15 @@ void finishHelp(CLI::App& app) {
     finishHelp(app, "");
 }
 
-std::string shippedModelPath(const std::string& path) {
+std::string shippedModelPath(const std::string& name) {
     namespace fs = std::filesystem;
-    const fs::path given(path);
     std::error_code error;
+    // A bare name (no folder, no extension) that is not a file here names a shipped model.
+    std::string path = name;
+    if (!name.empty() && fs::path(name).parent_path().empty() && !fs::path(name).has_extension() &&
+        !fs::exists(name, error))
+        path = "models/" + name + ".safetensors";
+    const fs::path given(path);
     if (given.is_absolute() || given.empty() || *given.begin() != "models" || fs::exists(given, error))
         return path;
     const fs::path binary = fs::read_symlink("/proc/self/exe", error);

@@ -129,7 +129,7 @@ void registerBenchCommand(CLI::App& app) {
         "render",
         "renderer: ms per frame (colour only, every buffer) at 800x800 and 1920x1080, and the "
         "128-sample truth with and without --adaptive");
-    renderBench->add_option("--repeat", renderArgs->repeat, "Timed frames per case (median reported)")
+    renderBench->add_option("--repeat", renderArgs->repeat, "timed frames per case (median reported)")
         ->check(CLI::Range(1, 1000))
         ->capture_default_str();
     renderBench->add_flag("--quick", renderArgs->quick, "small sizes and one scene (a smoke test)");
@@ -173,7 +173,7 @@ void registerBenchCommand(CLI::App& app) {
     auto filterArgs = std::make_shared<FilterBenchArguments>();
     CLI::App* filterBench = bench->add_subcommand(
         "filter", "post-process filters on a rendered frame (target: FXAA <= 2 ms at 1920x1080 on 2 cores)");
-    filterBench->add_option("--repeat", filterArgs->repeat, "Timed runs per case (median reported)")
+    filterBench->add_option("--repeat", filterArgs->repeat, "timed runs per case (median reported)")
         ->check(CLI::Range(1, 10000))
         ->capture_default_str();
     filterBench->add_option("--threads", filterArgs->threads, "comma-separated thread counts")
@@ -256,15 +256,15 @@ void registerBenchCommand(CLI::App& app) {
         ->capture_default_str();
     stability->add_option("--seed", stabilityArgs->seed, "seed of the configurations")->capture_default_str();
     stability->add_flag("--json", stabilityArgs->json, "one JSON object per kind");
-    stability->add_option("--model", stabilityArgs->model, "Model for the accumulation and denormal figures")
+    stability->add_option("--model", stabilityArgs->model, "model for the accumulation and denormal figures")
         ->capture_default_str();
     stability
         ->add_option("--frame", stabilityArgs->frame,
                      "frame of the accumulation figure (float32 inference against double)")
         ->capture_default_str();
-    stability->add_option("--denormal-frame", stabilityArgs->denormalFrame, "Frame of the denormal figure")
+    stability->add_option("--denormal-frame", stabilityArgs->denormalFrame, "frame of the denormal figure")
         ->capture_default_str();
-    stability->add_option("--repeat", stabilityArgs->repeat, "Timed runs per denormal median")
+    stability->add_option("--repeat", stabilityArgs->repeat, "timed runs per denormal median")
         ->check(CLI::Range(1, 1000))
         ->capture_default_str();
     stability->add_option("--training-steps", stabilityArgs->trainingSteps, "Steps of the determinism check")
@@ -705,11 +705,11 @@ void registerBenchCommand(CLI::App& app) {
     CLI::App* metrics = bench->add_subcommand(
         "metrics", "SSIM and full metrics of two RGB images (target: SSIM at 1920x1080 <= 30 ms on 2 cores)");
     metrics->add_option("--size", args->size, "image size WIDTHxHEIGHT")->capture_default_str();
-    metrics->add_option("--repeat", args->repeat, "Timed runs per case (median reported)")
+    metrics->add_option("--repeat", args->repeat, "timed runs per case (median reported)")
         ->check(CLI::Range(1, 10000))
         ->capture_default_str();
     metrics->add_option("--threads", args->threads, "comma-separated thread counts")->capture_default_str();
-    metrics->add_option("--simd", args->runtime.simd, "Force a SIMD path: scalar, avx2 or avx512")
+    metrics->add_option("--simd", args->runtime.simd, "force a SIMD path: scalar, avx2 or avx512")
         ->check(CLI::IsMember({"scalar", "avx2", "avx512"}));
     metrics->add_flag("--json", args->json, "one JSON object per case");
     metrics->callback([args] {

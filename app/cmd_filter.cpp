@@ -402,9 +402,9 @@ void registerFilterCommand(CLI::App& app) {
                      "a method parameter NAME=VALUE (repeatable; --list-methods names them, e.g. subpix=0.5)")
         ->allow_extra_args(false);
     command
-        ->add_option(
-            "--model", args->model,
-            "CNN: model file (a models/... path missing here is taken from the dejag tree the binary is in)")
+        ->add_option("--model", args->model,
+                     "CNN: model file, or a shipped model's name (dejag-fast: models/dejag-fast.safetensors, "
+                     "found in the dejag tree the binary is in)")
         ->capture_default_str();
     command
         ->add_option("--gate", args->gate,

@@ -57,10 +57,17 @@ TEST(Cli, EveryHelpHasAnExampleAndOneCapitalisation) {
         ASSERT_EQ(r.exitCode, 0) << r.err;
         EXPECT_NE(r.out.find("\nExample: dejag "), std::string::npos) << r.out;
         std::istringstream lines(r.out);
+        bool pending = false;  // an option line too long for its text, which then starts on the next line
         for (std::string line; std::getline(lines, line);) {
             // An option's line: two spaces, a dash, its names, and the text from column 31.
-            if (line.rfind("  -", 0) != 0 || line.size() <= 31 || line[29] != ' ') continue;
-            const std::string text = line.substr(30);
+            std::string text;
+            if (line.rfind("  -", 0) == 0) {
+                pending = line.size() < 31 || line[29] != ' ';
+                if (!pending) text = line.substr(30);
+            } else if (pending) {
+                pending = false;
+                if (line.size() > 31 && line.find_first_not_of(' ') == 30) text = line.substr(30);
+            }
             EXPECT_FALSE(text.size() > 1 && std::isupper(static_cast<unsigned char>(text[0])) &&
                          std::islower(static_cast<unsigned char>(text[1])))
                 << line;
@@ -534,6 +541,16 @@ TEST(Cli, FilterCnnFindsTheShippedModelFromAnyDirectory) {
     expectOneLineError(run("filter --method cnn --model nowhere/dejag-fast.safetensors edge.png t.png", dir,
                            "cd '" + dir.path().string() + "' &&"),
                        "nowhere/dejag-fast.safetensors");
+    // A bare name is a shipped model: dejag-guided is models/dejag-guided.safetensors, found from here too.
+    const RunResult named = run("filter --method cnn --model dejag-guided --json edge.png named.png", dir,
+                                "cd '" + dir.path().string() + "' &&");
+    ASSERT_EQ(named.exitCode, 0) << named.err;
+    EXPECT_NE(
+        nlohmann::json::parse(named.out)["model"].get<std::string>().find("models/dejag-guided.safetensors"),
+        std::string::npos);
+    expectOneLineError(run("filter --method cnn --model no-such-model edge.png t.png", dir,
+                           "cd '" + dir.path().string() + "' &&"),
+                       "models/no-such-model.safetensors");
 }
 
 TEST(Cli, FilterTaaRunsOverARenderedSequence) {
