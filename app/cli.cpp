@@ -1,13 +1,19 @@
 #include "app/cli.h"
 
+#include <cerrno>
 #include <cmath>
+#include <cstdio>
 #include <cstdlib>
 #include <filesystem>
+#include <fstream>
+#include <iterator>
 #include <map>
 #include <regex>
 #include <sstream>
+#include <string_view>
 
 #include "base/error.h"
+#include "base/files.h"
 #include "base/simd.h"
 #include "base/thread_pool.h"
 
@@ -119,6 +125,63 @@ std::string shippedModelPath(const std::string& name) {
         if (fs::is_regular_file(candidate, error)) return candidate.string();
     }
     return path;
+}
+
+StandardStreams::~StandardStreams() {
+    if (folder_.empty()) return;
+    std::error_code error;
+    std::filesystem::remove_all(folder_, error);
+}
+
+const std::string& StandardStreams::folder() {
+    if (folder_.empty()) {
+        const char* base = std::getenv("TMPDIR");
+        std::string pattern = std::string(base && *base ? base : "/tmp") + "/dejag-stdio-XXXXXX";
+        if (!mkdtemp(pattern.data()))
+            throw Error("cannot make a temporary folder for '-': " + systemErrorText(errno));
+        folder_ = pattern;
+    }
+    return folder_;
+}
+
+std::string StandardStreams::input(const std::string& path) {
+    if (path != "-") return path;
+    std::string bytes;
+    char buffer[1 << 16];
+    size_t got;
+    while ((got = std::fread(buffer, 1, sizeof buffer, stdin)) > 0) bytes.append(buffer, got);
+    if (std::ferror(stdin)) throw Error("cannot read standard input: " + systemErrorText(errno));
+    auto starts = [&](std::string_view magic) { return bytes.compare(0, magic.size(), magic) == 0; };
+    std::string extension;
+    if (starts("\x89PNG\r\n\x1a\n"))
+        extension = ".png";
+    else if (starts("\xff\xd8\xff"))
+        extension = ".jpg";
+    else if (starts(std::string_view("II*\0", 4)) || starts(std::string_view("MM\0*", 4)))
+        extension = ".tif";
+    else if (starts("\x76\x2f\x31\x01"))
+        extension = ".exr";
+    else
+        throw Error(bytes.empty() ? std::string("standard input ('-') is empty")
+                                  : "standard input ('-') is not a PNG, JPEG, TIFF or OpenEXR image");
+    const std::string file = folder() + "/stdin" + extension;
+    writeBytesAtomically(file, bytes);
+    return file;
+}
+
+std::string StandardStreams::output(const std::string& path, const std::string& extension) {
+    if (path != "-") return path;
+    output_ = folder() + "/stdout" + extension;
+    return output_;
+}
+
+void StandardStreams::finish() {
+    if (output_.empty()) return;
+    std::ifstream in(output_, std::ios::binary);
+    if (!in) throw Error("nothing was written for standard output ('-')");
+    std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+    if (std::fwrite(bytes.data(), 1, bytes.size(), stdout) != bytes.size() || std::fflush(stdout) != 0)
+        throw Error("cannot write standard output: " + systemErrorText(errno));
 }
 
 std::vector<std::string> shippedModelPaths(const std::vector<std::string>& paths) {

@@ -37,6 +37,27 @@ std::vector<std::string> splitList(const std::string& text);
 // (build/PRESET/dejag) or share/dejag/models for an installed bin/dejag. So `dejag filter --method cnn`
 // finds the shipped network from any directory. Unchanged when there is none (the reader then names it).
 std::string shippedModelPath(const std::string& path);
+
+// "-" for one image on standard input or output. input("-") reads standard input to the end into a
+// private temporary folder and returns that file's path, its format told by its first bytes (PNG, JPEG,
+// TIFF or OpenEXR; anything else is one error line). output("-", EXT) returns a path there with that
+// extension; finish() copies what was written to it to standard output. Any other path passes unchanged.
+// The folder goes with the object.
+class StandardStreams {
+  public:
+    StandardStreams() = default;
+    ~StandardStreams();
+    StandardStreams(const StandardStreams&) = delete;
+    StandardStreams& operator=(const StandardStreams&) = delete;
+    std::string input(const std::string& path);
+    std::string output(const std::string& path, const std::string& extension);
+    bool writesStandardOutput() const { return !output_.empty(); }
+    void finish();
+
+  private:
+    const std::string& folder();
+    std::string folder_, output_;
+};
 std::vector<std::string> shippedModelPaths(const std::vector<std::string>& paths);
 
 // The command line as typed (set by main), recorded in what a command writes (run.json, model cards).

@@ -449,10 +449,14 @@ void registerFilterCommand(CLI::App& app) {
                      "divide depth by this far plane (default: render.json's, else the first frame's largest "
                      "finite depth)")
         ->check(CLI::Range(1e-9, 1e30));
-    command->add_option("input", args->input,
-                        "image, folder of images, or sequence pattern (frame_%04d.exr)");
-    command->add_option("output", args->output,
-                        "image, folder or pattern (out/f_%04d.exr); its extension decides what it holds");
+    command->add_option(
+        "input", args->input,
+        "image, folder of images, or sequence pattern (frame_%04d.exr); - reads one image from "
+        "standard input");
+    command->add_option(
+        "output", args->output,
+        "image, folder or pattern (out/f_%04d.exr); its extension decides what it holds; - writes "
+        "the image to standard output in the input's format");
     command->add_flag("--json", args->json, "print per-frame timing (and gating) as JSON");
     command->add_flag("--quiet", args->quiet, "no progress bar");
     command->add_flag("--force", args->force,
@@ -491,7 +495,18 @@ void registerFilterCommand(CLI::App& app) {
                                         std::ptrdiff_t(splitList(args->chain).size()))
             throw Error("--chain '" + args->chain + "' has an empty method (two commas, or one at an end)");
         collectParameters(*command, *args);
+        // "-": the image comes from standard input or goes to standard output (in the input's format).
+        StandardStreams streams;
+        args->input = streams.input(args->input);
+        if (args->output == "-") {
+            if (args->json) throw Error("--json prints to standard output, which '-' takes for the image");
+            std::string extension = fs::path(args->input).extension().string();
+            std::transform(extension.begin(), extension.end(), extension.begin(),
+                           [](unsigned char c) { return char(std::tolower(c)); });
+            args->output = streams.output("-", extension);
+        }
         runFilter(*args, args->method.empty() ? args->chain : args->method);
+        streams.finish();
     });
 }
 

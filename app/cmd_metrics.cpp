@@ -19,6 +19,7 @@ namespace {
 
 struct MetricsArguments {
     std::string reference, test, mask, ssimMap, space = "auto";
+    std::string shownReference, shownTest;  // as the user named them ("-" for standard input)
     double dataRange = 0.0;
     bool json = false;
     RuntimeOptions runtime;
@@ -162,8 +163,8 @@ void runMetrics(const MetricsArguments& args) {
 
     if (args.json) {
         nlohmann::json out;
-        out["reference"] = args.reference;
-        out["test"] = args.test;
+        out["reference"] = args.shownReference;
+        out["test"] = args.shownTest;
         out["width"] = reference.width;
         out["height"] = reference.height;
         out["channels"] = reference.channelNames;
@@ -191,8 +192,8 @@ void runMetrics(const MetricsArguments& args) {
         std::printf("%s\n", out.dump().c_str());
         return;
     }
-    std::printf("reference  %s  (%s)\n", args.reference.c_str(), referenceDescription.c_str());
-    std::printf("test       %s  (%s)\n", args.test.c_str(), testDescription.c_str());
+    std::printf("reference  %s  (%s)\n", args.shownReference.c_str(), referenceDescription.c_str());
+    std::printf("test       %s  (%s)\n", args.shownTest.c_str(), testDescription.c_str());
     if (!matchedNote.empty()) std::printf("scored     %s, matched by name\n", matchedNote.c_str());
     if (!spaceNote.empty()) std::printf("space      %s\n", spaceNote.c_str());
     std::printf(
@@ -334,9 +335,12 @@ void registerMetricsCommand(CLI::App& app) {
         "|(X_t - X_t-1) - (R_t - R_t-1)| over consecutive frames, an 8- or 16-bit image's values taken\n"
         "as 0-1.");
     command
-        ->add_option("REF", args->reference, "reference image (the truth), or a sequence: folder or pattern")
+        ->add_option("REF", args->reference,
+                     "reference image (the truth), or a sequence: folder or pattern; - reads standard input")
         ->required();
-    command->add_option("TEST", args->test, "image to score, or a sequence: folder or pattern (f_%04d.png)")
+    command
+        ->add_option("TEST", args->test,
+                     "image to score, or a sequence: folder or pattern (f_%04d.png); - reads standard input")
         ->required();
     command->add_flag("--json", args->json, "print one JSON object (keys mse, rmse, psnr, snr, ssim, ...)");
     command->add_option("--ssim-map", args->ssimMap, "write the per-pixel SSIM map as a colour-mapped PNG");
@@ -357,7 +361,16 @@ void registerMetricsCommand(CLI::App& app) {
         ->check(CLI::IsMember({"auto", "srgb", "linear"}))
         ->capture_default_str();
     addRuntimeOptions(command, args->runtime);
-    command->callback([args] { runMetrics(*args); });
+    command->callback([args] {
+        // "-": one of the two images from standard input.
+        if (args->reference == "-" && args->test == "-") throw Error("REF and TEST cannot both be '-'");
+        StandardStreams streams;
+        MetricsArguments given = *args;
+        given.shownReference = args->reference, given.shownTest = args->test;
+        given.reference = streams.input(args->reference);
+        given.test = streams.input(args->test);
+        runMetrics(given);
+    });
 }
 
 }  // namespace dejag::cli

@@ -374,6 +374,43 @@ TEST(Cli, RenderWritesBuffersPreviewsTruthAndSidecar) {
 
 // The filter overwrites nothing unless asked: an existing output, of one image or any frame of a sequence,
 // is one error line before any work, the file untouched; --force overwrites.
+// "-": one image through standard input and output, in the input's format (told by its first bytes);
+// the bytes equal a run between files. Empty or foreign input, --json with "-" out, two "-" in metrics:
+// one line each.
+TEST(Cli, FilterAndMetricsTakeOneImageOnStandardStreams) {
+    testing::TempDir dir;
+    Image edge(40, 30, {"R", "G", "B"}, PixelType::UInt8);
+    for (int y = 0; y < 30; ++y)
+        for (int x = 0; x < 40; ++x)
+            for (int c = 0; c < 3; ++c) edge.at(x, y, c) = x * 3 > y * 4 ? 1.0f : 0.0f;
+    writeImage(dir.file("edge.png"), edge);
+    ASSERT_EQ(
+        run("filter --method fxaa --quiet '" + dir.file("edge.png") + "' '" + dir.file("file.png") + "'", dir)
+            .exitCode,
+        0);
+    RunResult r = run("filter --method fxaa --quiet - - <'" + dir.file("edge.png") + "'", dir);
+    ASSERT_EQ(r.exitCode, 0) << r.err;
+    EXPECT_EQ(r.out, slurp(dir.file("file.png")));
+    // An EXR in gives an EXR out.
+    writeImage(dir.file("edge.exr"), edge);
+    r = run("filter --method fxaa --quiet - - <'" + dir.file("edge.exr") + "'", dir);
+    ASSERT_EQ(r.exitCode, 0) << r.err;
+    EXPECT_EQ(r.out.compare(0, 4, std::string("\x76\x2f\x31\x01", 4)), 0);
+    r = run("metrics --json '" + dir.file("edge.png") + "' - <'" + dir.file("file.png") + "'", dir);
+    ASSERT_EQ(r.exitCode, 0) << r.err;
+    const nlohmann::json scored = nlohmann::json::parse(r.out);
+    EXPECT_EQ(scored["test"], "-");
+    r = run("metrics --json '" + dir.file("edge.png") + "' '" + dir.file("file.png") + "'", dir);
+    EXPECT_EQ(nlohmann::json::parse(r.out)["psnr"], scored["psnr"]);
+    expectOneLineError(run("filter --method fxaa - '" + dir.file("x.png") + "' </dev/null", dir), "is empty");
+    expectOneLineError(
+        run("filter --method fxaa - '" + dir.file("x.png") + "' <'" + dir.file("edge.png") + ".no'", dir,
+            "echo text >'" + dir.file("edge.png") + ".no';"),
+        "not a PNG, JPEG, TIFF or OpenEXR image");
+    expectOneLineError(run("filter --method fxaa --json '" + dir.file("edge.png") + "' -", dir), "--json");
+    expectOneLineError(run("metrics - - <'" + dir.file("edge.png") + "'", dir), "both be '-'");
+}
+
 TEST(Cli, FilterRefusesToOverwriteWithoutForce) {
     testing::TempDir dir;
     Image edge(40, 30, {"R", "G", "B"}, PixelType::UInt8);
