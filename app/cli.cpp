@@ -82,7 +82,7 @@ const std::map<std::string, std::string>& examples() {
         {"bench taa", "dejag bench taa --frames 32 --no-ghosting"},
         {"bench quality", "dejag bench quality --data out/dataset --no-1080p"},
         {"bench reach", "dejag bench reach --size 1280x720 --scenes atrium pipe"},
-        {"bench metrics", "dejag bench metrics --threads 1,2"},
+        {"bench metrics", "dejag bench metrics --thread-counts 1,2"},
         {"demo", "dejag demo --scenes atrium,flowers --size 640x360"},
     };
     return table;

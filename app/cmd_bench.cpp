@@ -29,14 +29,6 @@
 namespace dejag::cli {
 namespace {
 
-struct BenchArguments {
-    std::string size = "1920x1080";
-    int repeat = 15;
-    std::string threads = "1,2";
-    bool json = false;
-    RuntimeOptions runtime;
-};
-
 std::vector<int> parseThreadList(const std::string& text) {
     std::vector<int> threads;
     std::stringstream stream(text);
@@ -48,12 +40,41 @@ std::vector<int> parseThreadList(const std::string& text) {
             if (used != item.size() || value < 1 || value > 1024) throw std::invalid_argument(item);
             threads.push_back(value);
         } catch (const std::exception&) {
-            throw Error("--threads '" + text + "' is not a comma-separated list of thread counts (e.g. 1,2)");
+            throw Error("--thread-counts '" + text +
+                        "' is not a comma-separated list of thread counts (e.g. 1,2)");
         }
     }
-    if (threads.empty()) throw Error("--threads is empty");
+    if (threads.empty()) throw Error("--thread-counts is empty");
     return threads;
 }
+
+// A bench that sweeps thread counts: --thread-counts LIST (the sweep, 1,2 by default) or --threads N (one
+// count, as everywhere else).
+struct ThreadSweep {
+    std::string counts = "1,2";
+    int threads = 0;
+    CLI::Option* countsOption = nullptr;
+    void add(CLI::App* command) {
+        countsOption =
+            command->add_option("--thread-counts", counts, "the thread counts swept, comma-separated")
+                ->capture_default_str();
+        command->add_option("--threads", threads, "one thread count instead of the sweep")
+            ->check(CLI::Range(1, 1024));
+    }
+    std::vector<int> resolve() const {
+        if (threads > 0 && countsOption->count() > 0)
+            throw Error("give --threads or --thread-counts, not both");
+        return threads > 0 ? std::vector<int>{threads} : parseThreadList(counts);
+    }
+};
+
+struct BenchArguments {
+    std::string size = "1920x1080";
+    int repeat = 15;
+    ThreadSweep sweep;
+    bool json = false;
+    RuntimeOptions runtime;
+};
 
 void printRows(const std::vector<bench::Row>& rows, bool json) {
     if (json) {
@@ -165,7 +186,8 @@ void registerBenchCommand(CLI::App& app) {
 
     struct FilterBenchArguments {
         int repeat = 15;
-        std::string threads = "1,2", size = "1920x1080";
+        std::string size = "1920x1080";
+        ThreadSweep sweep;
         std::string temporalModel = "models/dejag-temporal.safetensors";
         std::string fastModel = "models/dejag-fast.safetensors,models/dejag-guided.safetensors";
         bool json = false;
@@ -177,8 +199,7 @@ void registerBenchCommand(CLI::App& app) {
     filterBench->add_option("--repeat", filterArgs->repeat, "timed runs per case (median reported)")
         ->check(CLI::Range(1, 10000))
         ->capture_default_str();
-    filterBench->add_option("--threads", filterArgs->threads, "comma-separated thread counts")
-        ->capture_default_str();
+    filterArgs->sweep.add(filterBench);
     filterBench->add_option("--size", filterArgs->size, "frame size WIDTHxHEIGHT")->capture_default_str();
     filterBench
         ->add_option("--temporal-model", filterArgs->temporalModel,
@@ -195,7 +216,7 @@ void registerBenchCommand(CLI::App& app) {
         const Size size = parseSize(filterArgs->size, "--size");
         options.width = size.width, options.height = size.height;
         options.repeat = filterArgs->repeat;
-        options.threads = parseThreadList(filterArgs->threads);
+        options.threads = filterArgs->sweep.resolve();
         options.temporalModel = filterArgs->temporalModel;
         if (!options.temporalModel.empty() && !std::filesystem::exists(options.temporalModel)) {
             if (filterBench->count("--temporal-model"))
@@ -709,7 +730,7 @@ void registerBenchCommand(CLI::App& app) {
     metrics->add_option("--repeat", args->repeat, "timed runs per case (median reported)")
         ->check(CLI::Range(1, 10000))
         ->capture_default_str();
-    metrics->add_option("--threads", args->threads, "comma-separated thread counts")->capture_default_str();
+    args->sweep.add(metrics);
     metrics->add_option("--simd", args->runtime.simd, "force a SIMD path: scalar, avx2 or avx512")
         ->check(CLI::IsMember({"scalar", "avx2", "avx512"}));
     metrics->add_flag("--json", args->json, "one JSON object per case");
@@ -720,7 +741,7 @@ void registerBenchCommand(CLI::App& app) {
         options.width = size.width;
         options.height = size.height;
         options.repeat = args->repeat;
-        options.threads = parseThreadList(args->threads);
+        options.threads = args->sweep.resolve();
         printRows(bench::benchMetrics(options), args->json);
     });
 }

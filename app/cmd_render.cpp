@@ -128,7 +128,7 @@ void runRender(const RenderArguments& args) {
     if (args.camera != "regular" && args.camera != "tilted")
         throw Error("--camera must be regular or tilted, not '" + args.camera + "'");
     if (args.filter != "box" && args.filter != "gaussian")
-        throw Error("--filter must be box or gaussian, not '" + args.filter + "'");
+        throw Error("--truth-filter must be box or gaussian, not '" + args.filter + "'");
     const Size size = parseSize(args.size, "--size");
     const render::BufferSet buffers = render::BufferSet::parse(args.buffers);
     render::SceneOptions sceneOptions;
@@ -152,7 +152,7 @@ void runRender(const RenderArguments& args) {
     truthOptions.tolerance = args.tolerance;
     truthOptions.pixelTolerance = args.pixelTolerance;
     truthOptions.tileSize = args.tile;
-    if (args.tile < 4 || args.tile > 256) throw Error("--tile must be 4..256 pixels");
+    if (args.tile < 4 || args.tile > 256) throw Error("--truth-tile must be 4..256 pixels");
     truthOptions.filter = args.filter == "box" ? render::PixelFilter::Box : render::PixelFilter::Gaussian;
 
     nlohmann::json sidecar;
@@ -276,8 +276,9 @@ void registerRenderCommand(CLI::App& app) {
     command
         ->add_option("--pixel-tolerance", args->pixelTolerance, "adaptive: largest standard error of a pixel")
         ->capture_default_str();
-    command->add_option("--tile", args->tile, "adaptive: tile size in pixels")->capture_default_str();
-    command->add_option("--filter", args->filter, "truth pixel filter: box | gaussian")
+    command->add_option("--truth-tile", args->tile, "adaptive: the truth's tile size in pixels")
+        ->capture_default_str();
+    command->add_option("--truth-filter", args->filter, "the truth's pixel filter: box | gaussian")
         ->capture_default_str();
     command->add_option("--msaa", args->msaa, "multisample the colour: 1 (off), 2, 4, 8")
         ->capture_default_str();

@@ -417,17 +417,26 @@ int main(int argc, char** argv) {
             json = true;
         else if (arg == "--repeat" && i + 1 < argc)
             repeat = std::max(1, std::atoi(argv[++i]));
-        else if (arg == "--threads" && i + 1 < argc) {
+        else if ((arg == "--thread-counts" || arg == "--threads") && i + 1 < argc) {
+            // --thread-counts 1,2 sweeps; --threads N is one count (as everywhere in dejag).
+            const std::string value = argv[++i];
+            if (arg == "--threads" && value.find(',') != std::string::npos) {
+                std::fprintf(stderr,
+                             "dejag bench nn: --threads takes one count; sweep with --thread-counts %s\n",
+                             value.c_str());
+                return 2;
+            }
             threadCounts.clear();
-            for (char* t = std::strtok(argv[++i], ","); t; t = std::strtok(nullptr, ","))
+            for (char* t = std::strtok(argv[i], ","); t; t = std::strtok(nullptr, ","))
                 threadCounts.push_back(std::max(1, std::atoi(t)));
         } else if (arg == "--case" && i + 1 < argc)
             only = argv[++i];
         else if (arg == "--help" || arg == "-h") {
             std::printf(
-                "dejag bench nn [--json] [--repeat N] [--threads 1,2] [--case NAME]\n"
+                "dejag bench nn [--json] [--repeat N] [--thread-counts 1,2 | --threads N] [--case NAME]\n"
                 "dejag's fast convolution vs oneDNN and libtorch; median ms, GMAC/s, fraction of the\n"
-                "measured FMA peak, and peer time / dejag time (above 1: dejag is faster).\n");
+                "measured FMA peak, and peer time / dejag time (above 1: dejag is faster).\n"
+                "Example: dejag bench nn --case conv3x3 --threads 2\n");
             return 0;
         } else {
             std::fprintf(stderr, "dejag bench nn: unknown argument '%s' (see --help)\n", arg.c_str());

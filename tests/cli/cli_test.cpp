@@ -307,6 +307,14 @@ TEST(Cli, BenchMetricsRunsSmallAndPrintsJson) {
         ++rows;
     }
     EXPECT_EQ(rows, 2);
+    // A sweep is --thread-counts; --threads is one count, as in every other command.
+    const RunResult sweep = run("bench metrics --size 64x48 --repeat 1 --thread-counts 1,2 --json", dir);
+    ASSERT_EQ(sweep.exitCode, 0) << sweep.err;
+    EXPECT_EQ(jsonLines(sweep.out).size(), 4u);
+    EXPECT_EQ(jsonLines(sweep.out).back()["threads"], 2);
+    expectOneLineError(run("bench metrics --threads 1 --thread-counts 1,2", dir), "not both");
+    expectOneLineError(run("bench metrics --threads 1,2", dir), "--threads");
+    expectOneLineError(run("bench metrics --thread-counts 1,x", dir), "--thread-counts '1,x'");
 }
 
 TEST(Cli, BenchNnRunsTheKernelBenchmarkWithPeers) {
