@@ -206,9 +206,9 @@ void registerBenchCommand(CLI::App& app) {
                      "the temporal network timed as dejag-temporal ('' or a missing default: not timed)")
         ->capture_default_str();
     filterBench
-        ->add_option("--fast-model", filterArgs->fastModel,
-                     "single-frame networks timed, comma-separated, each named by its file's stem ('' or a "
-                     "missing default: none)")
+        ->add_option("--models", filterArgs->fastModel,
+                     "single-frame networks timed, comma-separated files or shipped names, each named by its "
+                     "file's stem ('' or a missing default: none)")
         ->capture_default_str();
     filterBench->add_flag("--json", filterArgs->json, "one JSON object per case");
     filterBench->callback([filterArgs, filterBench] {
@@ -223,11 +223,11 @@ void registerBenchCommand(CLI::App& app) {
                 throw Error("--temporal-model: no model file " + options.temporalModel);
             options.temporalModel.clear();  // the shipped model is timed when it is there
         }
-        for (const std::string& model : splitList(filterArgs->fastModel)) {
+        for (const std::string& model : shippedModelPaths(splitList(filterArgs->fastModel))) {
             if (std::filesystem::exists(model))
                 options.frameModels.push_back(model);
-            else if (filterBench->count("--fast-model"))
-                throw Error("--fast-model: no model file " + model);  // a missing default is skipped
+            else if (filterBench->count("--models"))
+                throw Error("--models: no model file " + model);  // a missing default is skipped
         }
         const std::vector<nlohmann::json> rows = bench::benchFilters(options);
         if (filterArgs->json) {
@@ -634,7 +634,9 @@ void registerBenchCommand(CLI::App& app) {
     qualityBench->add_option("--models", *qualityModels, "comma-separated model files")
         ->capture_default_str();
     qualityBench->add_option("--out", quality->out, "report folder")->capture_default_str();
-    qualityBench->add_option("--limit", quality->limit, "test items (0: all)")->capture_default_str();
+    qualityBench
+        ->add_option("--test-images", quality->limit, "test images scored, spread over the split (0: all)")
+        ->capture_default_str();
     qualityBench->add_option("--repeat", quality->repeat, "timing repeats")->capture_default_str();
     qualityBench->add_option("--report-items", quality->reportItems, "frames shown with crops in the report")
         ->capture_default_str();
@@ -675,10 +677,10 @@ void registerBenchCommand(CLI::App& app) {
         ->check(CLI::Range(1, 4096))
         ->capture_default_str();
     reach
-        ->add_option(
-            "--fast-model", reachArgs->fastModel,
-            "single-frame networks compared, comma-separated, each named by its file's stem ('' or a missing "
-            "default: none)")
+        ->add_option("--models", reachArgs->fastModel,
+                     "single-frame networks compared, comma-separated files or shipped names, each named by "
+                     "its file's "
+                     "stem ('' or a missing default: none)")
         ->capture_default_str();
     reach->add_flag("--json", reachArgs->json, "one JSON object per row");
     reach->add_flag("--quiet", reachArgs->quiet, "no progress bar");
@@ -693,11 +695,11 @@ void registerBenchCommand(CLI::App& app) {
             render::buildScene(scene, {});  // unknown: one line, now
         options.truthSamples = reachArgs->truth;
         options.quiet = reachArgs->quiet || reachArgs->json;
-        for (const std::string& model : splitList(reachArgs->fastModel)) {
+        for (const std::string& model : shippedModelPaths(splitList(reachArgs->fastModel))) {
             if (std::filesystem::exists(model))
                 options.fastModels.push_back(model);
-            else if (reach->count("--fast-model"))
-                throw Error("--fast-model: no model file " + model);  // a missing default is skipped
+            else if (reach->count("--models"))
+                throw Error("--models: no model file " + model);  // a missing default is skipped
         }
         const std::vector<nlohmann::json> rows = bench::benchReach(options);
         if (reachArgs->json) {

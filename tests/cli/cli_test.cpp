@@ -843,7 +843,7 @@ TEST(Cli, FilterListsItsMethodsAndRefusesParametersNoMethodReads) {
 
 TEST(Cli, BenchFilterPrintsEveryMethod) {
     testing::TempDir dir;
-    const RunResult r = run("bench filter --size 96x64 --repeat 1 --threads 1 --json", dir);
+    const RunResult r = run("bench filter --size 96x64 --repeat 1 --threads 1 --json --models ''", dir);
     ASSERT_EQ(r.exitCode, 0) << r.err;
     std::vector<std::string> names;
     for (const nlohmann::json& j : jsonLines(r.out)) {
@@ -859,7 +859,7 @@ TEST(Cli, BenchFilterPrintsEveryMethod) {
     // A guided single-frame network: gated and ungated, with its guide method timed and given.
     const RunResult g =
         run("bench filter --size 96x64 --repeat 1 --threads 1 --json --temporal-model '' "
-            "--fast-model '" DEJAG_SOURCE_DIR "/models/dejag-guided.safetensors'",
+            "--models '" DEJAG_SOURCE_DIR "/models/dejag-guided.safetensors'",
             dir);
     ASSERT_EQ(g.exitCode, 0) << g.err;
     std::set<std::string> networks;
@@ -871,12 +871,12 @@ TEST(Cli, BenchFilterPrintsEveryMethod) {
     for (const char* name : {"dejag-guided fp32", "dejag-guided fp32 (smaa given)",
                              "dejag-guided fp32 ungated", "dejag-guided fp32 ungated (smaa given)"})
         EXPECT_TRUE(networks.count(name)) << name;
-    expectOneLineError(run("bench filter --size 96x64 --fast-model nowhere.safetensors", dir), "nowhere");
+    expectOneLineError(run("bench filter --size 96x64 --models nowhere.safetensors", dir), "nowhere");
 }
 
 TEST(Cli, BenchReachScoresEdgePixelsByRunLength) {
     testing::TempDir dir;
-    const RunResult r = run("bench reach --size 200x120 --scenes pipe --truth 4 --fast-model '' --json", dir);
+    const RunResult r = run("bench reach --size 200x120 --scenes pipe --truth 4 --models '' --json", dir);
     ASSERT_EQ(r.exitCode, 0) << r.err;
     std::set<std::string> methods, runs;
     int rows = 0;
