@@ -380,17 +380,21 @@ TEST(Cli, RenderWritesBuffersPreviewsTruthAndSidecar) {
                        "already holds 'frame_0000.exr'");
 }
 
-// The filter overwrites nothing unless asked: an existing output, of one image or any frame of a sequence,
-// is one error line before any work, the file untouched; --force overwrites.
+// A 40x30 8-bit RGB image of a slanted black and white edge.
+Image slantedEdge() {
+    Image edge(40, 30, {"R", "G", "B"}, PixelType::UInt8);
+    for (int y = 0; y < 30; ++y)
+        for (int x = 0; x < 40; ++x)
+            for (int c = 0; c < 3; ++c) edge.at(x, y, c) = x * 3 > y * 4 ? 1.0f : 0.0f;
+    return edge;
+}
+
 // "-": one image through standard input and output, in the input's format (told by its first bytes);
 // the bytes equal a run between files. Empty or foreign input, --json with "-" out, two "-" in metrics:
 // one line each.
 TEST(Cli, FilterAndMetricsTakeOneImageOnStandardStreams) {
     testing::TempDir dir;
-    Image edge(40, 30, {"R", "G", "B"}, PixelType::UInt8);
-    for (int y = 0; y < 30; ++y)
-        for (int x = 0; x < 40; ++x)
-            for (int c = 0; c < 3; ++c) edge.at(x, y, c) = x * 3 > y * 4 ? 1.0f : 0.0f;
+    const Image edge = slantedEdge();
     writeImage(dir.file("edge.png"), edge);
     ASSERT_EQ(
         run("filter --method fxaa --quiet '" + dir.file("edge.png") + "' '" + dir.file("file.png") + "'", dir)
@@ -419,12 +423,11 @@ TEST(Cli, FilterAndMetricsTakeOneImageOnStandardStreams) {
     expectOneLineError(run("metrics - - <'" + dir.file("edge.png") + "'", dir), "both be '-'");
 }
 
+// The filter overwrites nothing unless asked: an existing output, of one image or any frame of a sequence,
+// is one error line before any work, the file untouched; --force overwrites.
 TEST(Cli, FilterRefusesToOverwriteWithoutForce) {
     testing::TempDir dir;
-    Image edge(40, 30, {"R", "G", "B"}, PixelType::UInt8);
-    for (int y = 0; y < 30; ++y)
-        for (int x = 0; x < 40; ++x)
-            for (int c = 0; c < 3; ++c) edge.at(x, y, c) = x * 3 > y * 4 ? 1.0f : 0.0f;
+    const Image edge = slantedEdge();
     std::filesystem::create_directories(dir.file("in"));
     for (const char* name : {"edge.png", "in/f_0001.png", "in/f_0002.png", "in/f_0003.png"})
         writeImage(dir.file(name), edge);
@@ -1082,19 +1085,22 @@ TEST(Cli, TrainAfterAnInputMethodRecordsIt) {
                        "--guide-method");
 }
 
+// Nine 64x64 items of three families, foliage held out for the test split: a dataset for short runs.
+int generateTinyDataset(const std::string& folder, const testing::TempDir& dir) {
+    return run("data generate --families shapes,pipes,foliage --test-families foliage --count 9 --size 64x64 "
+               "--truth 8 --quiet --out '" +
+                   folder + "'",
+               dir)
+        .exitCode;
+}
+
 // On a terminal (a pseudo-terminal from script(1)) the training progress bar and the log lines share the
 // screen cleanly: a log line clears the bar first, so no line shows both. After --resume the bar's rate
 // counts only the new steps.
 TEST(Cli, TrainProgressBarAndLogLinesShareATerminal) {
     testing::TempDir dir;
     const std::string data = dir.file("data"), runFolder = dir.file("run");
-    ASSERT_EQ(
-        run("data generate --families shapes,pipes,foliage --test-families foliage --count 9 --size 64x64 "
-            "--truth 8 --quiet --out '" +
-                data + "'",
-            dir)
-            .exitCode,
-        0);
+    ASSERT_EQ(generateTinyDataset(data, dir), 0);
     auto onTerminal = [&](int steps, bool resume) {
         const std::string screen = dir.file("screen.txt");
         const std::string command =
@@ -1152,13 +1158,7 @@ TEST(Cli, TrainProgressBarAndLogLinesShareATerminal) {
 TEST(Cli, TrainLogsJsonResumesAndExportsAModelCard) {
     testing::TempDir dir;
     const std::string data = dir.file("data"), runFolder = dir.file("run");
-    ASSERT_EQ(
-        run("data generate --families shapes,pipes,foliage --test-families foliage --count 9 --size 64x64 "
-            "--truth 8 --quiet --out '" +
-                data + "'",
-            dir)
-            .exitCode,
-        0);
+    ASSERT_EQ(generateTinyDataset(data, dir), 0);
     const std::string train =
         "train --data '" + data + "' --out '" + runFolder +
         "' --arch fast --steps 8 --batch 2 --patch 32 --eval-every 4 --checkpoint-every 4 "
