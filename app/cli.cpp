@@ -84,6 +84,7 @@ const std::map<std::string, std::string>& examples() {
         {"bench reach", "dejag bench reach --size 1280x720 --scenes atrium pipe"},
         {"bench metrics", "dejag bench metrics --thread-counts 1,2"},
         {"demo", "dejag demo --scenes atrium,flowers --size 640x360"},
+        {"completion", "dejag completion bash > ~/.local/share/bash-completion/completions/dejag"},
     };
     return table;
 }

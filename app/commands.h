@@ -12,5 +12,6 @@ void registerDataCommand(CLI::App& app);
 void registerTrainCommand(CLI::App& app);
 void registerDemoCommand(CLI::App& app);
 void registerFilterCommand(CLI::App& app);
+void registerCompletionCommand(CLI::App& app);
 
 }  // namespace dejag::cli

@@ -74,6 +74,7 @@ int main(int argc, char** argv) {
     dejag::cli::registerMetricsCommand(app);
     dejag::cli::registerBenchCommand(app);
     dejag::cli::registerDemoCommand(app);
+    dejag::cli::registerCompletionCommand(app);
     dejag::cli::guardNumericOptions(app);
     dejag::cli::finishHelp(app);
 

@@ -31,6 +31,15 @@ std::vector<nlohmann::json> jsonLines(const std::string& out) {
     return objects;
 }
 
+// A 40x30 8-bit RGB image of a slanted black and white edge.
+Image slantedEdge() {
+    Image edge(40, 30, {"R", "G", "B"}, PixelType::UInt8);
+    for (int y = 0; y < 30; ++y)
+        for (int x = 0; x < 40; ++x)
+            for (int c = 0; c < 3; ++c) edge.at(x, y, c) = x * 3 > y * 4 ? 1.0f : 0.0f;
+    return edge;
+}
+
 // --version: the version, the build (type and compiler) and every SIMD level this CPU can run, best first.
 TEST(Cli, VersionNamesTheBuildAndTheCpusSimdLevels) {
     testing::TempDir dir;
@@ -48,10 +57,26 @@ TEST(Cli, VersionNamesTheBuildAndTheCpusSimdLevels) {
 // (an acronym or a placeholder such as WxH may stay in capitals).
 TEST(Cli, EveryHelpHasAnExampleAndOneCapitalisation) {
     testing::TempDir dir;
-    for (const char* command :
-         {"", "render", "data", "data generate", "data verify", "data stats", "train", "train export",
-          "filter", "metrics", "bench", "bench render", "bench filter", "bench stability", "bench taa",
-          "bench quality", "bench reach", "bench metrics", "demo"}) {
+    for (const char* command : {"",
+                                "render",
+                                "data",
+                                "data generate",
+                                "data verify",
+                                "data stats",
+                                "train",
+                                "train export",
+                                "filter",
+                                "metrics",
+                                "bench",
+                                "bench render",
+                                "bench filter",
+                                "bench stability",
+                                "bench taa",
+                                "bench quality",
+                                "bench reach",
+                                "bench metrics",
+                                "demo",
+                                "completion"}) {
         SCOPED_TRACE(command);
         const RunResult r = run(std::string(command) + " --help", dir);
         ASSERT_EQ(r.exitCode, 0) << r.err;
@@ -73,6 +98,49 @@ TEST(Cli, EveryHelpHasAnExampleAndOneCapitalisation) {
                 << line;
         }
     }
+}
+
+// `dejag completion bash` completes subcommands and each command's flags, nested ones too; any other shell
+// is one error line.
+TEST(Cli, BashCompletionCompletesCommandsAndTheirFlags) {
+    testing::TempDir dir;
+    const std::string script = dir.file("complete.sh");
+    std::ofstream(script)
+        << "source <('" << DEJAG_BINARY
+        << "' completion bash) || exit 1\n"
+           "t() { COMP_WORDS=(\"$@\"); COMP_CWORD=$((${#COMP_WORDS[@]} - 1)); _dejag; "
+           "echo \"${COMPREPLY[*]}\"; }\n"
+           "t dejag fil\nt dejag filter --me\nt dejag bench q\nt dejag bench filter --thread\n"
+           "t dejag data generate --fam\nt dejag --thr\n";
+    const std::string out = dir.file("out.txt");
+    ASSERT_EQ(std::system(("bash '" + script + "' >'" + out + "'").c_str()), 0);
+    EXPECT_EQ(slurp(out), "filter\n--method\nquality\n--thread-counts --threads\n--families\n\n");
+    expectOneLineError(run("completion zsh", dir), "'zsh' is not a shell dejag completes");
+}
+
+// `cmake --install` (into a prefix of the test's own) puts the binary, the shipped models and their cards,
+// the bash completion and the man page in place; the installed binary finds the models by name.
+TEST(Cli, InstallPutsTheBinaryModelsCompletionAndManPage) {
+    testing::TempDir dir;
+    const std::string build = std::filesystem::path(DEJAG_BINARY).parent_path().string();  // the build tree
+    const std::string prefix = dir.file("prefix");
+    ASSERT_EQ(std::system(("cmake --install '" + build + "' --prefix '" + prefix + "' >/dev/null").c_str()),
+              0);
+    for (const char* file :
+         {"bin/dejag", "share/dejag/models/dejag-fast.safetensors", "share/dejag/models/dejag-fast.md",
+          "share/dejag/models/dejag-guided.safetensors", "share/bash-completion/completions/dejag",
+          "share/man/man1/dejag.1"})
+        EXPECT_TRUE(std::filesystem::is_regular_file(prefix + "/" + file)) << file;
+    EXPECT_NE(slurp(prefix + "/share/man/man1/dejag.1").find("learns to remove aliasing"), std::string::npos);
+    writeImage(dir.file("edge.png"), slantedEdge());
+    const std::string command =
+        "cd '" + dir.path().string() + "' && '" + prefix +
+        "/bin/dejag' filter --method cnn --model dejag-guided --json edge.png out.png >'" +
+        dir.file("run.json") + "'";
+    ASSERT_EQ(std::system(command.c_str()), 0);
+    EXPECT_NE(slurp(dir.file("run.json")).find(prefix + "/share/dejag/models/dejag-guided.safetensors"),
+              std::string::npos)
+        << slurp(dir.file("run.json"));
 }
 
 TEST(Cli, MetricsJsonHasTheDocumentedKeys) {
@@ -378,15 +446,6 @@ TEST(Cli, RenderWritesBuffersPreviewsTruthAndSidecar) {
     std::filesystem::copy_file(out + "/frame_0000.exr", loose + "/frame_0000.exr");
     expectOneLineError(run("render --scene pipe --size 64x48 --out '" + loose + "'", dir),
                        "already holds 'frame_0000.exr'");
-}
-
-// A 40x30 8-bit RGB image of a slanted black and white edge.
-Image slantedEdge() {
-    Image edge(40, 30, {"R", "G", "B"}, PixelType::UInt8);
-    for (int y = 0; y < 30; ++y)
-        for (int x = 0; x < 40; ++x)
-            for (int c = 0; c < 3; ++c) edge.at(x, y, c) = x * 3 > y * 4 ? 1.0f : 0.0f;
-    return edge;
 }
 
 // "-": one image through standard input and output, in the input's format (told by its first bytes);
