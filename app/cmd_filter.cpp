@@ -32,7 +32,7 @@ namespace {
 namespace fs = std::filesystem;
 
 struct FilterArguments {
-    std::string method, chain, input, output;
+    std::string method, chain, input, output, out;  // out: --out, the output as every command names it
     std::string model = "models/dejag-fast.safetensors", gate = "auto", precision = "auto";
     int tile = 2048;
     std::string preset = "39";
@@ -457,6 +457,7 @@ void registerFilterCommand(CLI::App& app) {
         "output", args->output,
         "image, folder or pattern (out/f_%04d.exr); its extension decides what it holds; - writes "
         "the image to standard output in the input's format");
+    command->add_option("--out", args->out, "the output, as the positional OUTPUT (one of the two)");
     command->add_flag("--json", args->json, "print per-frame timing (and gating) as JSON");
     command->add_flag("--quiet", args->quiet, "no progress bar");
     command->add_flag("--force", args->force,
@@ -487,6 +488,10 @@ void registerFilterCommand(CLI::App& app) {
     command->callback([args, command] {
         if (args->listMethods) return listMethods(args->json);
         applyRuntimeOptions(args->runtime);
+        if (!args->out.empty()) {
+            if (!args->output.empty()) throw Error("give OUTPUT or --out, not both");
+            args->output = args->out;
+        }
         if (args->input.empty() || args->output.empty())
             throw Error("give INPUT and OUTPUT (or --list-methods)");
         if (args->method.empty() == args->chain.empty()) throw Error("give --method M or --chain M1,M2,...");

@@ -502,6 +502,17 @@ TEST(Cli, FilterRefusesToOverwriteWithoutForce) {
                   .exitCode,
               0);
     EXPECT_NE(slurp(dir.file("out.png")), kept);
+    // --out names the output as in every other command; the positional and --out together are refused.
+    ASSERT_EQ(run("filter --method fxaa --quiet '" + dir.file("edge.png") + "' --out '" +
+                      dir.file("named.png") + "'",
+                  dir)
+                  .exitCode,
+              0);
+    EXPECT_EQ(slurp(dir.file("named.png")), slurp(dir.file("out.png")));
+    expectOneLineError(run("filter --method fxaa '" + dir.file("edge.png") + "' '" + dir.file("a.png") +
+                               "' --out '" + dir.file("b.png") + "'",
+                           dir),
+                       "not both");
     // A sequence: the second and third frames' outputs exist; the first is not written either.
     std::filesystem::create_directories(dir.file("out"));
     writeImage(dir.file("out/g_0002.png"), edge);
