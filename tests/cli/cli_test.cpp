@@ -492,26 +492,19 @@ TEST(Cli, FilterRefusesToOverwriteWithoutForce) {
         writeImage(dir.file(name), edge);
     writeImage(dir.file("out.png"), edge);
     const std::string kept = slurp(dir.file("out.png"));
-    expectOneLineError(
-        run("filter --method fxaa '" + dir.file("edge.png") + "' '" + dir.file("out.png") + "'", dir),
-        "out.png' exists; add --force to overwrite");
+    auto fxaa = [&](const std::string& arguments) {
+        return run("filter --method fxaa --quiet " + arguments, dir);
+    };
+    const std::string input = "'" + dir.file("edge.png") + "' ";
+    expectOneLineError(fxaa(input + "'" + dir.file("out.png") + "'"),
+                       "out.png' exists; add --force to overwrite");
     EXPECT_EQ(slurp(dir.file("out.png")), kept);
-    ASSERT_EQ(run("filter --method fxaa --quiet --force '" + dir.file("edge.png") + "' '" +
-                      dir.file("out.png") + "'",
-                  dir)
-                  .exitCode,
-              0);
+    ASSERT_EQ(fxaa("--force " + input + "'" + dir.file("out.png") + "'").exitCode, 0);
     EXPECT_NE(slurp(dir.file("out.png")), kept);
     // --out names the output as in every other command; the positional and --out together are refused.
-    ASSERT_EQ(run("filter --method fxaa --quiet '" + dir.file("edge.png") + "' --out '" +
-                      dir.file("named.png") + "'",
-                  dir)
-                  .exitCode,
-              0);
+    ASSERT_EQ(fxaa(input + "--out '" + dir.file("named.png") + "'").exitCode, 0);
     EXPECT_EQ(slurp(dir.file("named.png")), slurp(dir.file("out.png")));
-    expectOneLineError(run("filter --method fxaa '" + dir.file("edge.png") + "' '" + dir.file("a.png") +
-                               "' --out '" + dir.file("b.png") + "'",
-                           dir),
+    expectOneLineError(fxaa(input + "'" + dir.file("a.png") + "' --out '" + dir.file("b.png") + "'"),
                        "not both");
     // A sequence: the second and third frames' outputs exist; the first is not written either.
     std::filesystem::create_directories(dir.file("out"));
