@@ -23,6 +23,7 @@
 #include "base/thread_pool.h"
 #include "base/timer.h"
 #include "data/image.h"
+#include "data/video.h"
 #include "infer/filter.h"
 #include "nn/model.h"
 
@@ -39,6 +40,8 @@ struct FilterArguments {
     bool greenLuma = false, json = false, noSharpen = false, quiet = false, listMethods = false;
     bool motionBlur = false, force = false;
     float motionBlurScale = 1.0f;
+    std::string codec;  // video output: a FOURCC, "" for the extension's default (data/video.h)
+    double fps = 0;     // video output from images: frames per second (0: 30)
     std::vector<std::string> settings;  // --set NAME=VALUE
     std::string channelPreset = "dejag";
     std::vector<std::string> channels;   // --channel BUFFER=NAMES
@@ -169,6 +172,81 @@ PixelType outputStorage(const std::string& out, PixelType input, bool* decode) {
     return input;
 }
 
+// A video in: its frames decoded one ahead on a thread of their own, filtered in order, and written as a
+// video (encoded one behind) or as images (OUTPUT a pattern or a folder: frame_NNNN.png, from 0).
+void runVideoFilter(FilterArguments& args, const std::string& methods, infer::Filter& filter,
+                    infer::FrameOptions frameOptions) {
+    VideoReader reader(args.input);
+    const VideoInfo info = reader.info();
+    const bool videoOut = isVideoPath(args.output);
+    const bool patternOut = !videoOut && isPattern(args.output);
+    if (!videoOut && !patternOut && fs::exists(args.output) && !fs::is_directory(args.output))
+        throw Error("input '" + args.input + "' is a video: OUTPUT '" + args.output +
+                    "' must be a video, a folder or a pattern (out/f_%04d.png)");
+    const auto framePath = [&](int64_t index) {
+        return patternOut ? formatPattern(args.output, int(index))
+                          : (fs::path(args.output) / formatPattern("frame_%04d.png", int(index))).string();
+    };
+    const std::string firstOutput = videoOut ? args.output : framePath(0);
+    if (!args.force && fs::exists(firstOutput))
+        throw Error("'" + firstOutput + "' exists; add --force to overwrite");
+    frameOptions.keepExtraChannels = false;
+    frameOptions.depthFar = 1.0;
+    const double fps = args.fps > 0 ? args.fps : info.fps > 0 ? info.fps : 30.0;
+    std::unique_ptr<VideoWriter> writer;
+    if (videoOut) {
+        makeParentFolder(args.output);
+        writer = std::make_unique<VideoWriter>(args.output, info.width, info.height, fps, args.codec);
+    } else if (!args.codec.empty()) {
+        throw Error("--codec names a video codec, and OUTPUT '" + args.output + "' is images");
+    }
+
+    Progress progress("filter " + methods, std::max<int64_t>(info.frameCount, 1), args.json || args.quiet);
+    const auto decode = [&reader](Image* into) { return reader.read(*into); };
+    Image frames[2];
+    std::future<bool> next = std::async(std::launch::async, decode, &frames[0]);
+    std::future<void> lastWrite;
+    std::vector<float> out;
+    double msSum = 0;
+    int64_t index = 0;
+    for (;; ++index) {
+        Image& image = frames[index % 2];
+        if (!next.get()) break;
+        // The next frame decodes into the other buffer, which the previous write has finished with.
+        if (lastWrite.valid()) lastWrite.get();
+        next = std::async(std::launch::async, decode, &frames[(index + 1) % 2]);
+        const std::string label = args.input + " frame " + std::to_string(index);
+        infer::FrameData data = infer::frameFromImage(image, frameOptions, label);
+        out.resize(data.colour.size());
+        filter.apply(data.frame(), out.data());
+        msSum += filter.figures().ms;
+        Image result(image.width, image.height, data.colourNames, PixelType::UInt8);
+        result.pixels.swap(out);
+        requireFiniteOutput(result, label, methods);
+        if (writer) {
+            lastWrite = std::async(std::launch::async,
+                                   [&writer, result = std::move(result)] { writer->write(result); });
+        } else {
+            const std::string path = framePath(index);
+            if (index == 0) makeParentFolder(path);
+            lastWrite = writeBehind(path, std::move(result));
+        }
+        progress.advance(1);
+    }
+    if (lastWrite.valid()) lastWrite.get();
+    if (index == 0) throw Error("'" + args.input + "' holds no frame FFmpeg can decode");
+    if (writer) writer->close();
+    progress.setTotal(index);
+    progress.finish();
+    if (!args.json) return;
+    nlohmann::json summary = {
+        {"input", args.input}, {"output", args.output},     {"method", methods},
+        {"frames", index},     {"width", info.width},       {"height", info.height},
+        {"fps", fps},          {"input_codec", info.codec}, {"ms_mean", msSum / double(index)}};
+    if (writer) summary["codec"] = writer->codec();
+    std::printf("%s\n", summary.dump().c_str());
+}
+
 // Every method, one face: frames from any sequence (colour and the buffers the methods use, channel
 // names mapped), filtered in order, written as OUTPUT says.
 void runFilter(FilterArguments& args, const std::string& methods) {
@@ -190,9 +268,33 @@ void runFilter(FilterArguments& args, const std::string& methods) {
     for (const std::string& c : args.channels) frameOptions.channels.assign(c);
     frameOptions.required = filter->needs();
     frameOptions.wanted = filter->uses();
-    const std::vector<FramePair> pairs = framePairs(args.input, args.output);
+    if (isVideoPath(args.input)) {
+        if (temporal)
+            throw Error(methods +
+                        " needs the depth and motion of each frame, which a video does not hold; "
+                        "a video takes the single-frame methods");
+        return runVideoFilter(args, methods, *filter, frameOptions);
+    }
+    // Images in, a video out: the frames go to one encoder instead of one file each.
+    const bool videoOut = isVideoPath(args.output);
+    if (!videoOut && !args.codec.empty())
+        throw Error("--codec names a video codec, and OUTPUT '" + args.output + "' is not a video");
+    if (videoOut && !args.force && fs::exists(args.output))
+        throw Error("'" + args.output + "' exists; add --force to overwrite");
+    std::vector<FramePair> pairs;
+    if (!videoOut) {
+        pairs = framePairs(args.input, args.output);
+    } else if (isPattern(args.input) || fs::is_directory(args.input)) {
+        for (const SequenceFrame& f : listSequence(args.input))
+            pairs.push_back({f.path, args.output, f.number});
+    } else {
+        requireReadableFile(args.input);
+        pairs.push_back({args.input, args.output, trailingNumber(args.input)});
+    }
+    if (pairs.empty()) throw Error("'" + args.input + "' holds no frames");
+    std::unique_ptr<VideoWriter> video;
     // Nothing is overwritten unless asked: every output is checked before the first frame is read.
-    if (!args.force) {
+    if (!args.force && !videoOut) {
         int existing = 0;
         std::string first;
         std::error_code error;
@@ -298,10 +400,19 @@ void runFilter(FilterArguments& args, const std::string& methods) {
         frames.push_back(record);
         if (lastWrite.valid()) lastWrite.get();  // the previous frame's write error, if any, first
         makeParentFolder(pair.output);
-        lastWrite = writeBehind(pair.output, std::move(result));
+        if (videoOut) {
+            if (!video)
+                video = std::make_unique<VideoWriter>(args.output, result.width, result.height,
+                                                      args.fps > 0 ? args.fps : 30.0, args.codec);
+            lastWrite = std::async(std::launch::async,
+                                   [&video, result = std::move(result)] { video->write(result); });
+        } else {
+            lastWrite = writeBehind(pair.output, std::move(result));
+        }
         progress.advance(1);
     }
     lastWrite.get();
+    if (video) video->close();
     progress.finish();
     if (!args.json) return;
     nlohmann::json summary;
@@ -451,26 +562,37 @@ void registerFilterCommand(CLI::App& app) {
         ->check(CLI::Range(1e-9, 1e30));
     command->add_option(
         "input", args->input,
-        "image, folder of images, or sequence pattern (frame_%04d.exr); - reads one image from "
+        "image, video, folder of images, or sequence pattern (frame_%04d.exr); - reads one image from "
         "standard input");
     command->add_option(
         "output", args->output,
-        "image, folder or pattern (out/f_%04d.exr); its extension decides what it holds; - writes "
+        "image, video, folder or pattern (out/f_%04d.exr); its extension decides what it holds; - writes "
         "the image to standard output in the input's format");
     command->add_option("--out", args->out, "the output, as the positional OUTPUT (one of the two)");
+    command->add_option("--codec", args->codec,
+                        "video OUTPUT: FOURCC of the codec (default by extension: .mkv FFV1 lossless, "
+                        ".mp4/.mov avc1, .avi MJPG)");
+    command
+        ->add_option("--fps", args->fps,
+                     "video OUTPUT from images: frames per second (default 30; a "
+                     "video input keeps its own)")
+        ->check(CLI::Range(0.001, 1000.0));
     command->add_flag("--json", args->json, "print per-frame timing (and gating) as JSON");
     command->add_flag("--quiet", args->quiet, "no progress bar");
     command->add_flag("--force", args->force,
                       "overwrite outputs that exist (without it, refused before any work)");
     addRuntimeOptions(command, args->runtime);
     command->footer(
-        "INPUT/OUTPUT: single images (PNG, JPEG, TIFF, EXR), folders (every image, same names), "
-        "printf-style\n"
+        "INPUT/OUTPUT: single images (PNG, JPEG, TIFF, EXR), videos (.mp4 .mov .mkv .avi), folders (every\n"
+        "image, same names), printf-style\n"
         "sequences (frame_%04d.exr: every number that exists, in order; a gap is an error), or a folder\n"
         "written by dejag render (its frame_NNNN.exr, its render.json for the far plane and the jitter).\n"
         "Files are written atomically, and hidden files are not frames; a sequence reads one frame ahead "
         "and\n"
         "writes one behind while it filters (the ms of --json share the cores with that file I/O).\n"
+        "A video is filtered frame by frame by the single-frame methods (8-bit sRGB, no buffers), keeping\n"
+        "its size and frame rate, into a video (--codec; .mkv is lossless FFV1) or images; a folder or\n"
+        "sequence of images goes into a video at --fps. docs/video.md.\n"
         "Every method runs on sRGB-encoded colour: 8/16-bit inputs as they are, half/float (linear) inputs\n"
         "encoded for the methods; OUTPUT's format decides what it holds (EXR linear light, PNG 16-bit and\n"
         "JPEG 8-bit sRGB from a linear input; an integer input keeps its bit depth).\n"

@@ -13,6 +13,7 @@
 #include "base/error.h"
 #include "data/image.h"
 #include "data/metrics.h"
+#include "data/video.h"
 
 namespace dejag::cli {
 namespace {
@@ -86,13 +87,14 @@ struct ScoredPair {
     ImageMetrics metrics;
 };
 
-ScoredPair scorePair(const std::string& referencePath, const std::string& testPath,
-                     const MetricsArguments& args, const Image* mask, bool wantSsimMap) {
+ScoredPair scoreImages(Image referenceImage, Image testImage, const std::string& referencePath,
+                       const std::string& testPath, const MetricsArguments& args, const Image* mask,
+                       bool wantSsimMap) {
     ScoredPair r;
     Image& reference = r.reference;
     Image& test = r.test;
-    reference = readScoredImage(referencePath);
-    test = readScoredImage(testPath);
+    reference = std::move(referenceImage);
+    test = std::move(testImage);
     r.referenceDescription = reference.describe(), r.testDescription = test.describe();
     r.spaceNote = bringIntoOneSpace(reference, test, referencePath, testPath, args);
     if (reference.width != test.width || reference.height != test.height)
@@ -134,19 +136,52 @@ ScoredPair scorePair(const std::string& referencePath, const std::string& testPa
     return r;
 }
 
+ScoredPair scorePair(const std::string& referencePath, const std::string& testPath,
+                     const MetricsArguments& args, const Image* mask, bool wantSsimMap) {
+    return scoreImages(readScoredImage(referencePath), readScoredImage(testPath), referencePath, testPath,
+                       args, mask, wantSsimMap);
+}
+
+// The frames of one side of a sequence comparison: a folder or pattern of images, or a video.
+class FrameSource {
+  public:
+    explicit FrameSource(const std::string& path) : path_(path) {
+        if (isVideoPath(path))
+            video_ = std::make_unique<VideoReader>(path);
+        else
+            frames_ = listSequence(path);
+    }
+    bool isVideo() const { return video_ != nullptr; }
+    const std::vector<SequenceFrame>& frames() const { return frames_; }
+    // Frame `index` of a video, read in order (each once).
+    bool readVideoFrame(Image& image, std::string& label) {
+        if (!video_->read(image)) return false;
+        label = path_ + " frame " + std::to_string(video_->framesRead() - 1);
+        return true;
+    }
+    int64_t videoFramesRead() const { return video_->framesRead(); }
+
+  private:
+    std::string path_;
+    std::unique_ptr<VideoReader> video_;
+    std::vector<SequenceFrame> frames_;
+};
+
 void runSequenceMetrics(const MetricsArguments& args, const Image* mask);
 
 void runMetrics(const MetricsArguments& args) {
     applyRuntimeOptions(args.runtime);
     std::optional<Image> mask;
     if (!args.mask.empty()) mask = readImage(args.mask);
-    const bool referenceSequence = isSequence(args.reference), testSequence = isSequence(args.test);
+    const bool referenceSequence = isSequence(args.reference) || isVideoPath(args.reference),
+               testSequence = isSequence(args.test) || isVideoPath(args.test);
     if (referenceSequence || testSequence) {
         if (!(referenceSequence && testSequence))
             throw Error(
                 "'" + (referenceSequence ? args.reference : args.test) + "' is a sequence and '" +
                 (referenceSequence ? args.test : args.reference) +
-                "' one image: give two sequences (folders or patterns such as f_%04d.png) or two images");
+                "' one image: give two sequences (videos, folders or patterns such as f_%04d.png) or two "
+                "images");
         if (!args.ssimMap.empty()) throw Error("--ssim-map takes one image pair, not a sequence");
         runSequenceMetrics(args, mask ? &*mask : nullptr);
         return;
@@ -214,28 +249,7 @@ void runMetrics(const MetricsArguments& args) {
 // Two sequences, frame by frame (paired by frame number when both are numbered, else in order): each
 // frame's figures, then the mean, best and worst frame and the flicker (docs/metrics.md).
 void runSequenceMetrics(const MetricsArguments& args, const Image* mask) {
-    const std::vector<SequenceFrame> references = listSequence(args.reference),
-                                     tests = listSequence(args.test);
-    std::vector<std::pair<const SequenceFrame*, const SequenceFrame*>> pairs;
-    const bool numbered =
-        std::all_of(references.begin(), references.end(),
-                    [](const SequenceFrame& f) { return f.number >= 0; }) &&
-        std::all_of(tests.begin(), tests.end(), [](const SequenceFrame& f) { return f.number >= 0; });
-    if (numbered) {
-        for (const SequenceFrame& t : tests) {
-            const auto r = std::find_if(references.begin(), references.end(),
-                                        [&](const SequenceFrame& f) { return f.number == t.number; });
-            if (r == references.end())
-                throw Error("'" + t.path + "' is frame " + std::to_string(t.number) + ", which '" +
-                            args.reference + "' does not hold");
-            pairs.push_back({&*r, &t});
-        }
-    } else {
-        if (references.size() != tests.size())
-            throw Error("'" + args.reference + "' holds " + std::to_string(references.size()) +
-                        " frames and '" + args.test + "' " + std::to_string(tests.size()));
-        for (size_t i = 0; i < tests.size(); ++i) pairs.push_back({&references[i], &tests[i]});
-    }
+    FrameSource referenceSource(args.reference), testSource(args.test);
     struct Row {
         std::string reference, test;
         long number;
@@ -245,12 +259,12 @@ void runSequenceMetrics(const MetricsArguments& args, const Image* mask) {
     std::vector<Row> rows;
     std::vector<float> previousReference, previousTest;
     double flickerSum = 0;
-    for (const auto& [r, t] : pairs) {
-        ScoredPair scored = scorePair(r->path, t->path, args, mask, false);
+    const auto score = [&](ScoredPair scored, const std::string& referenceLabel, const std::string& testLabel,
+                           long number) {
         double flicker = -1;
         if (!previousTest.empty()) {
             if (previousTest.size() != scored.test.pixels.size())
-                throw Error("'" + t->path + "' is not the size of the frame before it");
+                throw Error("'" + testLabel + "' is not the size of the frame before it");
             // (X_t - X_t-1) - (R_t - R_t-1), on the images' value scale, over the scored pixels
             double sum = 0;
             size_t count = 0;
@@ -265,7 +279,61 @@ void runSequenceMetrics(const MetricsArguments& args, const Image* mask) {
             flickerSum += flicker;
         }
         previousTest = std::move(scored.test.pixels), previousReference = std::move(scored.reference.pixels);
-        rows.push_back({r->path, t->path, t->number, scored.metrics, flicker});
+        rows.push_back({referenceLabel, testLabel, number, scored.metrics, flicker});
+    };
+    if (referenceSource.isVideo() || testSource.isVideo()) {
+        // A video on either side: frames paired in order, from 0; both must end together.
+        size_t index = 0;
+        for (;; ++index) {
+            Image reference, test;
+            std::string referenceLabel, testLabel;
+            bool haveReference, haveTest;
+            if (referenceSource.isVideo()) {
+                haveReference = referenceSource.readVideoFrame(reference, referenceLabel);
+            } else if ((haveReference = index < referenceSource.frames().size())) {
+                referenceLabel = referenceSource.frames()[index].path;
+                reference = readScoredImage(referenceLabel);
+            }
+            if (testSource.isVideo()) {
+                haveTest = testSource.readVideoFrame(test, testLabel);
+            } else if ((haveTest = index < testSource.frames().size())) {
+                testLabel = testSource.frames()[index].path;
+                test = readScoredImage(testLabel);
+            }
+            if (!haveReference && !haveTest) break;
+            if (haveReference != haveTest)
+                throw Error("'" + (haveReference ? args.test : args.reference) + "' ends after " +
+                            std::to_string(index) + " frames, and '" +
+                            (haveReference ? args.reference : args.test) + "' holds more");
+            score(scoreImages(std::move(reference), std::move(test), referenceLabel, testLabel, args, mask,
+                              false),
+                  referenceLabel, testLabel, long(index));
+        }
+        if (index == 0) throw Error("'" + args.reference + "' holds no frames");
+    } else {
+        const std::vector<SequenceFrame>&references = referenceSource.frames(), &tests = testSource.frames();
+        std::vector<std::pair<const SequenceFrame*, const SequenceFrame*>> pairs;
+        const bool numbered =
+            std::all_of(references.begin(), references.end(),
+                        [](const SequenceFrame& f) { return f.number >= 0; }) &&
+            std::all_of(tests.begin(), tests.end(), [](const SequenceFrame& f) { return f.number >= 0; });
+        if (numbered) {
+            for (const SequenceFrame& t : tests) {
+                const auto r = std::find_if(references.begin(), references.end(),
+                                            [&](const SequenceFrame& f) { return f.number == t.number; });
+                if (r == references.end())
+                    throw Error("'" + t.path + "' is frame " + std::to_string(t.number) + ", which '" +
+                                args.reference + "' does not hold");
+                pairs.push_back({&*r, &t});
+            }
+        } else {
+            if (references.size() != tests.size())
+                throw Error("'" + args.reference + "' holds " + std::to_string(references.size()) +
+                            " frames and '" + args.test + "' " + std::to_string(tests.size()));
+            for (size_t i = 0; i < tests.size(); ++i) pairs.push_back({&references[i], &tests[i]});
+        }
+        for (const auto& [r, t] : pairs)
+            score(scorePair(r->path, t->path, args, mask, false), r->path, t->path, t->number);
     }
     double psnrSum = 0, ssimSum = 0, psnrBest = -1e300, psnrWorst = 1e300, ssimWorst = 1e300;
     for (const Row& row : rows) {
@@ -330,17 +398,20 @@ void registerMetricsCommand(CLI::App& app) {
         "all the other's: a dataset input (R, G, B and its G-buffers) against its truth (R, G, B).\n"
         "A PNG/JPEG holds sRGB-encoded values, an EXR linear light: mixing them needs --space srgb|linear.\n"
         "Two sequences (folders or patterns such as out/f_%04d.png) are scored frame by frame, paired by\n"
-        "frame number: each frame's PSNR and SSIM, the mean, best and worst frame, and the flicker: the "
+        "frame number (a video, .mp4 .mov .mkv .avi, on either side: in order): each frame's PSNR and SSIM, "
+        "the mean, best and worst frame, and the flicker: the "
         "mean\n"
         "|(X_t - X_t-1) - (R_t - R_t-1)| over consecutive frames, an 8- or 16-bit image's values taken\n"
         "as 0-1.");
     command
         ->add_option("REF", args->reference,
-                     "reference image (the truth), or a sequence: folder or pattern; - reads standard input")
+                     "reference image (the truth), or a sequence: video, folder or pattern; - reads standard "
+                     "input")
         ->required();
     command
         ->add_option("TEST", args->test,
-                     "image to score, or a sequence: folder or pattern (f_%04d.png); - reads standard input")
+                     "image to score, or a sequence: video, folder or pattern (f_%04d.png); - reads standard "
+                     "input")
         ->required();
     command->add_flag("--json", args->json, "print one JSON object (keys mse, rmse, psnr, snr, ssim, ...)");
     command->add_option("--ssim-map", args->ssimMap, "write the per-pixel SSIM map as a colour-mapped PNG");

@@ -2,6 +2,7 @@
 
 #include <unistd.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <mutex>
@@ -81,7 +82,7 @@ void Progress::draw(bool final) {
     if (quiet_) return;
     const double elapsed = std::chrono::duration<double>(lastDraw_ - start_).count();
     const double rate = elapsed > 0 ? double(done_ - resumed_) / elapsed : 0.0;
-    const double eta = rate > 0 ? double(total_ - done_) / rate : NAN;
+    const double eta = rate > 0 ? double(std::max<int64_t>(total_ - done_, 0)) / rate : NAN;
     const int width = 24;
     const int filled = total_ > 0 ? int(double(width) * double(done_) / double(total_)) : width;
     std::string bar(size_t(filled), '#');

@@ -15,6 +15,8 @@ class Progress {
     ~Progress();
     // Work done before this run (a resumed job): counted in the bar, not in the rate or the ETA.
     void resumeAt(int64_t done);
+    // A total learnt on the way (a video's frame count is the container's estimate).
+    void setTotal(int64_t total) { total_ = total; }
     // Marks `count` more items done; `detail` (optional) is shown after the counts.
     void advance(int64_t count = 1, const std::string& detail = "");
     void finish();

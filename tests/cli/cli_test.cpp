@@ -482,6 +482,54 @@ TEST(Cli, FilterAndMetricsTakeOneImageOnStandardStreams) {
     expectOneLineError(run("metrics - - <'" + dir.file("edge.png") + "'", dir), "both be '-'");
 }
 
+// Videos: a folder of frames into a lossless video at --fps, the video filtered into a video and into
+// frames, each identical to filtering the frames themselves; metrics frame by frame with a video on either
+// side; a temporal method, a foreign codec, an existing output and a corrupt file are one line each.
+TEST(Cli, FilterAndMetricsTakeVideos) {
+    testing::TempDir dir;
+    std::filesystem::create_directories(dir.file("in"));
+    for (int t = 0; t < 4; ++t) {
+        Image frame = slantedEdge();
+        for (int y = 0; y < frame.height; ++y)
+            for (int x = 0; x < frame.width; ++x) frame.at(x, y, 1) = (x - t) * 3 > y * 4 ? 1.0f : 0.0f;
+        writeImage(dir.file("in/f_000" + std::to_string(t) + ".png"), frame);
+    }
+    const std::string here = "cd '" + dir.path().string() + "' && ";
+    const auto ok = [&](const std::string& arguments) {
+        const RunResult r = run(arguments, dir, here);
+        EXPECT_EQ(r.exitCode, 0) << arguments << "\n" << r.err;
+        return r;
+    };
+    ok("filter --method none --quiet --fps 24 in clip.mkv");
+    RunResult r = ok("filter --method fxaa --json clip.mkv out.mkv");
+    nlohmann::json summary = nlohmann::json::parse(r.out);
+    EXPECT_EQ(summary["frames"], 4);
+    EXPECT_EQ(summary["fps"], 24.0);
+    EXPECT_EQ(summary["codec"], "FFV1");
+    EXPECT_EQ(summary["width"], 40);
+    ok("filter --method fxaa --quiet clip.mkv frames/");
+    ok("filter --method fxaa --quiet 'in/f_%04d.png' 'direct/f_%04d.png'");
+    for (const char* test : {"out.mkv", "frames"}) {
+        r = ok(std::string("metrics --json 'direct/f_%04d.png' ") + test);
+        const std::vector<nlohmann::json> rows = jsonLines(r.out);
+        ASSERT_EQ(rows.size(), 5u) << test;
+        for (size_t i = 0; i < 4; ++i) EXPECT_TRUE(rows[i]["psnr"].is_null()) << test << " frame " << i;
+    }
+    // Scored against the unfiltered video: every frame differs, the rows say so.
+    r = ok("metrics clip.mkv out.mkv");
+    EXPECT_NE(r.out.find("4 frames: PSNR mean"), std::string::npos) << r.out;
+    expectOneLineError(run("filter --method taa clip.mkv t.mkv", dir, here), "depth and motion");
+    expectOneLineError(run("filter --method fxaa --codec QQQQ clip.mkv q.mkv", dir, here), "'QQQQ'");
+    expectOneLineError(run("filter --method fxaa clip.mkv out.mkv", dir, here), "add --force");
+    expectOneLineError(run("filter --method fxaa --codec FFV1 clip.mkv x.png", dir, here), "--codec");
+    expectOneLineError(run("filter --method fxaa bad.mp4 b.mkv", dir, here + "echo text > bad.mp4;"),
+                       "not a video");
+    expectOneLineError(run("metrics clip.mkv 'in/f_%04d.png' --json", dir, here + "rm in/f_0003.png;"),
+                       "ends after 3");
+    EXPECT_FALSE(std::filesystem::exists(dir.file("q.mkv")));
+    EXPECT_FALSE(std::filesystem::exists(dir.file("b.mkv")));
+}
+
 // The filter overwrites nothing unless asked: an existing output, of one image or any frame of a sequence,
 // is one error line before any work, the file untouched; --force overwrites.
 TEST(Cli, FilterRefusesToOverwriteWithoutForce) {
