@@ -13,5 +13,6 @@ void registerTrainCommand(CLI::App& app);
 void registerDemoCommand(CLI::App& app);
 void registerFilterCommand(CLI::App& app);
 void registerCompletionCommand(CLI::App& app);
+void registerExportCommand(CLI::App& app);
 
 }  // namespace dejag::cli

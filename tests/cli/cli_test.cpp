@@ -76,7 +76,8 @@ TEST(Cli, EveryHelpHasAnExampleAndOneCapitalisation) {
                                 "bench reach",
                                 "bench metrics",
                                 "demo",
-                                "completion"}) {
+                                "completion",
+                                "export"}) {
         SCOPED_TRACE(command);
         const RunResult r = run(std::string(command) + " --help", dir);
         ASSERT_EQ(r.exitCode, 0) << r.err;
@@ -528,6 +529,32 @@ TEST(Cli, FilterAndMetricsTakeVideos) {
                        "ends after 3");
     EXPECT_FALSE(std::filesystem::exists(dir.file("q.mkv")));
     EXPECT_FALSE(std::filesystem::exists(dir.file("b.mkv")));
+}
+
+// dejag export --onnx: a shipped model by name into a file (checked against OpenCV's DNN module by
+// Onnx.*); an existing file without --force, a missing folder, a recurrent model and a size the network
+// cannot take are one line each, and nothing is written.
+TEST(Cli, ExportWritesOnnxAndRefusesWhatItCannot) {
+    testing::TempDir dir;
+    RunResult r = run("export --onnx --json dejag-fast '" + dir.file("fast.onnx") + "'", dir);
+    ASSERT_EQ(r.exitCode, 0) << r.err;
+    const nlohmann::json summary = nlohmann::json::parse(r.out);
+    EXPECT_EQ(summary["opset"], 13);
+    EXPECT_EQ(summary["input_channels"], 3);
+    EXPECT_EQ(summary["size"], "symbolic");
+    const std::string bytes = slurp(dir.file("fast.onnx"));
+    EXPECT_EQ(size_t(summary["bytes"]), bytes.size());
+    EXPECT_NE(bytes.find("dejag.architecture"), std::string::npos);
+    expectOneLineError(run("export --onnx dejag-fast '" + dir.file("fast.onnx") + "'", dir), "--force");
+    r = run("export --onnx --force --size 64x48 dejag-guided '" + dir.file("fast.onnx") + "'", dir);
+    EXPECT_EQ(r.exitCode, 0) << r.err;
+    EXPECT_NE(r.out.find("1x6x48x64"), std::string::npos) << r.out;
+    expectOneLineError(run("export --onnx dejag-fast '" + dir.file("no/such/folder/x.onnx") + "'", dir),
+                       "does not exist");
+    expectOneLineError(run("export --onnx dejag-temporal '" + dir.file("t.onnx") + "'", dir), "no ONNX form");
+    expectOneLineError(run("export --onnx --size 30x20 dejag-fast '" + dir.file("s.onnx") + "'", dir), "30");
+    expectOneLineError(run("export dejag-fast '" + dir.file("n.onnx") + "'", dir), "--onnx");
+    EXPECT_EQ(filesIn(dir.path()), 1u);
 }
 
 // The filter overwrites nothing unless asked: an existing output, of one image or any frame of a sequence,

@@ -1,0 +1,96 @@
+// dejag export: a model in a format other software runs. --onnx: an ONNX file (opset 13) for any runtime
+// with the standard operators (docs/onnx.md).
+#include <cstdio>
+#include <filesystem>
+#include <memory>
+#include <nlohmann/json.hpp>
+
+#include "app/cli.h"
+#include "app/commands.h"
+#include "base/error.h"
+#include "base/files.h"
+#include "nn/model.h"
+#include "nn/onnx.h"
+
+namespace dejag::cli {
+namespace {
+
+namespace fs = std::filesystem;
+
+struct ExportArguments {
+    std::string model, output, size;
+    bool onnx = false, force = false, json = false;
+};
+
+void runExport(const ExportArguments& args) {
+    if (!args.onnx) throw Error("name the format: --onnx");
+    if (!args.force && fs::exists(args.output))
+        throw Error("'" + args.output + "' exists; add --force to overwrite");
+    const fs::path folder = fs::path(args.output).parent_path();
+    if (!folder.empty() && !fs::is_directory(folder))
+        throw Error("cannot write '" + args.output + "': the folder '" + folder.string() +
+                    "' does not exist");
+    const std::string path = shippedModelPath(args.model);
+    std::map<std::string, std::string> metadata;
+    const nn::Model model = nn::loadModel(path, &metadata);
+    nn::OnnxOptions options;
+    if (!args.size.empty()) {
+        const Size size = parseSize(args.size, "--size");
+        options.width = size.width, options.height = size.height;
+    }
+    options.producerVersion = DEJAG_VERSION;
+    for (const char* key : {"dejag.provenance", "dejag.guide_method", "dejag.input_method"})
+        if (auto it = metadata.find(key); it != metadata.end()) options.metadata[key] = it->second;
+    options.metadata["dejag.source"] = fs::path(path).filename().string();
+    const std::string bytes = nn::exportOnnx(model, options);
+    writeBytesAtomically(args.output, bytes);
+    const std::string size = args.size.empty()
+                                 ? std::string("HxW")
+                                 : std::to_string(options.height) + "x" + std::to_string(options.width);
+    if (args.json) {
+        std::printf("%s\n", nlohmann::json{{"model", path},
+                                           {"output", args.output},
+                                           {"format", "onnx"},
+                                           {"opset", 13},
+                                           {"bytes", bytes.size()},
+                                           {"input_channels", model.inputChannels()},
+                                           {"output_channels", model.outputChannels()},
+                                           {"size", args.size.empty() ? nlohmann::json("symbolic")
+                                                                      : nlohmann::json(args.size)}}
+                                .dump()
+                                .c_str());
+        return;
+    }
+    std::printf(
+        "wrote %s (%zu bytes, ONNX opset 13): input 'input' 1x%dx%s, output 'output' 1x%dx%s (NCHW)\n",
+        args.output.c_str(), bytes.size(), model.inputChannels(), size.c_str(), model.outputChannels(),
+        size.c_str());
+}
+
+}  // namespace
+
+void registerExportCommand(CLI::App& app) {
+    auto args = std::make_shared<ExportArguments>();
+    CLI::App* command =
+        app.add_subcommand("export",
+                           "write a model for other runtimes: ONNX (a training run's best model: "
+                           "dejag train export)");
+    command->add_flag("--onnx", args->onnx, "write ONNX (opset 13, standard operators only)");
+    command->add_option("MODEL", args->model, "model file, or a shipped model's name (dejag-fast)")
+        ->required();
+    command->add_option("OUT", args->output, "the file to write (model.onnx)")->required();
+    command->add_option("--size", args->size,
+                        "fix the input to WIDTHxHEIGHT (default: symbolic height and width; some runtimes "
+                        "need them fixed)");
+    command->add_flag("--force", args->force, "overwrite OUT if it exists");
+    command->add_flag("--json", args->json, "print what was written as JSON");
+    command->footer(
+        "The graph takes 'input' (1, C, H, W) and gives 'output', on the values the model sees in dejag:\n"
+        "sRGB-encoded colour in [0, 1] (a guided model: the frame, then the guide method's result on it).\n"
+        "The kernel filter is decomposed into Softmax, Pad (edge), Slice, Mul and Add. A U-Net needs H and\n"
+        "W divisible by 2^depth (8 for the shipped ones). Recurrent models (warp, accumulate) have no ONNX\n"
+        "form. docs/onnx.md.");
+    command->callback([args] { runExport(*args); });
+}
+
+}  // namespace dejag::cli
