@@ -144,6 +144,55 @@ TEST(Cli, InstallPutsTheBinaryModelsCompletionAndManPage) {
         << slurp(dir.file("run.json"));
 }
 
+// The library an engine links: `cmake --install` puts libdejag, its header, a CMake package and a
+// pkg-config file in place; the installed example builds against the package (find_package(dejag)) and
+// against pkg-config, and runs FXAA, SMAA and the shipped network (found beside the installed library).
+TEST(Cli, InstalledLibraryBuildsTheExampleWithCMakeAndPkgConfig) {
+#if defined(DEJAG_SANITIZE_ADDRESS) || defined(DEJAG_SANITIZE_THREAD)
+    GTEST_SKIP()
+        << "an uninstrumented example cannot load a sanitizer-instrumented libdejag (the runtime must "
+           "come first); Library.* test the face in this build";
+#endif
+    testing::TempDir dir;
+    const std::string build = std::filesystem::path(DEJAG_BINARY).parent_path().string();
+    const std::string prefix = dir.file("prefix");
+    ASSERT_EQ(std::system(("cmake --install '" + build + "' --prefix '" + prefix + "' >/dev/null").c_str()),
+              0);
+    for (const char* file : {"lib/libdejag.so", "include/dejag/dejag.h", "lib/cmake/dejag/dejagConfig.cmake",
+                             "lib/cmake/dejag/dejagTargets.cmake", "lib/pkgconfig/dejag.pc",
+                             "share/dejag/examples/filter_frame.cpp", "share/dejag/examples/CMakeLists.txt"})
+        EXPECT_TRUE(std::filesystem::exists(prefix + "/" + file)) << file;
+    const std::string examples = prefix + "/share/dejag/examples";
+    const std::string log = dir.file("build.log");
+    const std::string cmake = "cmake -S '" + examples + "' -B '" + dir.file("example") +
+                              "' -DCMAKE_PREFIX_PATH='" + prefix + "' >'" + log +
+                              "' 2>&1 && cmake --build '" + dir.file("example") + "' >>'" + log + "' 2>&1";
+    ASSERT_EQ(std::system(cmake.c_str()), 0) << slurp(log);
+    const std::string out = dir.file("out.txt");
+    // Run from elsewhere: the network is found beside the library, not in the working directory.
+    ASSERT_EQ(std::system(("cd / && '" + dir.file("example/filter_frame") + "' >'" + out + "' 2>&1").c_str()),
+              0)
+        << slurp(out);
+    const std::string text = slurp(out);
+    for (const char* method : {"fxaa ", "smaa ", "cnn "}) {
+        const size_t at = text.find(std::string("\n") + method);
+        ASSERT_NE(at, std::string::npos) << text;
+        const double changed = std::atof(text.c_str() + text.find("changed ", at) + 8);
+        EXPECT_GT(changed, 1.0) << method << ": " << text;
+    }
+    const std::string pkg = "PKG_CONFIG_PATH='" + prefix + "/lib/pkgconfig' ";
+    const std::string compile = "g++ -std=c++17 '" + examples + "/filter_frame.cpp' -o '" + dir.file("pc") +
+                                "' $(" + pkg + "pkg-config --cflags --libs dejag) -Wl,-rpath,'" + prefix +
+                                "/lib' >'" + log + "' 2>&1";
+    ASSERT_EQ(std::system(compile.c_str()), 0) << slurp(log);
+    ASSERT_EQ(std::system(("'" + dir.file("pc") + "' fxaa,cnn >'" + out + "' 2>&1").c_str()), 0)
+        << slurp(out);
+    EXPECT_NE(slurp(out).find("fxaa,cnn changed"), std::string::npos) << slurp(out);
+    // An unknown method is the library's one-line error.
+    EXPECT_NE(std::system(("'" + dir.file("pc") + "' fxxa >'" + out + "' 2>&1").c_str()), 0);
+    EXPECT_NE(slurp(out).find("filter_frame: 'fxxa' is not a method"), std::string::npos) << slurp(out);
+}
+
 TEST(Cli, MetricsJsonHasTheDocumentedKeys) {
     testing::TempDir dir;
     const RunResult r =
