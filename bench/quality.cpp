@@ -98,6 +98,116 @@ std::string htmlEscape(const std::string& text) {
 const char* const kKeys[] = {"psnr_whole", "ssim_whole",   "psnr_edge",
                              "ssim_edge",  "psnr_texture", "ssim_texture"};
 
+constexpr float kDifferenceGain = 8.0f;  // difference crops show |method - truth| times this
+
+// SSIM on a scale that separates good methods: t = -log10(1 - SSIM) / 3, so 0.9, 0.99 and 0.999 lie a
+// third of the bar apart (a linear scale puts every method above 0.98 in its top fiftieth).
+float ssimScale(float ssim) {
+    if (!std::isfinite(ssim)) return 0.0f;
+    const float gap = std::max(1.0f - ssim, 1e-3f);
+    return std::clamp(-std::log10(gap) / 3.0f, 0.0f, 1.0f);
+}
+
+// A zoomed crop of a scalar map through the colour map.
+Image zoomedMapCrop(const std::vector<float>& map, int width, const Window& w, int zoom,
+                    float (*scale)(float)) {
+    Image out(w.width * zoom, w.height * zoom, {"R", "G", "B"}, PixelType::Float);
+    for (int y = 0; y < out.height; ++y)
+        for (int x = 0; x < out.width; ++x) {
+            const Rgb c =
+                viridis(scale(map[size_t(w.y + y / zoom) * size_t(width) + size_t(w.x + x / zoom)]));
+            out.at(x, y, 0) = c.r, out.at(x, y, 1) = c.g, out.at(x, y, 2) = c.b;
+        }
+    return out;
+}
+
+float differenceScale(float d) {
+    return std::clamp(d * kDifferenceGain, 0.0f, 1.0f);
+}
+
+// The mean |a - b| over R, G, B of each pixel.
+std::vector<float> differenceMap(const Image& a, const Image& b) {
+    std::vector<float> map(a.pixelCount());
+    for (size_t p = 0; p < map.size(); ++p) {
+        float sum = 0;
+        for (size_t c = 0; c < 3; ++c) sum += std::abs(a.pixels[p * 3 + c] - b.pixels[p * 3 + c]);
+        map[p] = sum / 3.0f;
+    }
+    return map;
+}
+
+// The full frame with the crop's window outlined (2 px, red, just outside the window where it fits).
+Image markedFrame(Image frame, const Window& w) {
+    for (int y = w.y - 2; y < w.y + w.height + 2; ++y)
+        for (int x = w.x - 2; x < w.x + w.width + 2; ++x) {
+            if (x < 0 || y < 0 || x >= frame.width || y >= frame.height) continue;
+            if (x >= w.x && x < w.x + w.width && y >= w.y && y < w.y + w.height) continue;
+            frame.at(x, y, 0) = 1.0f, frame.at(x, y, 1) = 0.15f, frame.at(x, y, 2) = 0.15f;
+        }
+    return frame;
+}
+
+// The colour bar of a scale, as a CSS gradient with ticks: (value shown, position 0..1).
+std::string colourBar(const std::string& title, const std::vector<std::pair<std::string, float>>& ticks) {
+    std::ostringstream bar;
+    bar << "<div class=bar><span>" << title
+        << "</span><div class=grad style=\"background:linear-gradient(to right";
+    for (int i = 0; i <= 8; ++i) {
+        const Rgb c = viridis(float(i) / 8.0f);
+        char stop[64];
+        std::snprintf(stop, sizeof stop, ",rgb(%d,%d,%d) %d%%", int(c.r * 255 + 0.5f), int(c.g * 255 + 0.5f),
+                      int(c.b * 255 + 0.5f), i * 100 / 8);
+        bar << stop;
+    }
+    bar << ")\">";
+    for (const auto& [label, at] : ticks)
+        bar << "<i style=\"left:" << int(at * 100 + 0.5f) << "%\">" << label << "</i>";
+    bar << "</div></div>\n";
+    return bar.str();
+}
+
+// The flip and swipe viewer: a method's crop over another's (the truth by default). Swipe moves the
+// boundary; flip shows one, then the other, whole. Opening the report with #flip=CASE&a=METHOD&b=METHOD
+// selects them, shows that case's viewer alone on the page and flips once (a scripted click: what the
+// headless-browser test does); #view=CASE shows the viewer alone without a click (a link to one
+// comparison).
+const char* const kViewerScript = R"(<script>
+(function () {
+  var hash = {};
+  location.hash.replace(/^#/, '').split('&').forEach(function (kv) {
+    var p = kv.split('='); if (p[0]) hash[decodeURIComponent(p[0])] = decodeURIComponent(p[1] || '');
+  });
+  document.querySelectorAll('.cmp').forEach(function (c, index) {
+    var a = c.querySelector('.sel-a'), b = c.querySelector('.sel-b'), top = c.querySelector('.im-a'),
+        under = c.querySelector('.im-b'), swipe = c.querySelector('.swipe'), flip = c.querySelector('.flip'),
+        shown = c.querySelector('.shown'), mode = 'swipe', showA = true;
+    function pick(select, name) {
+      for (var i = 0; i < select.options.length; ++i) if (select.options[i].text === name) select.selectedIndex = i;
+    }
+    function update() {
+      top.src = a.value; under.src = b.value;
+      var cut = mode === 'flip' ? (showA ? 0 : 100) : 100 - swipe.value;
+      top.style.clipPath = 'inset(0 ' + cut + '% 0 0)';
+      shown.textContent = mode === 'flip' ? (showA ? a.options[a.selectedIndex].text : b.options[b.selectedIndex].text)
+                                          : a.options[a.selectedIndex].text + ' | ' + b.options[b.selectedIndex].text;
+    }
+    a.onchange = b.onchange = update;
+    swipe.oninput = function () { mode = 'swipe'; update(); };
+    flip.onclick = function () { if (mode === 'flip') showA = !showA; else { mode = 'flip'; showA = false; } update(); };
+    if (hash.a) pick(a, hash.a); else if (a.options.length > 1) a.selectedIndex = 1;
+    if (hash.b) pick(b, hash.b);
+    update();
+    var focus = hash.flip !== undefined ? hash.flip : hash.view;
+    if (focus !== undefined && Number(focus) === index) {
+      document.body.classList.add('focus');
+      c.classList.add('focused');
+    }
+    if (hash.flip !== undefined && Number(hash.flip) === index) flip.click();
+  });
+})();
+</script>
+)";
+
 }  // namespace
 
 // ---- Single-frame methods -----------------------------------------------------------------------------
@@ -247,12 +357,30 @@ std::vector<json> writeQualityReport(const ReportOptions& options, const std::ve
         const std::string base = slug(c.name);
         writePng(out / "images" / (base + "_truth.png"), c.item.truth);
         writePng(out / "images" / (base + "_truth_crop.png"), zoomedCrop(c.item.truth, window, kCropZoom));
+        writePng(out / "images" / (base + "_where.png"), markedFrame(c.item.truth, window));
         std::vector<Image> mosaicRow{zoomedCrop(c.item.truth, window, 2)};
         sections << "<h2>" << htmlEscape(c.name)
-                 << (c.heldOut ? " <small>(held-out family: never trained on)</small>" : "")
-                 << "</h2>\n<div class=row>\n<figure><a href=\"images/" << base
-                 << "_truth.png\"><img src=\"images/" << base
-                 << "_truth_crop.png\"></a><figcaption>truth</figcaption></figure>\n";
+                 << (c.heldOut ? " <small>(held-out family: never trained on)</small>" : "") << "</h2>\n";
+        // The viewer: any method over any other, the truth beneath by default.
+        std::string choices = "<option value=\"images/" + base + "_truth_crop.png\">truth</option>";
+        for (const MethodResult& r : c.methods)
+            choices += "<option value=\"images/" + base + "_" + slug(r.name) + "_crop.png\">" +
+                       htmlEscape(r.name) + "</option>";
+        const std::string firstCrop = "images/" + base + "_" +
+                                      (c.methods.empty() ? std::string("truth") : slug(c.methods[0].name)) +
+                                      "_crop.png";
+        sections
+            << "<div class=cmp><div class=controls><select class=sel-a>" << choices
+            << "</select> over <select class=sel-b>" << choices
+            << "</select> <input class=swipe type=range min=0 max=100 value=50 title=swipe> <button "
+               "class=flip>flip</button> <span class=shown></span></div><div class=stage><img class=im-b "
+               "src=\"images/"
+            << base << "_truth_crop.png\"><img class=im-a src=\"" << firstCrop
+            << "\"></div></div>\n<div class=row>\n<figure><a href=\"images/" << base
+            << "_truth.png\"><img src=\"images/" << base
+            << "_truth_crop.png\"></a><figcaption>truth</figcaption><a href=\"images/" << base
+            << "_truth.png\"><img class=where src=\"images/" << base
+            << "_where.png\" title=\"the crop on the full frame\"></a></figure>\n";
         for (const MethodResult& r : c.methods) {
             MetricOptions metricOptions;
             metricOptions.dataRange = 1.0, metricOptions.wantSsimMap = true;
@@ -261,6 +389,11 @@ std::vector<json> writeQualityReport(const ReportOptions& options, const std::ve
             writePng(out / "images" / (file + ".png"), r.output);
             writePng(out / "images" / (file + "_crop.png"), zoomedCrop(r.output, window, kCropZoom));
             writeSsimMapPng((out / "images" / (file + "_ssim.png")).string(), map, W, H);
+            writePng(out / "images" / (file + "_ssim_crop.png"),
+                     zoomedMapCrop(map, W, window, kCropZoom, ssimScale));
+            writePng(
+                out / "images" / (file + "_diff_crop.png"),
+                zoomedMapCrop(differenceMap(r.output, c.item.truth), W, window, kCropZoom, differenceScale));
             mosaicRow.push_back(zoomedCrop(r.output, window, 2));
             if (mosaicColumns.size() < c.methods.size() + 1) mosaicColumns.push_back(r.name);
             char caption[320];
@@ -268,9 +401,12 @@ std::vector<json> writeQualityReport(const ReportOptions& options, const std::ve
                           htmlEscape(r.name).c_str(), std::min(r.score.region[0].psnr, 100.0),
                           r.score.region[0].ssim, r.ms, r.note.empty() ? "" : "<br>",
                           htmlEscape(r.note).c_str());
-            sections << "<figure><a href=\"images/" << file << ".png\"><img src=\"images/" << file
-                     << "_crop.png\"></a><figcaption>" << caption << "</figcaption><a href=\"images/" << file
-                     << "_ssim.png\"><img class=map src=\"images/" << file << "_ssim.png\"></a></figure>\n";
+            sections
+                << "<figure><a href=\"images/" << file << ".png\"><img src=\"images/" << file
+                << "_crop.png\"></a><figcaption>" << caption << "</figcaption><a href=\"images/" << file
+                << "_ssim.png\"><img src=\"images/" << file
+                << "_ssim_crop.png\" title=\"SSIM (click: the whole frame's map)\"></a><img src=\"images/"
+                << file << "_diff_crop.png\" title=\"difference to the truth\"></figure>\n";
         }
         sections << "</div>\n";
         if (mosaicRows.empty() || mosaicRows[0].size() == mosaicRow.size()) {
@@ -327,30 +463,40 @@ std::vector<json> writeQualityReport(const ReportOptions& options, const std::ve
             useFullHd ? "ms per 1920x1080 frame (median, log scale)" : "ms per frame (median, log scale)";
         pareto.yLabel = "PSNR (dB)";
         pareto.logX = true;
-        PlotSeries points;
-        points.lines = false, points.markers = true, points.labels = true;
+        pareto.legendOutside = true, pareto.width = 1100;
+        // One series per method: its own colour, named in the legend (and beside its marker).
         for (const json& m : means) {
+            PlotSeries point;
+            point.name = m["method"].get<std::string>();
+            point.lines = false, point.markers = true, point.labels = true;
             const double ms =
                 useFullHd && m.contains("ms_1080p") ? m["ms_1080p"].get<double>() : m["ms"].get<double>();
-            points.x.push_back(std::max(ms, 0.01));
-            points.y.push_back(m["psnr_whole"].is_null() ? NAN : m["psnr_whole"].get<double>());
-            points.pointLabels.push_back(m["method"]);
+            point.x.push_back(std::max(ms, 0.01));
+            point.y.push_back(m["psnr_whole"].is_null() ? NAN : m["psnr_whole"].get<double>());
+            point.pointLabels.push_back(point.name);
+            pareto.series.push_back(point);
         }
-        pareto.series.push_back(points);
         writePlotPng((out / "pareto.png").string(), pareto);
     }
     if (!mosaicRows.empty())
         writeMosaicPng((out / "mosaic.png").string(), mosaicRows, mosaicLabels, mosaicColumns);
     {
         std::ostringstream html;
-        html << "<!doctype html>\n<html><head><meta charset=utf-8><title>" << htmlEscape(options.title)
-             << "</"
-                "title>\n<style>body{font-family:sans-serif;margin:24px;color:#222}table{border-collapse:"
-                "collapse}"
-                "td,th{border:1px solid #ccc;padding:4px 8px;text-align:right}th{background:#f3f3f3}"
-                "td:first-child{text-align:left}.row{display:flex;flex-wrap:wrap;gap:8px}"
-                "figure{margin:0;font-size:12px}img{image-rendering:pixelated;display:block}"
-                "img.map{width:240px;margin-top:4px}</style></head><body>\n";
+        html
+            << "<!doctype html>\n<html><head><meta charset=utf-8><title>" << htmlEscape(options.title)
+            << "</"
+               "title>\n<style>body{font-family:sans-serif;margin:24px;color:#222}table{border-collapse:"
+               "collapse}"
+               "td,th{border:1px solid #ccc;padding:4px 8px;text-align:right}th{background:#f3f3f3}"
+               "td:first-child{text-align:left}.row{display:flex;flex-wrap:wrap;gap:8px}"
+               "figure{margin:0;font-size:12px}img{image-rendering:pixelated;display:block}"
+               "img.map{width:240px;margin-top:4px}img.where{width:240px;margin-top:4px}"
+               ".cmp{margin:8px 0}.stage{position:relative;display:inline-block}.stage img{display:block}"
+               "body.focus>*{display:none}body.focus>.cmp.focused{display:block}.stage img{width:480px}.stage "
+               ".im-a{position:absolute;left:0;top:0}.controls{margin-bottom:4px;font-size:13px}"
+               ".bar{display:inline-block;margin:4px 24px 12px 0;font-size:12px}.bar .grad{position:relative;"
+               "width:320px;height:14px;margin-top:2px}.bar i{position:absolute;top:16px;font-style:normal;"
+               "transform:translateX(-50%);white-space:nowrap}</style></head><body>\n";
         html << "<h1>" << htmlEscape(options.title) << "</h1>\n<p>" << options.intro << "</p>\n";
         for (const std::string& n : options.notes) html << "<p><b>Note:</b> " << htmlEscape(n) << "</p>\n";
         html
@@ -370,13 +516,20 @@ std::vector<json> writeQualityReport(const ReportOptions& options, const std::ve
                  << "</td><td>" << cell("ssim_texture", "%.4f") << "</td><td>" << cell("ms", "%.2f")
                  << "</td>" << (useFullHd ? "<td>" + cell("ms_1080p", "%.1f") + "</td>" : "") << "</tr>\n";
         }
-        html << "</table>\n<p><img src=\"pareto.png\" width=720></p>\n"
+        html << "</table>\n<p><img src=\"pareto.png\" width=880></p>\n"
              << "<p>Crops: where the unfiltered frame is furthest from the truth, zoomed " << kCropZoom
-             << "× (click for the full frame); below each, its SSIM map (yellow = 1, dark = 0).</p>\n"
+             << "× (click for the full frame; the red box under the truth shows where the crop lies). Above "
+                "each "
+                "scene, a viewer: pick a method and what lies beneath it, then swipe the boundary or flip "
+                "between the two. Under each method, its SSIM map and its difference to the truth (× "
+             << int(kDifferenceGain) << "), cropped like the crops, on these scales:</p>\n"
+             << colourBar("SSIM", {{"0", 0.0f}, {"0.9", 1.0f / 3}, {"0.99", 2.0f / 3}, {"≥ 0.999", 1.0f}})
+             << colourBar("|method − truth| (mean of R, G, B)",
+                          {{"0", 0.0f}, {"1/32", 0.25f}, {"1/16", 0.5f}, {"≥ 1/8", 1.0f}})
              << sections.str() << options.extraHtml;
         if (!mosaicRows.empty())
             html << "<h2>Mosaic</h2><p><img src=\"mosaic.png\" style=\"max-width:100%\"></p>\n";
-        html << "</body></html>\n";
+        html << kViewerScript << "</body></html>\n";
         writeTextFileAtomically((out / "report.html").string(), html.str());
     }
     return rows;

@@ -106,10 +106,35 @@ Rgb plotColour(int index) {
     return palette[size_t(index) % std::size(palette)];
 }
 
+int plotMarkerShape(int index) {
+    return (index / 10) % 3;
+}
+
+namespace {
+void drawMarker(cv::Mat& canvas, cv::Point p, int shape, const cv::Scalar& colour) {
+    if (shape == 1) {
+        cv::rectangle(canvas, {p.x - 4, p.y - 4}, {p.x + 4, p.y + 4}, colour, cv::FILLED, cv::LINE_AA);
+    } else if (shape == 2) {
+        const std::vector<cv::Point> triangle = {{p.x, p.y - 6}, {p.x - 6, p.y + 4}, {p.x + 6, p.y + 4}};
+        cv::fillConvexPoly(canvas, triangle, colour, cv::LINE_AA);
+    } else {
+        cv::circle(canvas, p, 5, colour, cv::FILLED, cv::LINE_AA);
+    }
+}
+}  // namespace
+
 void writePlotPng(const std::string& path, const Plot& plot) {
     const int W = std::max(plot.width, 200), H = std::max(plot.height, 150);
     cv::Mat canvas(H, W, CV_8UC3, cv::Scalar(255, 255, 255));
-    const int left = 80, right = 20, top = 40, bottom = 60;
+    const int font = cv::FONT_HERSHEY_SIMPLEX;
+    int legendWidth = 0;
+    if (plot.legendOutside)
+        for (const PlotSeries& series : plot.series) {
+            int base = 0;
+            legendWidth =
+                std::max(legendWidth, cv::getTextSize(series.name, font, 0.42, 1, &base).width + 44);
+        }
+    const int left = 80, right = 20 + legendWidth, top = 40, bottom = 60;
     const cv::Rect area(left, top, W - left - right, H - top - bottom);
     auto mapX = [&](double x) { return plot.logX ? std::log10(std::max(x, 1e-300)) : x; };
     Range xr, yr;
@@ -124,7 +149,6 @@ void writePlotPng(const std::string& path, const Plot& plot) {
     auto py = [&](double y) {
         return area.y + area.height - (y - yr.low) / (yr.high - yr.low) * area.height;
     };
-    const int font = cv::FONT_HERSHEY_SIMPLEX;
     const cv::Scalar ink(40, 40, 40), grid(225, 225, 225);
     // Grid, ticks and tick labels.
     const double ys = tickStep(yr.high - yr.low, 6);
@@ -174,7 +198,7 @@ void writePlotPng(const std::string& path, const Plot& plot) {
             const cv::Point p(int(std::lround(px(s.x[i]))), int(std::lround(py(s.y[i]))));
             run.push_back(p);
             if (s.markers) {
-                cv::circle(canvas, p, 5, colour, cv::FILLED, cv::LINE_AA);
+                drawMarker(canvas, p, plotMarkerShape(int(k)), colour);
                 markerBoxes.push_back({p.x - 6, p.y - 6, 13, 13});
             }
             if (s.labels && i < s.pointLabels.size()) pointLabels.push_back({p, &s.pointLabels[i]});
@@ -190,20 +214,35 @@ void writePlotPng(const std::string& path, const Plot& plot) {
         sizes.emplace_back(size.width, size.height + base);
         ascents.push_back(size.height);
     }
-    const std::vector<PlotBox> boxes = placePointLabels(markerBoxes, anchors, sizes, W, H);
-    for (size_t i = 0; i < pointLabels.size(); ++i)
+    // Labels stay left of an outside legend; with one, a label that found no free spot is left out (the
+    // legend names its marker) rather than printed over another.
+    const std::vector<PlotBox> boxes = placePointLabels(markerBoxes, anchors, sizes, W - legendWidth, H);
+    std::vector<PlotBox> drawn;
+    const auto overlaps = [](const PlotBox& a, const PlotBox& b) {
+        return a.x < b.x + b.width && b.x < a.x + a.width && a.y < b.y + b.height && b.y < a.y + a.height;
+    };
+    for (size_t i = 0; i < pointLabels.size(); ++i) {
+        if (plot.legendOutside &&
+            std::any_of(drawn.begin(), drawn.end(), [&](const PlotBox& b) { return overlaps(b, boxes[i]); }))
+            continue;
+        drawn.push_back(boxes[i]);
         cv::putText(canvas, *pointLabels[i].text, {boxes[i].x, boxes[i].y + ascents[i]}, font, 0.38, ink, 1,
                     cv::LINE_AA);
+    }
     // Legend (top right inside the plot area), title and axis labels.
     int legendY = area.y + 18;
     for (size_t k = 0; k < plot.series.size(); ++k) {
         if (plot.series[k].name.empty()) continue;
         int base = 0;
         const cv::Size size = cv::getTextSize(plot.series[k].name, font, 0.42, 1, &base);
-        const int x = area.x + area.width - size.width - 36;
+        const int x = plot.legendOutside ? area.x + area.width + 16 : area.x + area.width - size.width - 36;
         cv::rectangle(canvas, {x - 4, legendY - size.height - 3}, {x + size.width + 30, legendY + 5},
                       cv::Scalar(255, 255, 255), cv::FILLED);
-        cv::line(canvas, {x, legendY - 4}, {x + 20, legendY - 4}, bgr(plotColour(int(k))), 3, cv::LINE_AA);
+        if (plot.series[k].lines)
+            cv::line(canvas, {x, legendY - 4}, {x + 20, legendY - 4}, bgr(plotColour(int(k))), 3,
+                     cv::LINE_AA);
+        if (plot.series[k].markers)
+            drawMarker(canvas, {x + 10, legendY - 4}, plotMarkerShape(int(k)), bgr(plotColour(int(k))));
         cv::putText(canvas, plot.series[k].name, {x + 26, legendY}, font, 0.42, ink, 1, cv::LINE_AA);
         legendY += size.height + 10;
     }

@@ -25,6 +25,7 @@ struct Plot {
     std::vector<PlotSeries> series;
     bool logX = false;
     int width = 900, height = 540;
+    bool legendOutside = false;  // the legend right of the plot area (many series), not over its top right
 };
 
 // Throws dejag::Error if the file cannot be written.
@@ -46,7 +47,10 @@ std::vector<PlotBox> placePointLabels(const std::vector<PlotBox>& markers,
 void writeMosaicPng(const std::string& path, const std::vector<std::vector<Image>>& rows,
                     const std::vector<std::string>& rowLabels, const std::vector<std::string>& columnLabels);
 
-// The colour of series `index` (a fixed qualitative palette).
+// The colour of series `index` (a fixed qualitative palette of 10, repeated).
 Rgb plotColour(int index);
+// The marker of series `index`: 0 circle, 1 square, 2 triangle (the next shape each time the palette
+// repeats, so 30 series stay apart).
+int plotMarkerShape(int index);
 
 }  // namespace dejag

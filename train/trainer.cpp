@@ -393,6 +393,21 @@ void writePlots(const std::string& run, const std::vector<LogRow>& log,
     for (const LogRow& r : log)
         if (std::isfinite(r.loss)) l.x.push_back(double(r.step)), l.y.push_back(r.loss);
     loss.series.push_back(l);
+    // The loss of one batch is noisy: a centred moving mean over a window of 1/25 of the points (odd, at
+    // least 3) shows the trend beside it.
+    if (l.y.size() >= 5) {
+        PlotSeries smooth;
+        const size_t half = std::max<size_t>(1, l.y.size() / 50);
+        smooth.name = "moving mean of " + std::to_string(2 * half + 1) + " logged steps";
+        for (size_t i = 0; i < l.y.size(); ++i) {
+            const size_t from = i >= half ? i - half : 0, to = std::min(l.y.size(), i + half + 1);
+            double sum = 0;
+            for (size_t j = from; j < to; ++j) sum += l.y[j];
+            smooth.x.push_back(l.x[i]);
+            smooth.y.push_back(sum / double(to - from));
+        }
+        loss.series.push_back(smooth);
+    }
     writePlotPng((fs::path(run) / "loss.png").string(), loss);
 
     Plot validation{"validation PSNR, whole images (" + name + ")", "step", "PSNR (dB)", {}, false, 900, 540};

@@ -1507,6 +1507,49 @@ TEST(Cli, DemoRunsEveryMethodAndWritesTheReport) {
     EXPECT_FALSE(std::filesystem::exists(dir.file("d2")));
 }
 
+// The report in a browser (headless Chromium, installed by scripts/install-deps): it renders, and its
+// viewer's flip control, clicked by the page itself when opened with #flip=0, changes the picture where
+// the two methods differ and nowhere when they are the same.
+TEST(Cli, ReportRendersInChromiumAndItsFlipShowsTheOtherMethod) {
+    testing::TempDir dir;
+    const std::string browser = "/usr/bin/chromium-headless-shell";
+    ASSERT_TRUE(std::filesystem::exists(browser)) << "scripts/install-deps installs chromium-headless-shell";
+    const std::string out = dir.file("demo");
+    const RunResult r =
+        run("demo --out '" + out + "' --size 96x64 --truth 8 --scenes pipe --repeat 1 --quiet", dir);
+    ASSERT_EQ(r.exitCode, 0) << r.err;
+    const auto screenshot = [&](const std::string& fragment, const std::string& name) {
+        const std::string png = dir.file(name);
+        const std::string command =
+            "cd '" + dir.path().string() + "' && '" + browser +
+            "' --no-sandbox --disable-gpu --hide-scrollbars --virtual-time-budget=3000 "
+            "--window-size=1000,1400 --screenshot='" +
+            png + "' 'file://" + out + "/report.html" + fragment + "' >/dev/null 2>&1";
+        EXPECT_EQ(std::system(command.c_str()), 0) << command;
+        return readImage(png);
+    };
+    const auto differing = [](const Image& a, const Image& b) {
+        size_t n = 0;
+        for (size_t i = 0; i < a.pixels.size(); ++i) n += a.pixels[i] != b.pixels[i];
+        return n;
+    };
+    const Image swiped = screenshot("#view=0&a=no%20AA&b=truth", "swiped.png");
+    const Image flipped = screenshot("#flip=0&a=no%20AA&b=truth", "flipped.png");
+    ASSERT_EQ(swiped.pixels.size(), flipped.pixels.size());
+    // It rendered: not a blank page (the table, the plot and the crops are there).
+    const Image page = screenshot("", "page.png");
+    size_t dark = 0;
+    for (float v : page.pixels) dark += v < 0.5f;
+    EXPECT_GT(dark, page.pixels.size() / 100);
+    const Image same = screenshot("#view=0&a=truth&b=truth", "same.png");
+    const Image sameFlipped = screenshot("#flip=0&a=truth&b=truth", "same_flipped.png");
+    // With the same method on both sides only the caption naming what is shown changes; with no AA over
+    // the truth, no AA's half of the viewer (480 px wide, 4x zoomed pixels) becomes the truth's too.
+    const size_t captionOnly = differing(same, sameFlipped), methods = differing(swiped, flipped);
+    EXPECT_LT(captionOnly, 3000u);
+    EXPECT_GT(methods, captionOnly + 3000) << captionOnly;
+}
+
 TEST(Cli, FilterRunsFoldersSequencesAndChainsKeepingBitDepthAndAlpha) {
     testing::TempDir dir;
     const std::string model = writeTinyModel(dir.file("tiny.safetensors"), 2);
