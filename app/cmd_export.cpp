@@ -9,6 +9,7 @@
 #include "app/commands.h"
 #include "base/error.h"
 #include "base/files.h"
+#include "nn/glsl.h"
 #include "nn/model.h"
 #include "nn/onnx.h"
 
@@ -19,11 +20,56 @@ namespace fs = std::filesystem;
 
 struct ExportArguments {
     std::string model, output, size;
-    bool onnx = false, force = false, json = false;
+    bool onnx = false, glsl = false, force = false, json = false;
 };
 
+// --glsl: OUT is a folder of shaders, weights.bin and network.json (nn/glsl.h).
+void runGlslExport(const ExportArguments& args) {
+    if (!args.size.empty()) throw Error("--size is for --onnx; the GLSL passes take the size as uniforms");
+    std::error_code error;
+    if (fs::exists(args.output, error) && !fs::is_directory(args.output, error))
+        throw Error("'" + args.output + "' is a file; --glsl writes a folder");
+    if (fs::is_directory(args.output, error) && !fs::is_empty(args.output, error)) {
+        if (!args.force) throw Error("'" + args.output + "' is not empty; add --force to replace its export");
+        if (!fs::exists(fs::path(args.output) / "network.json"))
+            throw Error("'" + args.output + "' holds no GLSL export (no network.json): not replaced");
+        for (const auto& entry : fs::directory_iterator(args.output)) {
+            const std::string name = entry.path().filename().string();
+            if (entry.path().extension() == ".comp" || name == "network.json" || name == "weights.bin")
+                fs::remove(entry.path());
+        }
+    }
+    const fs::path folder = fs::path(args.output).parent_path();
+    if (!folder.empty() && !fs::is_directory(folder))
+        throw Error("cannot write '" + args.output + "': the folder '" + folder.string() +
+                    "' does not exist");
+    const std::string path = shippedModelPath(args.model);
+    const nn::Model model = nn::loadModel(path);
+    const nn::GlslNetwork network = nn::exportGlsl(model);
+    nn::writeGlslNetwork(args.output, network);
+    if (args.json) {
+        std::printf("%s\n", nlohmann::json{{"model", path},
+                                           {"output", args.output},
+                                           {"format", "glsl"},
+                                           {"passes", network.passes.size()},
+                                           {"weights", network.weights.size()},
+                                           {"size_divisor", network.sizeDivisor},
+                                           {"input_channels", model.inputChannels()},
+                                           {"output_channels", model.outputChannels()}}
+                                .dump()
+                                .c_str());
+        return;
+    }
+    std::printf(
+        "wrote %s/: %zu GLSL 430 compute passes, weights.bin (%zu floats), network.json; input %d "
+        "channels, planar float32, sides multiples of %d\n",
+        args.output.c_str(), network.passes.size(), network.weights.size(), model.inputChannels(),
+        network.sizeDivisor);
+}
+
 void runExport(const ExportArguments& args) {
-    if (!args.onnx) throw Error("name the format: --onnx");
+    if (args.onnx == args.glsl) throw Error("name one format: --onnx or --glsl");
+    if (args.glsl) return runGlslExport(args);
     if (!args.force && fs::exists(args.output))
         throw Error("'" + args.output + "' exists; add --force to overwrite");
     const fs::path folder = fs::path(args.output).parent_path();
@@ -76,9 +122,14 @@ void registerExportCommand(CLI::App& app) {
                            "write a model for other runtimes: ONNX (a training run's best model: "
                            "dejag train export)");
     command->add_flag("--onnx", args->onnx, "write ONNX (opset 13, standard operators only)");
+    command->add_flag(
+        "--glsl", args->glsl,
+        "write GLSL 430 compute shaders, one per pass, with weights.bin and network.json into the "
+        "folder OUT");
     command->add_option("MODEL", args->model, "model file, or a shipped model's name (dejag-fast)")
         ->required();
-    command->add_option("OUT", args->output, "the file to write (model.onnx)")->required();
+    command->add_option("OUT", args->output, "the file to write (model.onnx), or the folder (--glsl)")
+        ->required();
     command->add_option("--size", args->size,
                         "fix the input to WIDTHxHEIGHT (default: symbolic height and width; some runtimes "
                         "need them fixed)");
@@ -89,7 +140,10 @@ void registerExportCommand(CLI::App& app) {
         "sRGB-encoded colour in [0, 1] (a guided model: the frame, then the guide method's result on it).\n"
         "The kernel filter is decomposed into Softmax, Pad (edge), Slice, Mul and Add. A U-Net needs H and\n"
         "W divisible by 2^depth (8 for the shipped ones). Recurrent models (warp, accumulate) have no ONNX\n"
-        "form. docs/onnx.md.");
+        "form. docs/onnx.md.\n"
+        "--glsl: one compute pass per node (a concatenation: one per input), every tensor a storage buffer "
+        "of\n"
+        "planar floats; network.json says what each pass binds and how to dispatch it. docs/glsl.md.");
     command->callback([args] { runExport(*args); });
 }
 

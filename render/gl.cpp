@@ -16,6 +16,19 @@ void GlContext::loadFunctions() {
 #undef DEJAG_GL_LOAD
 }
 
+const GlFunctions& GlContext::compute() {
+    if (computeLoaded_) return gl_;
+#define DEJAG_GL_LOAD_COMPUTE(type, name)                                                                 \
+    gl_.name = reinterpret_cast<PFNGL##type##PROC>(procAddress("gl" #name));                              \
+    if (!gl_.name)                                                                                        \
+        throw Error("OpenGL: the context has no gl" #name " (compute shaders need OpenGL 4.3; this is " + \
+                    description() + ")");
+    DEJAG_GL_COMPUTE_FUNCTIONS(DEJAG_GL_LOAD_COMPUTE)
+#undef DEJAG_GL_LOAD_COMPUTE
+    computeLoaded_ = true;
+    return gl_;
+}
+
 namespace {
 
 class OsMesaContext final : public GlContext {

@@ -88,9 +88,20 @@ namespace dejag::render {
     X(DRAWELEMENTS, DrawElements)                                     \
     X(DRAWARRAYS, DrawArrays)
 
+// OpenGL 4.3 compute: shader storage buffers and dispatches (the networks as GLSL, infer/glsl_network.h),
+// loaded on first use so that a 3.3 context still renders.
+#define DEJAG_GL_COMPUTE_FUNCTIONS(X)     \
+    X(DISPATCHCOMPUTE, DispatchCompute)   \
+    X(MEMORYBARRIER, MemoryBarrier)       \
+    X(BINDBUFFERBASE, BindBufferBase)     \
+    X(GETBUFFERSUBDATA, GetBufferSubData) \
+    X(BUFFERSUBDATA, BufferSubData)       \
+    X(UNIFORM2I, Uniform2i)
+
 struct GlFunctions {
 #define DEJAG_GL_DECLARE(type, name) PFNGL##type##PROC name = nullptr;
     DEJAG_GL_FUNCTIONS(DEJAG_GL_DECLARE)
+    DEJAG_GL_COMPUTE_FUNCTIONS(DEJAG_GL_DECLARE)
 #undef DEJAG_GL_DECLARE
 };
 
@@ -104,11 +115,14 @@ class GlContext {
     // e.g. "OSMesa: llvmpipe (LLVM 15.0.6, 256 bits), OpenGL 4.5 core"
     virtual std::string description() const = 0;
     const GlFunctions& gl() const { return gl_; }
+    // gl() with the compute functions loaded too; throws dejag::Error if the context has none (below 4.3).
+    const GlFunctions& compute();
 
   protected:
     // Loads every function of DEJAG_GL_FUNCTIONS; throws dejag::Error naming the first one missing.
     void loadFunctions();
     GlFunctions gl_;
+    bool computeLoaded_ = false;
 };
 
 // The default: an off-screen OSMesa context (llvmpipe). Throws dejag::Error if OSMesa cannot create an

@@ -582,7 +582,7 @@ TEST(Cli, FilterAndMetricsTakeVideos) {
 
 // dejag export --onnx: a shipped model by name into a file (checked against OpenCV's DNN module by
 // Onnx.*); an existing file without --force, a missing folder, a recurrent model and a size the network
-// cannot take are one line each, and nothing is written.
+// cannot take are one line each, and nothing is written. --glsl likewise into a folder.
 TEST(Cli, ExportWritesOnnxAndRefusesWhatItCannot) {
     testing::TempDir dir;
     RunResult r = run("export --onnx --json dejag-fast '" + dir.file("fast.onnx") + "'", dir);
@@ -602,8 +602,23 @@ TEST(Cli, ExportWritesOnnxAndRefusesWhatItCannot) {
                        "does not exist");
     expectOneLineError(run("export --onnx dejag-temporal '" + dir.file("t.onnx") + "'", dir), "no ONNX form");
     expectOneLineError(run("export --onnx --size 30x20 dejag-fast '" + dir.file("s.onnx") + "'", dir), "30");
-    expectOneLineError(run("export dejag-fast '" + dir.file("n.onnx") + "'", dir), "--onnx");
+    expectOneLineError(run("export dejag-fast '" + dir.file("n.onnx") + "'", dir), "--onnx or --glsl");
     EXPECT_EQ(filesIn(dir.path()), 1u);
+    // --glsl: a folder of passes (run against the CPU by Glsl.*), replaced only when it holds an export.
+    r = run("export --glsl --json dejag-fast '" + dir.file("glsl") + "'", dir);
+    ASSERT_EQ(r.exitCode, 0) << r.err;
+    EXPECT_EQ(nlohmann::json::parse(r.out)["passes"], 16);
+    EXPECT_EQ(filesIn(dir.file("glsl")), 18u);  // 16 passes, weights.bin, network.json
+    expectOneLineError(run("export --glsl dejag-fast '" + dir.file("glsl") + "'", dir), "--force");
+    r = run("export --glsl --force dejag-guided '" + dir.file("glsl") + "'", dir);
+    EXPECT_EQ(r.exitCode, 0) << r.err;
+    EXPECT_EQ(filesIn(dir.file("glsl")), 20u);  // the guided network's 18 passes, none of the old left
+    std::filesystem::create_directories(dir.file("other"));
+    std::ofstream(dir.file("other/notes.txt")) << "mine";
+    expectOneLineError(run("export --glsl --force dejag-fast '" + dir.file("other") + "'", dir),
+                       "no GLSL export");
+    expectOneLineError(run("export --glsl --size 64x48 dejag-fast '" + dir.file("g2") + "'", dir), "--size");
+    expectOneLineError(run("export --glsl dejag-temporal '" + dir.file("g3") + "'", dir), "no GLSL form");
 }
 
 // The filter overwrites nothing unless asked: an existing output, of one image or any frame of a sequence,
