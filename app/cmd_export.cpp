@@ -9,6 +9,7 @@
 #include "app/commands.h"
 #include "base/error.h"
 #include "base/files.h"
+#include "infer/glsl_fxaa.h"
 #include "nn/glsl.h"
 #include "nn/model.h"
 #include "nn/onnx.h"
@@ -43,6 +44,33 @@ void runGlslExport(const ExportArguments& args) {
     if (!folder.empty() && !fs::is_directory(folder))
         throw Error("cannot write '" + args.output + "': the folder '" + folder.string() +
                     "' does not exist");
+    if (args.model == "fxaa") {  // the method, not a network: one shader and what it binds
+        std::error_code made;
+        fs::create_directories(args.output, made);
+        const std::string shader = infer::fxaaGlslSource(infer::FxaaOptions{}, 3);
+        writeTextFileAtomically((fs::path(args.output) / "fxaa.comp").string(), shader);
+        const nlohmann::json description = {
+            {"format", "dejag-glsl-1"},
+            {"method", "fxaa"},
+            {"preset", 39},
+            {"passes", {{{"shader", "fxaa.comp"}, {"inputs", {"frame"}}, {"output", "result"}}}},
+            {"layout", "frame and result: interleaved float32 R, G, B per pixel, rows packed, sRGB-encoded"},
+            {"bindings",
+             "1: frame, 4: result; uniform ivec2 size (width, height); dispatch ceil(size / 8) "
+             "groups of 8 x 8"}};
+        writeTextFileAtomically((fs::path(args.output) / "network.json").string(),
+                                description.dump(2) + "\n");
+        if (args.json)
+            std::printf(
+                "%s\n",
+                nlohmann::json{{"method", "fxaa"}, {"output", args.output}, {"format", "glsl"}, {"passes", 1}}
+                    .dump()
+                    .c_str());
+        else
+            std::printf("wrote %s/: fxaa.comp (FXAA 3.11, preset 39, GLSL 430) and network.json\n",
+                        args.output.c_str());
+        return;
+    }
     const std::string path = shippedModelPath(args.model);
     const nn::Model model = nn::loadModel(path);
     const nn::GlslNetwork network = nn::exportGlsl(model);

@@ -10,10 +10,8 @@
 
 namespace dejag::infer {
 
-namespace {
-
 // The search steps of FXAA 3.11's quality presets.
-std::vector<float> presetSteps(int preset) {
+std::vector<float> fxaaPresetSteps(int preset) {
     switch (preset) {
         case 12:
             return {1.0f, 1.5f, 2.0f, 4.0f, 12.0f};
@@ -26,9 +24,9 @@ std::vector<float> presetSteps(int preset) {
     }
 }
 
-}  // namespace
+namespace {}  // namespace
 
-Fxaa::Fxaa(const FxaaOptions& options) : options_(options), steps_(presetSteps(options.preset)) {
+Fxaa::Fxaa(const FxaaOptions& options) : options_(options), steps_(fxaaPresetSteps(options.preset)) {
     for (const float v : {options.subpix, options.edgeThreshold, options.edgeThresholdMin})
         if (!(v >= 0.0f && v <= 1.0f)) throw Error("FXAA: subpix and edge thresholds must be in [0, 1]");
 }

@@ -55,6 +55,9 @@ class Fxaa {
     double processedFraction_ = 0;
 };
 
+// The search steps P0..P(n-1) of FXAA 3.11's quality preset 12, 23 or 39 (throws dejag::Error otherwise).
+std::vector<float> fxaaPresetSteps(int preset);
+
 // The method "fxaa" of infer/filter.h: parameters preset, green-luma, subpix, edge-threshold,
 // edge-threshold-min (FxaaOptions); no buffers.
 MethodSpec fxaaMethod();

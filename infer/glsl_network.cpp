@@ -11,32 +11,8 @@ namespace dejag::infer {
 GlslNetworkRunner::GlslNetworkRunner(render::GlContext& context, nn::GlslNetwork network)
     : context_(context), network_(std::move(network)) {
     const render::GlFunctions& gl = context_.compute();
-    for (const nn::GlslPass& pass : network_.passes) {
-        const GLuint shader = gl.CreateShader(GL_COMPUTE_SHADER);
-        const char* source = pass.source.c_str();
-        gl.ShaderSource(shader, 1, &source, nullptr);
-        gl.CompileShader(shader);
-        GLint ok = 0;
-        gl.GetShaderiv(shader, GL_COMPILE_STATUS, &ok);
-        if (!ok) {
-            char log[4096] = {};
-            gl.GetShaderInfoLog(shader, sizeof log, nullptr, log);
-            gl.DeleteShader(shader);
-            throw Error("GLSL pass '" + pass.name + "' does not compile: " + log);
-        }
-        const GLuint program = gl.CreateProgram();
-        gl.AttachShader(program, shader);
-        gl.LinkProgram(program);
-        gl.DeleteShader(shader);
-        gl.GetProgramiv(program, GL_LINK_STATUS, &ok);
-        if (!ok) {
-            char log[4096] = {};
-            gl.GetProgramInfoLog(program, sizeof log, nullptr, log);
-            gl.DeleteProgram(program);
-            throw Error("GLSL pass '" + pass.name + "' does not link: " + log);
-        }
-        programs_.push_back(program);
-    }
+    for (const nn::GlslPass& pass : network_.passes)
+        programs_.push_back(render::compileComputeProgram(gl, pass.source, "GLSL pass '" + pass.name + "'"));
     gl.GenBuffers(1, &weights_);
     gl.BindBuffer(GL_SHADER_STORAGE_BUFFER, weights_);
     gl.BufferData(GL_SHADER_STORAGE_BUFFER,

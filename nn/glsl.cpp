@@ -15,13 +15,17 @@ namespace {
 
 namespace fs = std::filesystem;
 
-std::string number(float v) {
+}  // namespace
+
+std::string glslFloat(float v) {
     char text[48];
     std::snprintf(text, sizeof text, "%.9g", double(v));
     std::string s = text;
     if (s.find_first_of(".en") == std::string::npos) s += ".0";
     return s;
 }
+
+namespace {
 
 // The prelude of every pass: version, work group, the buffers it binds, its sizes, the tensor index.
 std::string prelude(const std::string& what, int inputs, bool weights) {
@@ -48,13 +52,13 @@ std::string activationFunction(const ActivationDesc& a) {
             body = "return max(v, 0.0);";
             break;
         case Activation::LeakyReLU:
-            body = "return v < 0.0 ? " + number(a.slope) + " * v : v;";
+            body = "return v < 0.0 ? " + glslFloat(a.slope) + " * v : v;";
             break;
         case Activation::Sigmoid:
             body = "return 1.0 / (1.0 + exp(-v));";
             break;
         case Activation::Clamp:
-            body = "return clamp(v, " + number(a.low) + ", " + number(a.high) + ");";
+            body = "return clamp(v, " + glslFloat(a.low) + ", " + glslFloat(a.high) + ");";
             break;
     }
     return "float activate(float v) { " + body + " }\n";
@@ -305,7 +309,7 @@ GlslNetwork exportGlsl(const Model& model) {
                 s << prelude("kernel filter '" + name + "'", third ? 3 : 2, false) << "const int C = " << cout
                   << ", K = " << n.kernel << ", R = " << n.kernel / 2 << ", TAPS = " << taps
                   << ", T = " << taps + (third ? 1 : 0) << ";\n"
-                  << "const float CENTRE_BIAS = " << number(n.centreBias) << ";\n"
+                  << "const float CENTRE_BIAS = " << glslFloat(n.centreBias) << ";\n"
                   << kMainStart
                   << "    // softmax of the logits, the centre's raised\n"
                      "    float w[T];\n"

@@ -46,6 +46,9 @@ struct GlslNetwork {
     nlohmann::json description() const;
 };
 
+// A float as a GLSL literal that reads back to the same float ("0.166000003", "2.0").
+std::string glslFloat(float v);
+
 // Throws dejag::Error naming a node whose op has no GLSL form.
 GlslNetwork exportGlsl(const Model& model);
 

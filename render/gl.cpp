@@ -29,6 +29,33 @@ const GlFunctions& GlContext::compute() {
     return gl_;
 }
 
+GLuint compileComputeProgram(const GlFunctions& gl, const std::string& source, const std::string& what) {
+    const GLuint shader = gl.CreateShader(GL_COMPUTE_SHADER);
+    const char* text = source.c_str();
+    gl.ShaderSource(shader, 1, &text, nullptr);
+    gl.CompileShader(shader);
+    GLint ok = 0;
+    gl.GetShaderiv(shader, GL_COMPILE_STATUS, &ok);
+    if (!ok) {
+        char log[4096] = {};
+        gl.GetShaderInfoLog(shader, sizeof log, nullptr, log);
+        gl.DeleteShader(shader);
+        throw Error(what + " does not compile: " + log);
+    }
+    const GLuint program = gl.CreateProgram();
+    gl.AttachShader(program, shader);
+    gl.LinkProgram(program);
+    gl.DeleteShader(shader);
+    gl.GetProgramiv(program, GL_LINK_STATUS, &ok);
+    if (!ok) {
+        char log[4096] = {};
+        gl.GetProgramInfoLog(program, sizeof log, nullptr, log);
+        gl.DeleteProgram(program);
+        throw Error(what + " does not link: " + log);
+    }
+    return program;
+}
+
 namespace {
 
 class OsMesaContext final : public GlContext {

@@ -125,6 +125,10 @@ class GlContext {
     bool computeLoaded_ = false;
 };
 
+// A compute shader compiled and linked into a program (needs compute(): OpenGL 4.3). Throws dejag::Error
+// with the compiler's log, naming `what`.
+GLuint compileComputeProgram(const GlFunctions& gl, const std::string& source, const std::string& what);
+
 // The default: an off-screen OSMesa context (llvmpipe). Throws dejag::Error if OSMesa cannot create an
 // OpenGL 3.3+ core context.
 std::unique_ptr<GlContext> createOsMesaContext();

@@ -619,6 +619,10 @@ TEST(Cli, ExportWritesOnnxAndRefusesWhatItCannot) {
                        "no GLSL export");
     expectOneLineError(run("export --glsl --size 64x48 dejag-fast '" + dir.file("g2") + "'", dir), "--size");
     expectOneLineError(run("export --glsl dejag-temporal '" + dir.file("g3") + "'", dir), "no GLSL form");
+    r = run("export --glsl fxaa '" + dir.file("fxaa") + "'", dir);
+    ASSERT_EQ(r.exitCode, 0) << r.err;
+    EXPECT_NE(slurp(dir.file("fxaa/fxaa.comp")).find("#version 430"), std::string::npos);
+    EXPECT_TRUE(std::filesystem::exists(dir.file("fxaa/network.json")));
 }
 
 // The filter overwrites nothing unless asked: an existing output, of one image or any frame of a sequence,
