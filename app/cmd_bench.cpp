@@ -217,7 +217,7 @@ void registerBenchCommand(CLI::App& app) {
         options.width = size.width, options.height = size.height;
         options.repeat = filterArgs->repeat;
         options.threads = filterArgs->sweep.resolve();
-        options.temporalModel = filterArgs->temporalModel;
+        options.temporalModel = shippedModelPath(filterArgs->temporalModel);
         if (!options.temporalModel.empty() && !std::filesystem::exists(options.temporalModel)) {
             if (filterBench->count("--temporal-model"))
                 throw Error("--temporal-model: no model file " + options.temporalModel);
@@ -530,9 +530,10 @@ void registerBenchCommand(CLI::App& app) {
         }
         infer::makeFilter("taa-hq", options.taaHq);  // an unknown or out-of-range setting: one line, now
         // A model named on the command line must be there; the shipped ones are compared when present.
-        auto model = [taaBench](const std::string& path, const char* flag, const char* shipped) {
+        auto model = [taaBench](const std::string& given, const char* flag, const char* shipped) {
+            const std::string path = shippedModelPath(given);  // a shipped model from any folder
             if (path.empty() ||
-                (taaBench->count(flag) == 0 && path == shipped && !std::filesystem::exists(path)))
+                (taaBench->count(flag) == 0 && given == shipped && !std::filesystem::exists(path)))
                 return std::string();
             if (!std::filesystem::exists(path)) throw Error(std::string(flag) + ": no model file " + path);
             return path;

@@ -50,6 +50,7 @@ void registerDemoCommand(CLI::App& app) {
         options->width = s.width, options->height = s.height;
         options->scenes = splitList(*scenes);
         options->models = shippedModelPaths(splitList(*models));
+        options->temporalModel = shippedModelPath(options->temporalModel);  // from any folder
         std::vector<nlohmann::json> moving;
         const std::vector<nlohmann::json> rows = bench::runDemo(*options, &moving);
         bench::printQualityRows(rows, *json, false);

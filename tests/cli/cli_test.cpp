@@ -1534,9 +1534,12 @@ TEST(Cli, ReportRendersInChromiumAndItsFlipShowsTheOtherMethod) {
     const std::string browser = "/usr/bin/chromium-headless-shell";
     ASSERT_TRUE(std::filesystem::exists(browser)) << "scripts/install-deps installs chromium-headless-shell";
     const std::string out = dir.file("demo");
-    const RunResult r =
-        run("demo --out '" + out + "' --size 96x64 --truth 8 --scenes pipe --repeat 1 --quiet", dir);
+    // (Run outside the source tree: the shipped temporal network is found from any folder.)
+    const RunResult r = run(
+        "demo --out '" + out + "' --size 96x64 --truth 8 --scenes pipe --repeat 1 --quiet --moving-frames 4",
+        dir, "cd / &&");
     ASSERT_EQ(r.exitCode, 0) << r.err;
+    EXPECT_EQ(slurp(out + "/report.html").find("no temporal model"), std::string::npos);
     const auto screenshot = [&](const std::string& fragment, const std::string& name) {
         const std::string png = dir.file(name);
         const std::string command =
