@@ -76,6 +76,7 @@ const std::map<std::string, std::string>& examples() {
         {"filter", "dejag filter --method cnn --model models/dejag-guided.safetensors frame.exr smooth.png"},
         {"metrics", "dejag metrics --json truth.exr smooth.exr"},
         {"export", "dejag export --onnx dejag-fast dejag-fast.onnx"},
+        {"view", "dejag view --scene atrium --method cnn --compare fxaa"},
         {"bench", "dejag bench filter --threads 2"},
         {"bench render", "dejag bench render --quick"},
         {"bench filter", "dejag bench filter --threads 2 --size 1920x1080"},

@@ -14,5 +14,6 @@ void registerDemoCommand(CLI::App& app);
 void registerFilterCommand(CLI::App& app);
 void registerCompletionCommand(CLI::App& app);
 void registerExportCommand(CLI::App& app);
+void registerViewCommand(CLI::App& app);
 
 }  // namespace dejag::cli

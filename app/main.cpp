@@ -72,6 +72,7 @@ int main(int argc, char** argv) {
     dejag::cli::registerTrainCommand(app);
     dejag::cli::registerFilterCommand(app);
     dejag::cli::registerExportCommand(app);
+    dejag::cli::registerViewCommand(app);
     dejag::cli::registerMetricsCommand(app);
     dejag::cli::registerBenchCommand(app);
     dejag::cli::registerDemoCommand(app);

@@ -18,10 +18,21 @@ const char* __lsan_default_options() {
 const char* __ubsan_default_options() {
     return "print_stacktrace=1:halt_on_error=1";
 }
-// Mesa's OSMesa keeps a few small context objects (480 bytes) alive past the context's destruction.
-// Matched by library name: the fast unwinder stops at the first frame inside the uninstrumented library.
+// Mesa's OSMesa keeps a few small context objects (480 bytes) alive past the context's destruction; the
+// window system under `dejag view` (GLFW, Xlib and XCB, Mesa's GLX and DRI drivers) keeps its own past
+// exit. Matched by library name: the fast unwinder stops at the first frame inside the uninstrumented
+// library.
 const char* __lsan_default_suppressions() {
-    return "leak:libOSMesa.so\n";
+    return "leak:libOSMesa.so\n"
+           "leak:libglfw.so\n"
+           "leak:libX11.so\n"
+           "leak:libxcb.so\n"
+           "leak:libGLX_mesa.so\n"
+           "leak:libGLdispatch.so\n"
+           "leak:libGLX.so\n"
+           "leak:swrast_dri.so\n"
+           "leak:libgallium\n"
+           "leak:libLLVM\n";
 }
 #endif
 

@@ -77,7 +77,8 @@ TEST(Cli, EveryHelpHasAnExampleAndOneCapitalisation) {
                                 "bench metrics",
                                 "demo",
                                 "completion",
-                                "export"}) {
+                                "export",
+                                "view"}) {
         SCOPED_TRACE(command);
         const RunResult r = run(std::string(command) + " --help", dir);
         ASSERT_EQ(r.exitCode, 0) << r.err;
@@ -1570,6 +1571,64 @@ TEST(Cli, ReportRendersInChromiumAndItsFlipShowsTheOtherMethod) {
     const size_t captionOnly = differing(same, sameFlipped), methods = differing(swiped, flipped);
     EXPECT_LT(captionOnly, 3000u);
     EXPECT_GT(methods, captionOnly + 3000) << captionOnly;
+}
+
+// dejag view under a virtual display (xvfb-run, installed by scripts/install-deps): a script switches
+// the method to FXAA, and the screenshot of the third frame equals what dejag render then dejag filter
+// make of that frame (same jitter) within 1/255; a split screen shows the two methods side by side.
+// Without a display: one error line.
+TEST(Cli, ViewShowsWhatTheFilterWrites) {
+    testing::TempDir dir;
+    ASSERT_TRUE(std::filesystem::exists("/usr/bin/xvfb-run")) << "scripts/install-deps installs xvfb";
+    expectOneLineError(run("view --scene pipe --frames 1", dir, "env -u DISPLAY -u WAYLAND_DISPLAY"),
+                       "no display");
+    std::ofstream(dir.file("keys.txt")) << "# switch to FXAA at the second frame\n1 2\n";
+    const std::string xvfb = "xvfb-run -a -s '-screen 0 320x240x24' ";
+    RunResult r = run("view --scene pipe --size 96x64 --method none --frames 3 --script '" +
+                          dir.file("keys.txt") + "' --screenshot '" + dir.file("shot.png") + "'",
+                      dir, xvfb);
+    ASSERT_EQ(r.exitCode, 0) << r.err;
+    r =
+        run("render --scene pipe --size 96x64 --frames 3 --jitter halton16 --buffers "
+            "color,albedo,depth,motion,id,prevdepth --quiet --out '" +
+                dir.file("r") + "'",
+            dir);
+    ASSERT_EQ(r.exitCode, 0) << r.err;
+    r = run(
+        "filter --method fxaa --quiet '" + dir.file("r/frame_0002.exr") + "' '" + dir.file("cpu.png") + "'",
+        dir);
+    ASSERT_EQ(r.exitCode, 0) << r.err;
+    const Image shot = readImage(dir.file("shot.png")), cpu = readImage(dir.file("cpu.png"));
+    ASSERT_EQ(shot.width, cpu.width);
+    ASSERT_EQ(shot.height, cpu.height);
+    const Image unfiltered = readImage(dir.file("r/frame_0002.png"));
+    int largest = 0, changedByFxaa = 0;
+    for (size_t i = 0; i < shot.pixels.size(); ++i) {
+        largest = std::max(
+            largest, int(std::abs(std::lround(shot.pixels[i] * 255) - std::lround(cpu.pixels[i] * 255))));
+        changedByFxaa += std::lround(cpu.pixels[i] * 255) != std::lround(unfiltered.pixels[i] * 255);
+    }
+    EXPECT_LE(largest, 1);
+    EXPECT_GT(changedByFxaa, 20);  // the method did change the frame: the match says something
+    // Split: none on the left half, FXAA on the right.
+    r = run("view --scene pipe --size 96x64 --method none --compare fxaa --frames 3 --screenshot '" +
+                dir.file("split.png") + "'",
+            dir, xvfb);
+    ASSERT_EQ(r.exitCode, 0) << r.err;
+    const Image split = readImage(dir.file("split.png"));
+    int leftOff = 0, rightOff = 0;
+    for (int y = 0; y < 64; ++y)
+        for (int x = 0; x < 96; ++x) {
+            if (x >= 47 && x <= 48) continue;  // the dividing line
+            const Image& expected = x < 48 ? unfiltered : cpu;
+            for (int c = 0; c < 3; ++c) {
+                const long d =
+                    std::abs(std::lround(split.at(x, y, c) * 255) - std::lround(expected.at(x, y, c) * 255));
+                (x < 48 ? leftOff : rightOff) += d > 1;
+            }
+        }
+    EXPECT_EQ(leftOff, 0);
+    EXPECT_EQ(rightOff, 0);
 }
 
 TEST(Cli, FilterRunsFoldersSequencesAndChainsKeepingBitDepthAndAlpha) {
