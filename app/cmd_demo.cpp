@@ -64,7 +64,12 @@ void registerDemoCommand(CLI::App& app) {
                         row["psnr"].get<double>(), row["ssim"].get<double>(), row["flicker"].get<double>(),
                         row["scored_from"].get<int>(), row["frames"].get<int>() - 1);
         }
-        if (!*json) std::printf("report: %s/report.html\n", options->out.c_str());
+        if (!*json) {
+            std::printf("report: %s/report.html\n", options->out.c_str());
+            std::printf(
+                "live, in a window: dejag view --scene atrium --method cnn --compare fxaa (keys 1-8 switch "
+                "methods; docs/view.md)\n");
+        }
     });
 }
 
