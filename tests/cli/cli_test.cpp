@@ -1053,7 +1053,9 @@ TEST(Cli, FilterListsItsMethodsAndRefusesParametersNoMethodReads) {
 
 TEST(Cli, BenchFilterPrintsEveryMethod) {
     testing::TempDir dir;
-    const RunResult r = run("bench filter --size 96x64 --repeat 1 --threads 1 --json --models ''", dir);
+    // (No networks: --models '' and --temporal-model '' leave out the shipped ones, found from any folder.)
+    const RunResult r =
+        run("bench filter --size 96x64 --repeat 1 --threads 1 --json --models '' --temporal-model ''", dir);
     ASSERT_EQ(r.exitCode, 0) << r.err;
     std::vector<std::string> names;
     for (const nlohmann::json& j : jsonLines(r.out)) {
@@ -1163,7 +1165,7 @@ TEST(Cli, BenchTaaReproducesTheThesisProtocolsSmall) {
     testing::TempDir dir;
     const RunResult r =
         run("bench taa --size 64x36 --truth 4 --ghost-frames 2 --ghost-size 32x18 --ghost-truth 2 "
-            "--moving-frames 3 "
+            "--moving-frames 3 --fast-model '' --temporal-model '' "  // the methods without the networks
             "--json "
             "--out '" +
                 dir.file("maps") + "'",
