@@ -234,27 +234,9 @@ class Viewer {
 
     void setUpDisplay() {
         const render::GlFunctions& gl = window_->gl();
-        const auto compile = [&](GLenum type, const char* source) {
-            const GLuint shader = gl.CreateShader(type);
-            gl.ShaderSource(shader, 1, &source, nullptr);
-            gl.CompileShader(shader);
-            GLint ok = 0;
-            gl.GetShaderiv(shader, GL_COMPILE_STATUS, &ok);
-            if (!ok) {
-                char log[2048] = {};
-                gl.GetShaderInfoLog(shader, sizeof log, nullptr, log);
-                throw Error(std::string("the viewer's shader does not compile: ") + log);
-            }
-            return shader;
-        };
-        program_ = gl.CreateProgram();
-        const GLuint vs = compile(GL_VERTEX_SHADER, kVertexShader),
-                     fs = compile(GL_FRAGMENT_SHADER, kFragmentShader);
-        gl.AttachShader(program_, vs);
-        gl.AttachShader(program_, fs);
-        gl.LinkProgram(program_);
-        gl.DeleteShader(vs);
-        gl.DeleteShader(fs);
+        program_ = render::compileProgram(
+            gl, {{GL_VERTEX_SHADER, kVertexShader}, {GL_FRAGMENT_SHADER, kFragmentShader}},
+            "the viewer's display program");
         gl.GenVertexArrays(1, &vertexArray_);
         gl.GenTextures(2, textures_);
         for (GLuint t : textures_) {

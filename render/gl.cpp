@@ -3,6 +3,7 @@
 #include <GL/osmesa.h>
 
 #include <string>
+#include <vector>
 
 #include "base/error.h"
 
@@ -29,23 +30,31 @@ const GlFunctions& GlContext::compute() {
     return gl_;
 }
 
-GLuint compileComputeProgram(const GlFunctions& gl, const std::string& source, const std::string& what) {
-    const GLuint shader = gl.CreateShader(GL_COMPUTE_SHADER);
-    const char* text = source.c_str();
-    gl.ShaderSource(shader, 1, &text, nullptr);
-    gl.CompileShader(shader);
-    GLint ok = 0;
-    gl.GetShaderiv(shader, GL_COMPILE_STATUS, &ok);
-    if (!ok) {
-        char log[4096] = {};
-        gl.GetShaderInfoLog(shader, sizeof log, nullptr, log);
-        gl.DeleteShader(shader);
-        throw Error(what + " does not compile: " + log);
+GLuint compileProgram(const GlFunctions& gl, std::initializer_list<std::pair<GLenum, const char*>> stages,
+                      const std::string& what) {
+    std::vector<GLuint> shaders;
+    const auto release = [&] {
+        for (GLuint shader : shaders) gl.DeleteShader(shader);
+    };
+    for (const auto& [type, source] : stages) {
+        const GLuint shader = gl.CreateShader(type);
+        shaders.push_back(shader);
+        gl.ShaderSource(shader, 1, &source, nullptr);
+        gl.CompileShader(shader);
+        GLint ok = 0;
+        gl.GetShaderiv(shader, GL_COMPILE_STATUS, &ok);
+        if (!ok) {
+            char log[4096] = {};
+            gl.GetShaderInfoLog(shader, sizeof log, nullptr, log);
+            release();
+            throw Error(what + " does not compile: " + log);
+        }
     }
     const GLuint program = gl.CreateProgram();
-    gl.AttachShader(program, shader);
+    for (GLuint shader : shaders) gl.AttachShader(program, shader);
     gl.LinkProgram(program);
-    gl.DeleteShader(shader);
+    release();
+    GLint ok = 0;
     gl.GetProgramiv(program, GL_LINK_STATUS, &ok);
     if (!ok) {
         char log[4096] = {};
@@ -54,6 +63,10 @@ GLuint compileComputeProgram(const GlFunctions& gl, const std::string& source, c
         throw Error(what + " does not link: " + log);
     }
     return program;
+}
+
+GLuint compileComputeProgram(const GlFunctions& gl, const std::string& source, const std::string& what) {
+    return compileProgram(gl, {{GL_COMPUTE_SHADER, source.c_str()}}, what);
 }
 
 namespace {

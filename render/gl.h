@@ -5,8 +5,10 @@
 
 #include <GL/glcorearb.h>
 
+#include <initializer_list>
 #include <memory>
 #include <string>
+#include <utility>
 
 namespace dejag::render {
 
@@ -125,8 +127,11 @@ class GlContext {
     bool computeLoaded_ = false;
 };
 
-// A compute shader compiled and linked into a program (needs compute(): OpenGL 4.3). Throws dejag::Error
-// with the compiler's log, naming `what`.
+// Shader stages ({GL_VERTEX_SHADER, source}, ...) compiled and linked into a program. Throws dejag::Error
+// with the compiler's or linker's log, naming `what`.
+GLuint compileProgram(const GlFunctions& gl, std::initializer_list<std::pair<GLenum, const char*>> stages,
+                      const std::string& what);
+// A compute shader as a program (needs compute(): OpenGL 4.3).
 GLuint compileComputeProgram(const GlFunctions& gl, const std::string& source, const std::string& what);
 
 // The default: an off-screen OSMesa context (llvmpipe). Throws dejag::Error if OSMesa cannot create an

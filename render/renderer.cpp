@@ -245,35 +245,9 @@ struct Renderer::Impl {
     Impl(const GlFunctions& functions, const Scene& s, int w, int h)
         : gl(functions), scene(s), width(w), height(h) {}
 
-    GLuint compile(GLenum type, const char* source) {
-        const GLuint shader = gl.CreateShader(type);
-        gl.ShaderSource(shader, 1, &source, nullptr);
-        gl.CompileShader(shader);
-        GLint ok = 0;
-        gl.GetShaderiv(shader, GL_COMPILE_STATUS, &ok);
-        if (!ok) {
-            char log[2048] = {};
-            gl.GetShaderInfoLog(shader, sizeof log, nullptr, log);
-            throw Error(std::string("OpenGL: shader does not compile: ") + log);
-        }
-        return shader;
-    }
     GLuint link(const char* vertex, const char* fragment) {
-        const GLuint program = gl.CreateProgram(), vs = compile(GL_VERTEX_SHADER, vertex),
-                     fs = compile(GL_FRAGMENT_SHADER, fragment);
-        gl.AttachShader(program, vs);
-        gl.AttachShader(program, fs);
-        gl.LinkProgram(program);
-        gl.DeleteShader(vs);
-        gl.DeleteShader(fs);
-        GLint ok = 0;
-        gl.GetProgramiv(program, GL_LINK_STATUS, &ok);
-        if (!ok) {
-            char log[2048] = {};
-            gl.GetProgramInfoLog(program, sizeof log, nullptr, log);
-            throw Error(std::string("OpenGL: program does not link: ") + log);
-        }
-        return program;
+        return compileProgram(gl, {{GL_VERTEX_SHADER, vertex}, {GL_FRAGMENT_SHADER, fragment}},
+                              "OpenGL: the renderer's program");
     }
     GLint uniform(GLuint program, const char* name) const { return gl.GetUniformLocation(program, name); }
     void setMatrix(GLuint program, const char* name, const Mat4& m) const {
