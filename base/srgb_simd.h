@@ -15,44 +15,17 @@
 #include <utility>
 
 #include "base/pixel_simd.h"
+#include "base/srgb.h"
 
 namespace dejag::DEJAG_SIMD_NAMESPACE {
 
-inline constexpr float kSrgbDecodeKnee = 0.04045f, kSrgbEncodeKnee = 0.0031308f;
+using dejag::kSrgbDecodeKnee;
+using dejag::kSrgbEncodeKnee;
 
-struct PowerCurve {
-    alignas(64) float factor[16];  // 2^(e p) (times `gain`), by biased exponent mod 16
-    float c[8] = {};               // the polynomial's coefficients in m - 1.5, lowest first
-    int degree = 0;
-};
-
-// x^p's curve (times gain) for x in (0, 1] by a polynomial of `degree` (at most 7).
-inline PowerCurve fitPower(double p, int degree, double gain) {
-    PowerCurve curve{};
-    curve.degree = degree;
-    const int n = degree + 1;
-    double m[8][9] = {};
-    for (int i = 0; i < n; ++i) {
-        const double s = 0.5 * std::cos(M_PI * (2 * i + 1) / (2 * n));  // node: m = 1.5 + s
-        for (int j = 0; j < n; ++j) m[i][j] = std::pow(s, j);
-        m[i][n] = std::pow(1.5 + s, p);
-    }
-    for (int col = 0; col < n; ++col) {  // Gauss-Jordan with partial pivoting
-        int pivot = col;
-        for (int r = col + 1; r < n; ++r)
-            if (std::abs(m[r][col]) > std::abs(m[pivot][col])) pivot = r;
-        std::swap(m[col], m[pivot]);
-        for (int r = 0; r < n; ++r)
-            if (r != col) {
-                const double k = m[r][col] / m[col][col];
-                for (int j = col; j <= n; ++j) m[r][j] -= k * m[col][j];
-            }
-    }
-    for (int j = 0; j < n; ++j) curve.c[j] = float(m[j][n] / m[j][j]);
-    for (int biased = 112; biased < 128; ++biased)  // e = biased - 127 in [-15, 0]
-        curve.factor[biased & 15] = float(gain * std::pow(2.0, p * (biased - 127)));
-    return curve;
-}
+using dejag::fitPower;
+using dejag::PowerCurve;
+using dejag::srgbDecodeCurve7;
+using dejag::srgbEncodeCurve7;
 
 // The int lanes of V (float: one int32_t).
 template <class V>
@@ -121,16 +94,6 @@ inline V encodeSrgbBy(const PowerCurve& curve, V x) {
     // (the linear part's lanes, 0 and subnormals too, read some factor of the table and are replaced)
     const V power = powerAt<Degree>(curve, x) - 0.055f;
     return x <= kSrgbEncodeKnee ? x * 12.92f : power;
-}
-
-// The curves at degree 7 (within 2e-7 of the double-precision formulas, rounding included), fitted once.
-inline const PowerCurve& srgbDecodeCurve7() {
-    static const PowerCurve curve = fitPower(2.4, 7, 1.0);
-    return curve;
-}
-inline const PowerCurve& srgbEncodeCurve7() {
-    static const PowerCurve curve = fitPower(1 / 2.4, 7, 1.055);
-    return curve;
 }
 
 }  // namespace dejag::DEJAG_SIMD_NAMESPACE

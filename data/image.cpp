@@ -14,6 +14,7 @@
 
 #include "base/error.h"
 #include "base/files.h"
+#include "base/srgb.h"
 
 // Leak-sanitizer builds: OpenImageIO 2.4's PNG reader leaks the error message of every truncated file
 // (a std::string longjmp'd over inside PngReadCallback). Allocations made inside OpenImageIO's readers
@@ -479,7 +480,7 @@ float srgbToLinear(float encoded) {
 }
 
 float linearToSrgb(float linear) {
-    return linear <= 0.0031308f ? linear * 12.92f : 1.055f * std::pow(linear, 1.0f / 2.4f) - 0.055f;
+    return encodeSrgb(linear);
 }
 
 void convertSrgbToLinear(Image& image) {

@@ -82,7 +82,9 @@ double valueScale(PixelType type);
 // True for half and float storage (linear light), false for 8- and 16-bit (sRGB-encoded).
 bool holdsLinearLight(PixelType type);
 
-// sRGB transfer function, IEC 61966-2-1 (piecewise: linear below 0.04045 / 0.0031308).
+// sRGB transfer function, IEC 61966-2-1 (piecewise: linear below 0.04045 / 0.0031308). The encoding is
+// base/srgb.h's curve (within 2e-7 of the formula), which the SIMD kernels and the GLSL passes repeat bit
+// for bit.
 float srgbToLinear(float encoded);
 float linearToSrgb(float linear);
 // Apply to colour channels only (R, G, B, Y, with or without a layer prefix); alpha and buffers untouched.
