@@ -207,7 +207,7 @@ MethodSpec noneMethod() {
 // The table of methods: one line each.
 const std::vector<MethodSpec>& filterMethods() {
     static const std::vector<MethodSpec> table = {
-        noneMethod(),     fxaaMethod(),    smaaMethod(),         cnnMethod(),
+        noneMethod(),     fxaaMethod(),    smaaMethod(),  cnnMethod(),
         taaMethod(false), taaMethod(true), taaHqMethod(), cnnTemporalMethod(),
     };
     return table;

@@ -151,6 +151,16 @@ class FxaaFilter final : public Filter {
 
 }  // namespace
 
+FxaaOptions fxaaOptions(const MethodParameters& p) {
+    FxaaOptions options;
+    options.preset = p.integer("preset", 0, 99);
+    options.greenAsLuma = p.flag("green-luma");
+    options.subpix = float(p.number("subpix", 0, 1));
+    options.edgeThreshold = float(p.number("edge-threshold", 0, 1));
+    options.edgeThresholdMin = float(p.number("edge-threshold-min", 0, 1));
+    return options;
+}
+
 MethodSpec fxaaMethod() {
     const FxaaOptions d;
     MethodSpec spec;
@@ -165,12 +175,7 @@ MethodSpec fxaaMethod() {
         {"edge-threshold-min", "0.0833", "minimum absolute local contrast (skips dark areas), [0, 1]"},
     };
     spec.make = [](MethodParameters& p) -> std::unique_ptr<Filter> {
-        FxaaOptions options;
-        options.preset = p.integer("preset", 0, 99);
-        options.greenAsLuma = p.flag("green-luma");
-        options.subpix = float(p.number("subpix", 0, 1));
-        options.edgeThreshold = float(p.number("edge-threshold", 0, 1));
-        options.edgeThresholdMin = float(p.number("edge-threshold-min", 0, 1));
+        const FxaaOptions options = fxaaOptions(p);
         try {
             return std::make_unique<FxaaFilter>(options);
         } catch (const Error& e) {

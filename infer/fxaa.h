@@ -61,5 +61,7 @@ std::vector<float> fxaaPresetSteps(int preset);
 // The method "fxaa" of infer/filter.h: parameters preset, green-luma, subpix, edge-threshold,
 // edge-threshold-min (FxaaOptions); no buffers.
 MethodSpec fxaaMethod();
+// The options the method's parameters give (shared with its GPU form, infer/glsl_filter.h).
+FxaaOptions fxaaOptions(const MethodParameters& parameters);
 
 }  // namespace dejag::infer

@@ -182,16 +182,23 @@ void GlslFxaa::apply(const float* in, float* out, int width, int height) {
     capacity_ = std::max(capacity_, bytes);
     gl.BindBuffer(GL_SHADER_STORAGE_BUFFER, buffers_[0]);
     gl.BufferSubData(GL_SHADER_STORAGE_BUFFER, 0, GLsizeiptr(bytes), in);
-    gl.UseProgram(program_);
-    gl.BindBufferBase(GL_SHADER_STORAGE_BUFFER, 1, buffers_[0]);
-    gl.BindBufferBase(GL_SHADER_STORAGE_BUFFER, 4, buffers_[1]);
-    gl.Uniform2i(gl.GetUniformLocation(program_, "size"), width, height);
-    gl.DispatchCompute(GLuint((width + 7) / 8), GLuint((height + 7) / 8), 1);
-    gl.MemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT | GL_BUFFER_UPDATE_BARRIER_BIT);
+    dispatch(buffers_[0], buffers_[1], width, height);
+    gl.MemoryBarrier(GL_BUFFER_UPDATE_BARRIER_BIT);
     gl.BindBuffer(GL_SHADER_STORAGE_BUFFER, buffers_[1]);
     gl.GetBufferSubData(GL_SHADER_STORAGE_BUFFER, 0, GLsizeiptr(bytes), out);
     if (const GLenum error = gl.GetError(); error != GL_NO_ERROR)
         throw Error("GLSL FXAA: OpenGL error " + std::to_string(error));
+}
+
+void GlslFxaa::dispatch(unsigned in, unsigned out, int width, int height) {
+    if (width < 1 || height < 1) throw Error("FXAA needs a non-empty image");
+    const render::GlFunctions& gl = context_.compute();
+    gl.UseProgram(program_);
+    gl.BindBufferBase(GL_SHADER_STORAGE_BUFFER, 1, in);
+    gl.BindBufferBase(GL_SHADER_STORAGE_BUFFER, 4, out);
+    gl.Uniform2i(gl.GetUniformLocation(program_, "size"), width, height);
+    gl.DispatchCompute(GLuint((width + 7) / 8), GLuint((height + 7) / 8), 1);
+    gl.MemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT);
 }
 
 }  // namespace dejag::infer

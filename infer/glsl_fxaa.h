@@ -24,6 +24,8 @@ class GlslFxaa {
     GlslFxaa& operator=(const GlslFxaa&) = delete;
     // in, out: (height, width, channels) interleaved floats.
     void apply(const float* in, float* out, int width, int height);
+    // The same on storage buffers already on the GPU (in != out), with nothing read back.
+    void dispatch(unsigned in, unsigned out, int width, int height);
 
   private:
     render::GlContext& context_;

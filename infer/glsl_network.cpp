@@ -27,23 +27,22 @@ GlslNetworkRunner::~GlslNetworkRunner() {
     if (weights_) gl.DeleteBuffers(1, &weights_);
 }
 
-std::vector<float> GlslNetworkRunner::run(const float* input, int width, int height) {
+std::pair<int, int> GlslNetworkRunner::sizeOf(size_t buffer) const {
+    const nn::GlslBuffer& b = network_.buffers[buffer];
+    return {width_ * b.scaleNum / b.scaleDen, height_ * b.scaleNum / b.scaleDen};
+}
+
+unsigned GlslNetworkRunner::prepare(int width, int height) {
     const int d = network_.sizeDivisor;
     if (width <= 0 || height <= 0 || width % d != 0 || height % d != 0)
         throw Error("GLSL network '" + network_.model + "': " + std::to_string(width) + "x" +
                     std::to_string(height) + " is not a multiple of " + std::to_string(d) + " on each side");
     const render::GlFunctions& gl = context_.compute();
-    Stopwatch timer;
-    std::map<std::string, size_t> index;
-    for (size_t i = 0; i < network_.buffers.size(); ++i) index[network_.buffers[i].name] = i;
-    const auto sizeOf = [&](size_t i) {
-        const nn::GlslBuffer& b = network_.buffers[i];
-        return std::pair<int, int>{width * b.scaleNum / b.scaleDen, height * b.scaleNum / b.scaleDen};
-    };
     if (width != width_ || height != height_) {
         if (!buffers_.empty()) gl.DeleteBuffers(GLsizei(buffers_.size()), buffers_.data());
         buffers_.assign(network_.buffers.size(), 0);
         gl.GenBuffers(GLsizei(buffers_.size()), buffers_.data());
+        width_ = width, height_ = height;
         for (size_t i = 0; i < buffers_.size(); ++i) {
             const auto [w, h] = sizeOf(i);
             gl.BindBuffer(GL_SHADER_STORAGE_BUFFER, buffers_[i]);
@@ -52,11 +51,14 @@ std::vector<float> GlslNetworkRunner::run(const float* input, int width, int hei
                 GLsizeiptr(size_t(network_.buffers[i].channels) * size_t(w) * size_t(h) * sizeof(float)),
                 nullptr, GL_DYNAMIC_COPY);
         }
-        width_ = width, height_ = height;
     }
-    const size_t inputCount = size_t(network_.inputChannels) * size_t(width) * size_t(height);
-    gl.BindBuffer(GL_SHADER_STORAGE_BUFFER, buffers_[0]);
-    gl.BufferSubData(GL_SHADER_STORAGE_BUFFER, 0, GLsizeiptr(inputCount * sizeof(float)), input);
+    return buffers_[0];
+}
+
+unsigned GlslNetworkRunner::dispatch() {
+    const render::GlFunctions& gl = context_.compute();
+    std::map<std::string, size_t> index;
+    for (size_t i = 0; i < network_.buffers.size(); ++i) index[network_.buffers[i].name] = i;
     gl.BindBufferBase(GL_SHADER_STORAGE_BUFFER, 0, weights_);
     for (size_t p = 0; p < network_.passes.size(); ++p) {
         const nn::GlslPass& pass = network_.passes[p];
@@ -72,10 +74,23 @@ std::vector<float> GlslNetworkRunner::run(const float* input, int width, int hei
         gl.DispatchCompute(GLuint((outW + 7) / 8), GLuint((outH + 7) / 8), 1);
         gl.MemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT);
     }
-    const size_t out = index.at(network_.output);
-    const auto [outW, outH] = sizeOf(out);
-    std::vector<float> result(size_t(network_.buffers[out].channels) * size_t(outW) * size_t(outH));
-    gl.BindBuffer(GL_SHADER_STORAGE_BUFFER, buffers_[out]);
+    return buffers_[index.at(network_.output)];
+}
+
+std::vector<float> GlslNetworkRunner::run(const float* input, int width, int height) {
+    Stopwatch timer;
+    const render::GlFunctions& gl = context_.compute();
+    const unsigned in = prepare(width, height);
+    const size_t inputCount = size_t(network_.inputChannels) * size_t(width) * size_t(height);
+    gl.BindBuffer(GL_SHADER_STORAGE_BUFFER, in);
+    gl.BufferSubData(GL_SHADER_STORAGE_BUFFER, 0, GLsizeiptr(inputCount * sizeof(float)), input);
+    const unsigned out = dispatch();
+    gl.MemoryBarrier(GL_BUFFER_UPDATE_BARRIER_BIT);
+    size_t outIndex = 0;
+    while (network_.buffers[outIndex].name != network_.output) ++outIndex;
+    const auto [outW, outH] = sizeOf(outIndex);
+    std::vector<float> result(size_t(network_.buffers[outIndex].channels) * size_t(outW) * size_t(outH));
+    gl.BindBuffer(GL_SHADER_STORAGE_BUFFER, out);
     gl.GetBufferSubData(GL_SHADER_STORAGE_BUFFER, 0, GLsizeiptr(result.size() * sizeof(float)),
                         result.data());
     if (const GLenum error = gl.GetError(); error != GL_NO_ERROR)

@@ -297,6 +297,29 @@ class SmaaFilter final : public Filter {
 
 }  // namespace
 
+SmaaOptions smaaOptions(const MethodParameters& p) {
+    const std::string preset = p.text("preset");
+    SmaaOptions o;
+    try {
+        o = smaaPreset(preset);
+    } catch (const Error& e) {
+        throw Error(p.origin("preset") + ": " + e.what());
+    }
+    if (p.text("threshold") != "preset") o.threshold = float(p.number("threshold", 1e-6, 0.5));
+    if (p.text("search-steps") != "preset") o.searchSteps = p.integer("search-steps", 1, 112);
+    if (p.text("diagonal-steps") != "preset") o.diagonalSteps = p.integer("diagonal-steps", 0, 20);
+    if (p.text("corner-rounding") != "preset") o.cornerRounding = p.integer("corner-rounding", 0, 100);
+    const std::string edges = p.text("edges");
+    if (edges == "colour" || edges == "color") {
+        o.edges = SmaaEdges::Colour;
+    } else if (edges != "luma") {
+        throw Error(p.origin("edges") + ": SMAA edges '" + edges + "' is not luma or colour");
+    }
+    o.predication = p.flag("predication");
+    o.linearBlending = p.flag("linear");
+    return o;
+}
+
 MethodSpec smaaMethod() {
     MethodSpec spec;
     spec.name = "smaa";
@@ -314,26 +337,8 @@ MethodSpec smaaMethod() {
     };
     // (No buffers by default; with predication on, the filter made needs depth.)
     spec.make = [](MethodParameters& p) -> std::unique_ptr<Filter> {
-        const std::string preset = p.text("preset");
-        SmaaOptions o;
-        try {
-            o = smaaPreset(preset);
-        } catch (const Error& e) {
-            throw Error(p.origin("preset") + ": " + e.what());
-        }
-        if (p.text("threshold") != "preset") o.threshold = float(p.number("threshold", 1e-6, 0.5));
-        if (p.text("search-steps") != "preset") o.searchSteps = p.integer("search-steps", 1, 112);
-        if (p.text("diagonal-steps") != "preset") o.diagonalSteps = p.integer("diagonal-steps", 0, 20);
-        if (p.text("corner-rounding") != "preset") o.cornerRounding = p.integer("corner-rounding", 0, 100);
-        const std::string edges = p.text("edges");
-        if (edges == "colour" || edges == "color") {
-            o.edges = SmaaEdges::Colour;
-        } else if (edges != "luma") {
-            throw Error(p.origin("edges") + ": SMAA edges '" + edges + "' is not luma or colour");
-        }
-        o.predication = p.flag("predication");
-        o.linearBlending = p.flag("linear");
-        return std::make_unique<SmaaFilter>(o, preset);
+        const SmaaOptions o = smaaOptions(p);
+        return std::make_unique<SmaaFilter>(o, p.text("preset"));
     };
     return spec;
 }

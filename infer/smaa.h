@@ -83,5 +83,7 @@ void smaaVerticalRun(const uint8_t* edges, size_t stride, int pad, int x, int y,
 // The method "smaa" of infer/filter.h: parameters preset, threshold, search-steps, diagonal-steps,
 // corner-rounding, edges, predication, linear; uses depth when predication is on.
 MethodSpec smaaMethod();
+// The options the method's parameters give (shared with its GPU form, infer/glsl_filter.h).
+SmaaOptions smaaOptions(const MethodParameters& parameters);
 
 }  // namespace dejag::infer

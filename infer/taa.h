@@ -64,11 +64,11 @@ class Taa {
 
     TaaOptions options_;
     int width_ = 0, height_ = 0;
-    size_t stride_ = 0;                                 // floats per row of the history planes
-    std::vector<float> history_, nextHistory_;          // 3 planes each, unsharpened
-    std::vector<float> sobel_, nextSobel_;              // T-TAA's stabilised Sobel, 1 plane each
-    std::vector<float> scratch_;                        // one block of rows per band
-    std::vector<float> unblurred_;                      // the output before the motion blur (when on)
+    size_t stride_ = 0;                         // floats per row of the history planes
+    std::vector<float> history_, nextHistory_;  // 3 planes each, unsharpened
+    std::vector<float> sobel_, nextSobel_;      // T-TAA's stabilised Sobel, 1 plane each
+    std::vector<float> scratch_;                // one block of rows per band
+    std::vector<float> unblurred_;              // the output before the motion blur (when on)
     int bands_ = 0;
 };
 

@@ -88,16 +88,22 @@ namespace dejag::render {
     X(VERTEXATTRIBPOINTER, VertexAttribPointer)                       \
     X(ENABLEVERTEXATTRIBARRAY, EnableVertexAttribArray)               \
     X(DRAWELEMENTS, DrawElements)                                     \
-    X(DRAWARRAYS, DrawArrays)
+    X(DRAWARRAYS, DrawArrays)                                         \
+    X(GENQUERIES, GenQueries)                                         \
+    X(DELETEQUERIES, DeleteQueries)                                   \
+    X(BEGINQUERY, BeginQuery)                                         \
+    X(ENDQUERY, EndQuery)                                             \
+    X(GETQUERYOBJECTUI64V, GetQueryObjectui64v)
 
 // OpenGL 4.3 compute: shader storage buffers and dispatches (the networks as GLSL, infer/glsl_network.h),
 // loaded on first use so that a 3.3 context still renders.
-#define DEJAG_GL_COMPUTE_FUNCTIONS(X)     \
-    X(DISPATCHCOMPUTE, DispatchCompute)   \
-    X(MEMORYBARRIER, MemoryBarrier)       \
-    X(BINDBUFFERBASE, BindBufferBase)     \
-    X(GETBUFFERSUBDATA, GetBufferSubData) \
-    X(BUFFERSUBDATA, BufferSubData)       \
+#define DEJAG_GL_COMPUTE_FUNCTIONS(X)       \
+    X(DISPATCHCOMPUTE, DispatchCompute)     \
+    X(MEMORYBARRIER, MemoryBarrier)         \
+    X(BINDBUFFERBASE, BindBufferBase)       \
+    X(GETBUFFERSUBDATA, GetBufferSubData)   \
+    X(BUFFERSUBDATA, BufferSubData)         \
+    X(COPYBUFFERSUBDATA, CopyBufferSubData) \
     X(UNIFORM2I, Uniform2i)
 
 struct GlFunctions {

@@ -470,7 +470,8 @@ Frame Renderer::render(const FrameRequest& request) {
     Frame frame;
     frame.width = m.width, frame.height = m.height;
     frame.channelNames = b.channelNames();
-    frame.pixels.assign(size_t(m.width) * size_t(m.height) * frame.channelNames.size(), 0.0f);
+    if (request.readBack)
+        frame.pixels.assign(size_t(m.width) * size_t(m.height) * frame.channelNames.size(), 0.0f);
     if (frame.channelNames.empty()) return frame;
     const double previousTime = request.previousTime < 0 ? request.time : request.previousTime;
 
@@ -505,7 +506,8 @@ Frame Renderer::render(const FrameRequest& request) {
     }
     gl.BindFramebuffer(GL_FRAMEBUFFER, m.gbuffer);
     int offset = 0;
-    if (msaa) m.readInto(frame, GL_COLOR_ATTACHMENT0 + kColourSlot, GL_RGB, 3, offset), offset += 3;
+    const bool read = request.readBack;
+    if (msaa && read) m.readInto(frame, GL_COLOR_ATTACHMENT0 + kColourSlot, GL_RGB, 3, offset), offset += 3;
     if (!slots.empty()) {
         // ClearBuffer's index is the draw buffer index: clear each slot with only it selected.
         for (int slot : slots) {
@@ -520,14 +522,17 @@ Frame Renderer::render(const FrameRequest& request) {
         gl.ClearBufferfi(GL_DEPTH_STENCIL, 0, 1.0f, 0);
         m.selectDrawBuffers(slots);
         m.drawScene(request.time, previousTime, request.jitter);
-        if (b.colour && !msaa)
+        if (b.colour && !msaa && read)
             m.readInto(frame, GL_COLOR_ATTACHMENT0 + kColourSlot, GL_RGB, 3, offset), offset += 3;
-        if (b.albedo) m.readInto(frame, GL_COLOR_ATTACHMENT0 + kAlbedoSlot, GL_RGB, 3, offset), offset += 3;
-        if (b.depth) m.readInto(frame, GL_COLOR_ATTACHMENT0 + kDepthSlot, GL_RED, 1, offset), offset += 1;
-        if (b.motion) m.readInto(frame, GL_COLOR_ATTACHMENT0 + kMotionSlot, GL_RG, 2, offset), offset += 2;
-        if (b.id) m.readInto(frame, GL_COLOR_ATTACHMENT0 + kIdSlot, GL_RED, 1, offset), offset += 1;
+        if (b.albedo && read)
+            m.readInto(frame, GL_COLOR_ATTACHMENT0 + kAlbedoSlot, GL_RGB, 3, offset), offset += 3;
+        if (b.depth && read)
+            m.readInto(frame, GL_COLOR_ATTACHMENT0 + kDepthSlot, GL_RED, 1, offset), offset += 1;
+        if (b.motion && read)
+            m.readInto(frame, GL_COLOR_ATTACHMENT0 + kMotionSlot, GL_RG, 2, offset), offset += 2;
+        if (b.id && read) m.readInto(frame, GL_COLOR_ATTACHMENT0 + kIdSlot, GL_RED, 1, offset), offset += 1;
     }
-    if (b.previousDepth) {
+    if (b.previousDepth && read) {
         // The previous frame's depth: its pose and its jitter.
         m.selectDrawBuffers({kDepthSlot});
         std::array<float, 4> far{float(m.scene.far), 0, 0, 0};
@@ -539,6 +544,10 @@ Frame Renderer::render(const FrameRequest& request) {
     if (const GLenum error = gl.GetError(); error != GL_NO_ERROR)
         throw Error("OpenGL: error " + std::to_string(error) + " while rendering");
     return frame;
+}
+
+GLuint Renderer::colourTexture() const {
+    return impl_->targets[kColourSlot];
 }
 
 Frame Renderer::renderTruth(double time, const TruthOptions& options, TruthStats* stats) {

@@ -44,6 +44,9 @@ struct FrameRequest {
     // Multisampling of the lit colour (1 = off, or 2, 4, 8): resolved by averaging, a cheaper reference
     // for edges only (no help for texture or shading aliasing). The other buffers stay single-sample.
     int msaa = 1;
+    // false: the buffers stay on the GPU (colourTexture()) and the Frame returned holds no pixels; what a
+    // post-process pass on the GPU reads (dejag view).
+    bool readBack = true;
 };
 
 enum class PixelFilter { Box, Gaussian };
@@ -82,6 +85,9 @@ class Renderer {
     Frame renderTruth(double time, const TruthOptions& options, TruthStats* stats = nullptr);
 
     bool anisotropySupported() const { return anisotropy_; }
+    // The texture (RGBA32F, linear light, OpenGL's rows: row 0 at the bottom) holding the lit colour of the
+    // last render(); valid until the next call.
+    GLuint colourTexture() const;
 
   private:
     struct Impl;

@@ -1,0 +1,348 @@
+// The methods' GPU forms: see infer/glsl_filter.h.
+#include "infer/glsl_filter.h"
+
+#include <algorithm>
+#include <functional>
+#include <map>
+
+#include "base/error.h"
+#include "base/luma.h"
+#include "base/srgb.h"
+#include "infer/fxaa.h"
+#include "infer/glsl_fxaa.h"
+#include "infer/glsl_network.h"
+#include "infer/glsl_smaa.h"
+#include "infer/smaa.h"
+#include "nn/glsl.h"
+#include "nn/model.h"
+
+namespace dejag::infer {
+namespace {
+
+void dispatch(const render::GlFunctions& gl, int width, int height) {
+    gl.DispatchCompute(GLuint((width + 7) / 8), GLuint((height + 7) / 8), 1);
+    gl.MemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT);
+}
+
+// "none": the frame copied.
+class GlslNone final : public GlslFilter {
+  public:
+    explicit GlslNone(render::GlContext& context) : GlslFilter("none"), context_(context) {}
+    void run(unsigned in, unsigned out, int width, int height) override {
+        const render::GlFunctions& gl = context_.compute();
+        gl.BindBuffer(GL_COPY_READ_BUFFER, in);
+        gl.BindBuffer(GL_COPY_WRITE_BUFFER, out);
+        gl.CopyBufferSubData(GL_COPY_READ_BUFFER, GL_COPY_WRITE_BUFFER, 0, 0,
+                             GLsizeiptr(size_t(width) * size_t(height) * 3 * sizeof(float)));
+    }
+
+  private:
+    render::GlContext& context_;
+};
+
+class GlslFxaaFilter final : public GlslFilter {
+  public:
+    GlslFxaaFilter(render::GlContext& context, const FxaaOptions& options)
+        : GlslFilter("fxaa"), fxaa_(context, options, 3) {}
+    void run(unsigned in, unsigned out, int width, int height) override {
+        fxaa_.dispatch(in, out, width, height);
+    }
+
+  private:
+    GlslFxaa fxaa_;
+};
+
+class GlslSmaaFilter final : public GlslFilter {
+  public:
+    GlslSmaaFilter(render::GlContext& context, const SmaaOptions& options)
+        : GlslFilter("smaa"), smaa_(context, options) {}
+    void run(unsigned in, unsigned out, int width, int height) override {
+        smaa_.dispatch(in, out, width, height);
+    }
+
+  private:
+    GlslSmaa smaa_;
+};
+
+// The frame as the network's input, as nn/frame_network.h meets it: planes of R, G, B (or the luma of a
+// grey network; or, for a guided network, R G B and then the guide's R G B), padded to a multiple of the
+// network's stride by repeating the last row and column.
+constexpr const char* kPackShader = R"(#version 430
+layout(local_size_x = 8, local_size_y = 8) in;
+layout(std430, binding = 1) readonly buffer Frame { float frame[]; };
+layout(std430, binding = 2) readonly buffer Guide { float guide[]; };
+layout(std430, binding = 4) writeonly buffer Planes { float planes[]; };
+uniform ivec2 size;    // the frame's
+uniform ivec2 padded;  // the network's input
+void main() {
+    ivec2 p = ivec2(gl_GlobalInvocationID.xy);
+    if (p.x >= padded.x || p.y >= padded.y) return;
+    int s = (min(p.y, size.y - 1) * size.x + min(p.x, size.x - 1)) * 3, d = p.y * padded.x + p.x;
+    if (GREY) {
+        precise float l = LUMA_R * frame[s] + LUMA_G * frame[s + 1] + LUMA_B * frame[s + 2];
+        planes[d] = l;
+    } else {
+        for (int c = 0; c < 3; ++c) planes[c * padded.x * padded.y + d] = frame[s + c];
+        if (GUIDE)
+            for (int c = 0; c < 3; ++c) planes[(3 + c) * padded.x * padded.y + d] = guide[s + c];
+    }
+}
+)";
+
+// The network's output back into a frame, clamped to [0, 1]: R G B, or a grey network's change of the
+// luma added to each of them.
+constexpr const char* kUnpackShader = R"(#version 430
+layout(local_size_x = 8, local_size_y = 8) in;
+layout(std430, binding = 1) readonly buffer Planes { float planes[]; };
+layout(std430, binding = 2) readonly buffer Frame { float frame[]; };
+layout(std430, binding = 4) writeonly buffer Result { float result[]; };
+uniform ivec2 size;
+uniform ivec2 padded;
+void main() {
+    ivec2 p = ivec2(gl_GlobalInvocationID.xy);
+    if (p.x >= size.x || p.y >= size.y) return;
+    int o = (p.y * size.x + p.x) * 3, s = p.y * padded.x + p.x;
+    if (GREY) {
+        precise float l = LUMA_R * frame[o] + LUMA_G * frame[o + 1] + LUMA_B * frame[o + 2];
+        precise float change = planes[s] - l;
+        for (int c = 0; c < 3; ++c) {
+            precise float v = frame[o + c] + change;
+            result[o + c] = clamp(v, 0.0, 1.0);
+        }
+    } else {
+        for (int c = 0; c < 3; ++c) result[o + c] = clamp(planes[c * padded.x * padded.y + s], 0.0, 1.0);
+    }
+}
+)";
+
+std::string withGrey(const char* body, bool grey, bool guide) {
+    std::string source = body;
+    const size_t line = source.find('\n') + 1;
+    source.insert(line, std::string("const bool GREY = ") + (grey ? "true" : "false") +
+                            ", GUIDE = " + (guide ? "true" : "false") + ";\nconst float LUMA_R = " +
+                            nn::glslFloat(kLumaRed) + ", LUMA_G = " + nn::glslFloat(kLumaGreen) +
+                            ", LUMA_B = " + nn::glslFloat(kLumaBlue) + ";\n");
+    return source;
+}
+
+// "cnn": the network's passes (nn/glsl.h) between the two above, on the whole frame; after its input
+// method's GPU form, and beside its guide method's, for a network trained so.
+class GlslCnn final : public GlslFilter {
+  public:
+    GlslCnn(render::GlContext& context, const nn::Model& model, const std::string& differences,
+            std::unique_ptr<GlslFilter> input, std::unique_ptr<GlslFilter> guide)
+        : GlslFilter("cnn", differences),
+          context_(context),
+          runner_(context, nn::exportGlsl(model)),
+          input_(std::move(input)),
+          guide_(std::move(guide)),
+          inputFrame_(context),
+          guideFrame_(context) {
+        const render::GlFunctions& gl = context_.compute();
+        grey_ = runner_.network().inputChannels == 1;
+        const bool guided = guide_ != nullptr;
+        pack_ = render::compileComputeProgram(gl, withGrey(kPackShader, grey_, guided),
+                                              "the network's input pass");
+        unpack_ = render::compileComputeProgram(gl, withGrey(kUnpackShader, grey_, guided),
+                                                "the network's output pass");
+    }
+    ~GlslCnn() override {
+        const render::GlFunctions& gl = context_.gl();
+        gl.DeleteProgram(pack_);
+        gl.DeleteProgram(unpack_);
+    }
+    void run(unsigned in, unsigned out, int width, int height) override {
+        const render::GlFunctions& gl = context_.compute();
+        const int d = runner_.network().sizeDivisor;
+        const int pw = (width + d - 1) / d * d, ph = (height + d - 1) / d * d;
+        const unsigned planes = runner_.prepare(pw, ph);
+        if (input_) {
+            input_->run(in, inputFrame_.ensure(width, height), width, height);
+            in = inputFrame_.id();
+        }
+        if (guide_) guide_->run(in, guideFrame_.ensure(width, height), width, height);
+        gl.UseProgram(pack_);
+        gl.BindBufferBase(GL_SHADER_STORAGE_BUFFER, 1, in);
+        gl.BindBufferBase(GL_SHADER_STORAGE_BUFFER, 2, guide_ ? guideFrame_.id() : in);
+        gl.BindBufferBase(GL_SHADER_STORAGE_BUFFER, 4, planes);
+        gl.Uniform2i(gl.GetUniformLocation(pack_, "size"), width, height);
+        gl.Uniform2i(gl.GetUniformLocation(pack_, "padded"), pw, ph);
+        dispatch(gl, pw, ph);
+        const unsigned result = runner_.dispatch();
+        gl.UseProgram(unpack_);
+        gl.BindBufferBase(GL_SHADER_STORAGE_BUFFER, 1, result);
+        gl.BindBufferBase(GL_SHADER_STORAGE_BUFFER, 2, in);
+        gl.BindBufferBase(GL_SHADER_STORAGE_BUFFER, 4, out);
+        gl.Uniform2i(gl.GetUniformLocation(unpack_, "size"), width, height);
+        gl.Uniform2i(gl.GetUniformLocation(unpack_, "padded"), pw, ph);
+        dispatch(gl, width, height);
+    }
+
+  private:
+    render::GlContext& context_;
+    GlslNetworkRunner runner_;
+    std::unique_ptr<GlslFilter> input_, guide_;
+    GlslFrameBuffer inputFrame_, guideFrame_;
+    bool grey_ = false;
+    unsigned pack_ = 0, unpack_ = 0;
+};
+
+using Maker = std::function<std::unique_ptr<GlslFilter>(MethodParameters&, render::GlContext&, std::string*)>;
+
+// The GPU forms: one line per method that has one.
+const std::map<std::string, Maker>& glslMethods() {
+    static const std::map<std::string, Maker> table = {
+        {"none",
+         [](MethodParameters&, render::GlContext& c, std::string*) -> std::unique_ptr<GlslFilter> {
+             return std::make_unique<GlslNone>(c);
+         }},
+        {"fxaa",
+         [](MethodParameters& p, render::GlContext& c, std::string*) -> std::unique_ptr<GlslFilter> {
+             return std::make_unique<GlslFxaaFilter>(c, fxaaOptions(p));
+         }},
+        {"smaa",
+         [](MethodParameters& p, render::GlContext& c, std::string* whyNot) -> std::unique_ptr<GlslFilter> {
+             const SmaaOptions options = smaaOptions(p);
+             if (options.predication) {
+                 *whyNot = "SMAA's predication reads depth, which a GPU frame does not carry";
+                 return nullptr;
+             }
+             return std::make_unique<GlslSmaaFilter>(c, options);
+         }},
+        {"cnn",
+         [](MethodParameters& p, render::GlContext& c, std::string* whyNot) -> std::unique_ptr<GlslFilter> {
+             const std::string path = p.path("model");
+             nn::Model model = nn::loadModel(path);
+             // A network trained after or beside another method runs after or beside that method's GPU form
+             // (with its default parameters, as the CPU form runs it).
+             std::unique_ptr<GlslFilter> before[2];
+             const char* const roles[2] = {"input_method", "guide_method"};
+             for (int k = 0; k < 2; ++k) {
+                 const std::string method = model.architecture().value(roles[k], "");
+                 if (method.empty()) continue;
+                 std::string why;
+                 before[k] = makeGlslFilter(c, method, {}, &why);
+                 if (!before[k]) {
+                     *whyNot = "'" + path + "' reads " + method + "'s result, and " + why;
+                     return nullptr;
+                 }
+             }
+             // The CPU form's gate and precision have no counterpart here: the whole frame runs in float32.
+             const bool ungated = p.text("gate") == "off";
+             return std::make_unique<GlslCnn>(
+                 c, model,
+                 ungated ? "" : "the whole frame runs (the CPU form skips the tiles its gate passes)",
+                 std::move(before[0]), std::move(before[1]));
+         }},
+    };
+    return table;
+}
+
+}  // namespace
+
+std::unique_ptr<GlslFilter> makeGlslFilter(render::GlContext& context, const std::string& method,
+                                           const FilterParameters& parameters, std::string* whyNot) {
+    const MethodSpec* spec = findMethod(method);
+    if (!spec) {
+        makeFilter(method, parameters);  // its one line: an unknown method, or a chain
+        throw Error("'" + method + "' has no GPU form: only single methods have");
+    }
+    MethodParameters view(*spec, parameters);
+    std::string accepted;
+    for (const ParameterSpec& p : spec->parameters) accepted += (accepted.empty() ? "" : ", ") + p.name;
+    const auto found = glslMethods().find(method);
+    std::unique_ptr<GlslFilter> filter;
+    std::string reason = "'" + method + "' has no GPU form yet";
+    if (found != glslMethods().end()) filter = found->second(view, context, &reason);
+    // Every parameter is checked as the CPU form checks it (a GPU form ignores those it has no use for).
+    for (const ParameterSpec& p : spec->parameters) view.text(p.name);
+    parameters.requireAllUsed(method, accepted);
+    if (!filter && whyNot) *whyNot = reason;
+    return filter;
+}
+
+namespace {
+
+// data/image.h's linearToSrgb on max(v, 0), clamped to [0, 1], as frameFromImage encodes a linear frame:
+// base/srgb.h's curve, in the same float operations (precise: none fused), so the same bits.
+std::string importShader() {
+    const PowerCurve& curve = srgbEncodeCurve7();
+    std::string c, factor;
+    for (int j = 0; j < 8; ++j) c += (j ? ", " : "") + nn::glslFloat(curve.c[j]);
+    for (int j = 0; j < 16; ++j) factor += (j ? ", " : "") + nn::glslFloat(curve.factor[j]);
+    return R"(#version 430
+layout(local_size_x = 8, local_size_y = 8) in;
+layout(std430, binding = 4) writeonly buffer Result { float result[]; };
+uniform sampler2D colour;
+uniform ivec2 size;
+const float C[8] = float[]()" +
+           c + R"();
+const float FACTOR[16] = float[]()" +
+           factor + R"();
+const float KNEE = )" +
+           nn::glslFloat(kSrgbEncodeKnee) +
+           R"(;
+float encode(float x) {
+    x = max(x, 0.0);
+    if (x <= KNEE) {
+        precise float linear = x * 12.92;
+        return linear;
+    }
+    if (x >= 1.0) return 1.0;
+    int bits = floatBitsToInt(x);
+    precise float s = intBitsToFloat((bits & 0x7fffff) | 0x3f800000) - 1.5;
+    precise float poly = C[7];
+    for (int j = 6; j >= 0; --j) poly = poly * s + C[j];
+    precise float e = FACTOR[(bits >> 23) & 15] * poly - 0.055;
+    return clamp(e, 0.0, 1.0);
+}
+void main() {
+    ivec2 p = ivec2(gl_GlobalInvocationID.xy);
+    if (p.x >= size.x || p.y >= size.y) return;
+    vec3 c = texelFetch(colour, ivec2(p.x, size.y - 1 - p.y), 0).rgb;
+    int o = (p.y * size.x + p.x) * 3;
+    result[o] = encode(c.r);
+    result[o + 1] = encode(c.g);
+    result[o + 2] = encode(c.b);
+}
+)";
+}
+
+}  // namespace
+
+GlslFrameImport::GlslFrameImport(render::GlContext& context) : context_(context) {
+    program_ = render::compileComputeProgram(context_.compute(), importShader(), "the frame import pass");
+}
+
+GlslFrameImport::~GlslFrameImport() {
+    context_.gl().DeleteProgram(program_);
+}
+
+void GlslFrameImport::run(unsigned texture, unsigned out, int width, int height) {
+    const render::GlFunctions& gl = context_.compute();
+    gl.UseProgram(program_);
+    gl.ActiveTexture(GL_TEXTURE0);
+    gl.BindTexture(GL_TEXTURE_2D, texture);
+    gl.Uniform1i(gl.GetUniformLocation(program_, "colour"), 0);
+    gl.Uniform2i(gl.GetUniformLocation(program_, "size"), width, height);
+    gl.BindBufferBase(GL_SHADER_STORAGE_BUFFER, 4, out);
+    dispatch(gl, width, height);
+}
+
+GlslFrameBuffer::~GlslFrameBuffer() {
+    if (buffer_) context_.gl().DeleteBuffers(1, &buffer_);
+}
+
+unsigned GlslFrameBuffer::ensure(int width, int height) {
+    const render::GlFunctions& gl = context_.compute();
+    const size_t bytes = size_t(width) * size_t(height) * 3 * sizeof(float);
+    if (!buffer_) gl.GenBuffers(1, &buffer_);
+    if (bytes > bytes_) {
+        gl.BindBuffer(GL_SHADER_STORAGE_BUFFER, buffer_);
+        gl.BufferData(GL_SHADER_STORAGE_BUFFER, GLsizeiptr(bytes), nullptr, GL_DYNAMIC_COPY);
+        bytes_ = bytes;
+    }
+    return buffer_;
+}
+
+}  // namespace dejag::infer

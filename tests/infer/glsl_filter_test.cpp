@@ -1,0 +1,163 @@
+// The methods' GPU forms (infer/glsl_filter.h) against their CPU filters, through OSMesa's llvmpipe, on a
+// rendered frame that never leaves the GPU between the renderer and the method: the import matches the
+// CPU's sRGB encoding, and each form's output matches its CPU filter's on the same frame within 1/255.
+#include "infer/glsl_filter.h"
+
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+
+#include "base/error.h"
+#include "data/frame_image.h"
+#include "render/renderer.h"
+#include "tests/test_util.h"
+
+namespace dejag::infer {
+namespace {
+
+constexpr int W = 100, H = 70;  // not a multiple of the networks' strides: the padding is exercised
+
+std::vector<float> readBuffer(render::GlContext& context, unsigned buffer, size_t count) {
+    const render::GlFunctions& gl = context.compute();
+    std::vector<float> values(count);
+    gl.MemoryBarrier(GL_BUFFER_UPDATE_BARRIER_BIT);
+    gl.BindBuffer(GL_SHADER_STORAGE_BUFFER, buffer);
+    gl.GetBufferSubData(GL_SHADER_STORAGE_BUFFER, 0, GLsizeiptr(count * sizeof(float)), values.data());
+    EXPECT_EQ(gl.GetError(), GLenum(GL_NO_ERROR));
+    return values;
+}
+
+struct Difference {
+    double largest = 0;
+    int largest8bit = 0;
+};
+
+Difference compare(const std::vector<float>& a, const std::vector<float>& b) {
+    Difference d;
+    for (size_t i = 0; i < a.size(); ++i) {
+        d.largest = std::max(d.largest, std::abs(double(a[i]) - double(b[i])));
+        d.largest8bit =
+            std::max(d.largest8bit, int(std::abs(std::lround(a[i] * 255.0f) - std::lround(b[i] * 255.0f))));
+    }
+    return d;
+}
+
+// A rendered frame imported on the GPU (and the same frame as the CPU reads it, for the import's check).
+struct GpuFrame {
+    std::unique_ptr<render::GlContext> context = render::createOsMesaContext();
+    std::unique_ptr<GlslFrameBuffer> frame;
+    std::vector<float> cpuEncoded;
+
+    int width, height;
+
+    explicit GpuFrame(const std::string& sceneName = "pipe", int w = W, int h = H) : width(w), height(h) {
+        render::SceneOptions sceneOptions;
+        sceneOptions.tiltedCamera = sceneName == "pipe";
+        const render::Scene scene = render::buildScene(sceneName, sceneOptions);
+        render::Renderer renderer(*context, scene, w, h);
+        cpuEncoded = frameChannels(renderer.render({}), 0, 3, true);
+        frame = std::make_unique<GlslFrameBuffer>(*context);
+        GlslFrameImport(*context).run(renderer.colourTexture(), frame->ensure(w, h), w, h);
+    }
+};
+
+TEST(GlslFilter, TheImportEncodesTheRenderedColourAsTheCpuDoes) {
+    GpuFrame gpu;
+    const std::vector<float> imported = readBuffer(*gpu.context, gpu.frame->id(), size_t(W) * H * 3);
+    const Difference d = compare(imported, gpu.cpuEncoded);
+    std::printf("import: largest |GPU - CPU| %.3g\n", d.largest);
+    EXPECT_EQ(d.largest, 0);  // the same curve in the same float operations
+    // Rows are flipped: the top row of the frame is the top of the picture (the pipe's sky is bright).
+    EXPECT_EQ(d.largest8bit, 0);
+}
+
+// Runs each case's GPU form and CPU filter on the frame; returns how many values lie apart by more than
+// 1e-5, summed over the cases (for the check that the frame exercises them).
+struct Case {
+    std::string method;
+    FilterParameters parameters;
+    double bound;
+};
+
+void expectMatches(GpuFrame& gpu, const std::vector<Case>& cases, const std::string& what) {
+    const int w = gpu.width, h = gpu.height;
+    const std::vector<float> frame = readBuffer(*gpu.context, gpu.frame->id(), size_t(w) * h * 3);
+    for (const Case& c : cases) {
+        std::string whyNot;
+        const std::unique_ptr<GlslFilter> glsl =
+            makeGlslFilter(*gpu.context, c.method, c.parameters, &whyNot);
+        ASSERT_TRUE(glsl) << c.method << ": " << whyNot;
+        EXPECT_EQ(glsl->differences(), "") << c.method;  // ungated: the two forms compute the same
+        GlslFrameBuffer out(*gpu.context);
+        glsl->run(gpu.frame->id(), out.ensure(w, h), w, h);
+        const std::vector<float> gl = readBuffer(*gpu.context, out.id(), frame.size());
+        const std::unique_ptr<Filter> cpuFilter = makeFilter(c.method, c.parameters);
+        Frame cpuFrame;
+        cpuFrame.width = w, cpuFrame.height = h, cpuFrame.channels = 3, cpuFrame.colour = frame.data();
+        std::vector<float> cpu(frame.size());
+        cpuFilter->apply(cpuFrame, cpu.data());
+        const Difference d = compare(gl, cpu);
+        size_t changed = 0;
+        for (size_t i = 0; i < cpu.size(); ++i) changed += std::abs(cpu[i] - frame[i]) > 1.0f / 255;
+        std::printf("%s, %s: largest |GPU - CPU| %.3g, 8-bit %d; %zu values changed by the method\n",
+                    what.c_str(), c.method.c_str(), d.largest, d.largest8bit, changed);
+        EXPECT_LE(d.largest, c.bound) << what << ", " << c.method;
+        EXPECT_LE(d.largest8bit, 1) << what << ", " << c.method;
+        // The method did change the frame, so the match says something.
+        if (c.method != "none") {
+            EXPECT_GT(changed, size_t(w * h) / 200) << what << ", " << c.method;
+        }
+    }
+}
+
+TEST(GlslFilter, EachGpuFormMatchesItsCpuFilter) {
+    GpuFrame gpu;
+    const std::string models = testing::sourcePath("models/");
+    std::vector<Case> cases;
+    cases.push_back({"none", {}, 0.0});
+    cases.push_back({"fxaa", {}, 1e-6});
+    cases.push_back({"fxaa", {{"preset", "39"}, {"green-luma", "true"}}, 1e-6});
+    for (const char* model : {"dejag-fast", "seed2020-gray", "dejag-guided"})
+        cases.push_back({"cnn",
+                         {{"model", models + model + ".safetensors"}, {"gate", "off"}, {"precision", "fp32"}},
+                         1e-4});
+    expectMatches(gpu, cases, "pipe");
+}
+
+// SMAA on frames with long runs, diagonals and corners: the edges and weights are the CPU's; the blend
+// may round apart where the CPU's SIMD kernels fuse multiply-adds.
+TEST(GlslFilter, SmaaMatchesTheCpuFilterForEveryPreset) {
+    for (const char* scene : {"hard-edges", "text-wall", "vector-art"}) {
+        GpuFrame gpu(scene, 200, 150);
+        std::vector<Case> cases;
+        for (const char* preset : {"low", "medium", "high", "ultra"})
+            cases.push_back({"smaa", {{"preset", preset}}, 1e-5});
+        cases.push_back({"smaa", {{"edges", "colour"}, {"linear", "off"}}, 1e-5});
+        cases.push_back({"smaa", {{"corner-rounding", "0"}, {"search-steps", "3"}}, 1e-5});
+        expectMatches(gpu, cases, scene);
+    }
+}
+
+TEST(GlslFilter, MethodsWithoutAGpuFormSayWhyAndBadParametersAreRefused) {
+    const auto context = render::createOsMesaContext();
+    std::string whyNot;
+    EXPECT_EQ(makeGlslFilter(*context, "taa-hq", {}, &whyNot), nullptr);
+    EXPECT_NE(whyNot.find("no GPU form"), std::string::npos) << whyNot;
+    whyNot.clear();
+    EXPECT_EQ(makeGlslFilter(*context, "smaa", {{"predication", "on"}}, &whyNot), nullptr);
+    EXPECT_NE(whyNot.find("depth"), std::string::npos) << whyNot;
+    EXPECT_THROW(makeGlslFilter(*context, "smaa", {{"search-steps", "0"}}, &whyNot), Error);
+    EXPECT_THROW(makeGlslFilter(*context, "fxaa", {{"preset", "7"}}, &whyNot), Error);
+    EXPECT_THROW(makeGlslFilter(*context, "fxaa", {{"gate", "off"}}, &whyNot), Error);
+    EXPECT_THROW(makeGlslFilter(*context, "no-such-method", {}, &whyNot), Error);
+    EXPECT_THROW(makeGlslFilter(*context, "fxaa,cnn", {}, &whyNot), Error);
+    // The gated CPU form and the whole-frame GPU form differ, and the GPU form says so.
+    const std::unique_ptr<GlslFilter> gated = makeGlslFilter(
+        *context, "cnn", {{"model", testing::sourcePath("models/dejag-fast.safetensors")}}, &whyNot);
+    ASSERT_TRUE(gated);
+    EXPECT_NE(gated->differences().find("gate"), std::string::npos);
+}
+
+}  // namespace
+}  // namespace dejag::infer
