@@ -12,6 +12,8 @@
 #include <memory>
 #include <sstream>
 
+#include <nlohmann/json.hpp>
+
 #include "app/cli.h"
 #include "app/commands.h"
 #include "base/error.h"
@@ -19,6 +21,7 @@
 #include "data/frame_image.h"
 #include "data/image.h"
 #include "infer/filter.h"
+#include "infer/glsl_filter.h"
 #include "render/halton.h"
 #include "render/renderer.h"
 #include "render/scene.h"
@@ -32,13 +35,16 @@ const char* const kMethods[] = {"none", "fxaa", "smaa", "taa", "taa-sobel", "taa
 
 struct ViewArguments {
     std::string scene = "pipe", method = "fxaa", compare, size = "960x540", script, screenshot,
-                mode = "split";
+                mode = "split", device = "auto";
     int frames = 0;  // 0: until the window closes
+    int truthSamples = 64;
+    bool json = false;
     float spread = 1.7f;
     RuntimeOptions runtime;
 };
 
-// A scripted key press: at frame `frame`, the key named (1-8, shift+1-8, space, n, r, c, f, z, tab, q).
+// A scripted key press: at frame `frame`, the key named (1-8, shift+1-8, space, n, r, c, f, z, t, g, tab,
+// q).
 struct ScriptedKey {
     int frame = 0;
     int key = 0, mods = 0;
@@ -50,8 +56,8 @@ int keyCode(const std::string& name, int* mods) {
     if (k.rfind("shift+", 0) == 0) *mods = GLFW_MOD_SHIFT, k = k.substr(6);
     if (k.size() == 1 && k[0] >= '1' && k[0] <= '9') return GLFW_KEY_1 + (k[0] - '1');
     static const std::map<std::string, int> named = {
-        {"space", GLFW_KEY_SPACE}, {"n", GLFW_KEY_N}, {"r", GLFW_KEY_R},
-        {"c", GLFW_KEY_C},         {"f", GLFW_KEY_F}, {"z", GLFW_KEY_Z},
+        {"space", GLFW_KEY_SPACE}, {"n", GLFW_KEY_N}, {"r", GLFW_KEY_R},          {"c", GLFW_KEY_C},
+        {"f", GLFW_KEY_F},         {"z", GLFW_KEY_Z}, {"t", GLFW_KEY_T},          {"g", GLFW_KEY_G},
         {"tab", GLFW_KEY_TAB},     {"q", GLFW_KEY_Q}, {"escape", GLFW_KEY_ESCAPE}};
     if (auto it = named.find(k); it != named.end()) return it->second;
     return -1;
@@ -72,7 +78,7 @@ std::vector<ScriptedKey> readScript(const std::string& path) {
         k.frame = int(std::strtol(frame.c_str(), &end, 10));
         if (!(fields >> key) || !end || *end || k.frame < 0 || (k.key = keyCode(key, &k.mods)) < 0)
             throw Error("script '" + path + "', line " + std::to_string(number) +
-                        ": expected FRAME KEY (a key: 1-8, shift+1-8, space, n, r, c, f, z, tab, q)");
+                        ": expected FRAME KEY (a key: 1-8, shift+1-8, space, n, r, c, f, z, t, g, tab, q)");
         keys.push_back(k);
     }
     return keys;
@@ -113,10 +119,12 @@ class Viewer {
     explicit Viewer(const ViewArguments& args) : args_(args) {
         const Size size = parseSize(args.size, "--size");
         width_ = size.width, height_ = size.height;
-        methodA_ = methodIndex(args.method, "--method");
-        methodB_ = args.compare.empty() ? -1 : methodIndex(args.compare, "--compare");
+        method_[0] = methodIndex(args.method, "--method");
+        method_[1] = args.compare.empty() ? -1 : methodIndex(args.compare, "--compare");
         if (args.mode != "split" && args.mode != "flip")
             throw Error("--mode is split or flip, not '" + args.mode + "'");
+        if (args.device != "auto" && args.device != "gpu" && args.device != "cpu")
+            throw Error("--device is auto, gpu or cpu, not '" + args.device + "'");
         flip_ = args.mode == "flip";
         for (const render::SceneInfo& info : render::sceneCatalogue()) scenes_.push_back(info.name);
         sceneIndex_ = int(std::find(scenes_.begin(), scenes_.end(), args.scene) - scenes_.begin());
@@ -124,8 +132,19 @@ class Viewer {
         if (!args.script.empty()) script_ = readScript(args.script);
         window_ = render::Window::open(width_, height_, "dejag view");
         window_->onKey([this](int key, int mods) { press(key, mods); });
-        buildScene();
+        gpuDevice_ = args.device != "cpu";
+        if (gpuDevice_) setUpGpu();
         setUpDisplay();
+        buildScene();
+    }
+
+    ~Viewer() {
+        if (!window_) return;
+        const render::GlFunctions& gl = window_->gl();
+        gl.DeleteQueries(2, queries_);
+        gl.DeleteTextures(2, textures_);
+        gl.DeleteVertexArrays(1, &vertexArray_);
+        gl.DeleteProgram(program_);
     }
 
     void run() {
@@ -141,6 +160,7 @@ class Viewer {
             if (args_.frames > 0 && shown_ >= args_.frames) break;
         }
         if (!args_.screenshot.empty()) screenshot(args_.screenshot);
+        summarise();
     }
 
   private:
@@ -152,36 +172,62 @@ class Viewer {
         throw Error(flag + " '" + name + "' is not a method the viewer runs (" + known + ")");
     }
 
+    // The GPU path needs compute shaders (OpenGL 4.3); without them `auto` runs every method on the CPU.
+    void setUpGpu() {
+        try {
+            window_->compute();
+        } catch (const Error& e) {
+            if (args_.device == "gpu") throw Error("--device gpu: " + std::string(e.what()));
+            gpuDevice_ = false;
+            return;
+        }
+        import_ = std::make_unique<infer::GlslFrameImport>(*window_);
+        frameGpu_ = std::make_unique<infer::GlslFrameBuffer>(*window_);
+        for (auto& b : outputGpu_) b = std::make_unique<infer::GlslFrameBuffer>(*window_);
+        window_->gl().GenQueries(2, queries_);
+        const std::string description = window_->description();
+        emulated_ = description.find("llvmpipe") != std::string::npos ||
+                    description.find("softpipe") != std::string::npos;
+    }
+
     void buildScene() {
         scene_ = std::make_unique<render::Scene>(render::buildScene(scenes_[size_t(sceneIndex_)]));
         renderer_ = std::make_unique<render::Renderer>(*window_, *scene_, width_, height_);
         time_ = 0;
-        resetFilters();
+        showTruth_ = false;
+        makeFilters();
     }
 
-    void resetFilters() {
+    // Each side's method: its GPU form where the device allows and the method has one, else the CPU filter.
+    void makeFilters() {
         infer::FilterParameters parameters;
         parameters.setPathResolver(shippedModelPath);  // the shipped networks, from any folder
-        filters_[0] = infer::makeFilter(kMethods[methodA_], parameters);
-        filters_[1] = methodB_ >= 0 ? infer::makeFilter(kMethods[methodB_], parameters) : nullptr;
-        for (auto& f : filters_)
-            if (f) f->reset();
+        for (int k = 0; k < 2; ++k) {
+            filters_[k].reset(), gpuFilters_[k].reset();
+            whyCpu_[k].clear();
+            if (method_[k] < 0) continue;
+            const char* method = kMethods[method_[k]];
+            if (gpuDevice_) gpuFilters_[k] = infer::makeGlslFilter(*window_, method, parameters, &whyCpu_[k]);
+            if (!gpuDevice_) whyCpu_[k] = "--device cpu";
+            if (!gpuFilters_[k] && args_.device == "gpu")
+                throw Error("--device gpu: " + (whyCpu_[k].empty() ? std::string(method) : whyCpu_[k]));
+            if (!gpuFilters_[k]) filters_[k] = infer::makeFilter(method, parameters);
+        }
     }
 
     void press(int key, int mods) {
         if (key >= GLFW_KEY_1 && key <= GLFW_KEY_8) {
-            const int index = key - GLFW_KEY_1;
-            if (mods & GLFW_MOD_SHIFT)
-                methodB_ = index;
-            else
-                methodA_ = index;
-            resetFilters();
+            method_[(mods & GLFW_MOD_SHIFT) ? 1 : 0] = key - GLFW_KEY_1;
+            if (mods & GLFW_MOD_SHIFT) showTruth_ = false;
+            makeFilters();
             // The frame on screen is filtered again by the new method.
-            if (haveFrame_) filterFrame();
+            if (haveFrame_) renderAndFilter(time_ - 1);
         } else if (key == GLFW_KEY_SPACE) {
             paused_ = !paused_;
+            if (!paused_) showTruth_ = false;  // the truth was of the paused pose
         } else if (key == GLFW_KEY_N) {
             step_ = true;
+            showTruth_ = false;
         } else if (key == GLFW_KEY_R) {
             for (auto& f : filters_)
                 if (f) f->reset();
@@ -191,6 +237,17 @@ class Viewer {
             showB_ = !showB_;
         } else if (key == GLFW_KEY_Z) {
             lens_ = !lens_;
+        } else if (key == GLFW_KEY_T) {
+            if (paused_ && haveFrame_ && !showTruth_)
+                accumulateTruth();
+            else
+                showTruth_ = false;
+        } else if (key == GLFW_KEY_G) {
+            if (args_.device == "auto" && import_) {
+                gpuDevice_ = !gpuDevice_;
+                makeFilters();
+                if (haveFrame_) renderAndFilter(time_ - 1);
+            }
         } else if (key == GLFW_KEY_TAB) {
             sceneIndex_ = (sceneIndex_ + 1) % int(scenes_.size());
             buildScene();
@@ -199,37 +256,88 @@ class Viewer {
         }
     }
 
-    // The next frame of the camera path, jittered for the TAAs, with every buffer the methods read.
+    // The next frame of the camera path.
     void advance() {
-        render::FrameRequest request;
-        request.time = double(time_);
-        request.previousTime = double(time_ - 1);
-        request.jitter = render::jitterPixels(unsigned(time_ % 16), args_.spread);
-        request.previousJitter = render::jitterPixels(unsigned((time_ + 15) % 16), args_.spread);
-        request.buffers = render::BufferSet::all();
-        Stopwatch clock;
-        Image image = imageFromFrame(renderer_->render(request));
-        renderMs_ = clock.elapsedMs();
-        infer::FrameOptions options;
-        options.wanted = infer::Buffer::Albedo | infer::Buffer::Depth | infer::Buffer::Motion |
-                         infer::Buffer::Ids | infer::Buffer::PreviousDepth;
-        options.depthFar = scene_->far;
-        options.keepExtraChannels = false;  // the colour alone (R, G, B, and A if the frame has one)
-        data_ = infer::frameFromImage(image, options, "frame " + std::to_string(time_));
-        data_.hasJitter = true, data_.jitter[0] = float(request.jitter.x),
-        data_.jitter[1] = float(-request.jitter.y);
-        haveFrame_ = true;
-        filterFrame();
+        renderAndFilter(time_);
         ++time_;
     }
 
-    void filterFrame() {
-        for (int k = 0; k < 2; ++k) {
-            if (!filters_[k]) continue;
-            outputs_[k].resize(data_.colour.size());
-            filters_[k]->apply(data_.frame(), outputs_[k].data());
-            filterMs_[k] = filters_[k]->figures().ms;
+    // Frame `time` of the camera path, jittered for the TAAs, with every buffer the CPU methods read; the
+    // frame is read back only if a method runs on the CPU.
+    void renderAndFilter(int time) {
+        const bool cpu = (method_[0] >= 0 && !gpuFilters_[0]) || (method_[1] >= 0 && !gpuFilters_[1]);
+        render::FrameRequest request;
+        request.time = double(time);
+        request.previousTime = double(time - 1);
+        request.jitter = render::jitterPixels(unsigned(time % 16), args_.spread);
+        request.previousJitter = render::jitterPixels(unsigned((time + 15) % 16), args_.spread);
+        request.buffers = cpu ? render::BufferSet::all() : render::BufferSet{};
+        request.readBack = cpu;
+        Stopwatch clock;
+        const render::Frame frame = renderer_->render(request);
+        renderMs_ = clock.elapsedMs();
+        haveFrame_ = true;
+        if (cpu) {
+            infer::FrameOptions options;
+            options.wanted = infer::Buffer::Albedo | infer::Buffer::Depth | infer::Buffer::Motion |
+                             infer::Buffer::Ids | infer::Buffer::PreviousDepth;
+            options.depthFar = scene_->far;
+            options.keepExtraChannels = false;  // the colour alone (R, G, B, and A if the frame has one)
+            data_ = infer::frameFromImage(imageFromFrame(frame), options, "frame " + std::to_string(time));
+            data_.hasJitter = true, data_.jitter[0] = float(request.jitter.x),
+            data_.jitter[1] = float(-request.jitter.y);
         }
+        if (gpuFilters_[0] || gpuFilters_[1])
+            import_->run(renderer_->colourTexture(), frameGpu_->ensure(width_, height_), width_, height_);
+        for (int k = 0; k < 2; ++k) {
+            if (gpuFilters_[k]) {
+                const render::GlFunctions& gl = window_->compute();
+                const unsigned out = outputGpu_[k]->ensure(width_, height_);
+                if (emulated_) {
+                    // llvmpipe defers a dispatch's work past the query's end: the wall time, drained.
+                    gl.Finish();
+                    Stopwatch passes;
+                    gpuFilters_[k]->run(frameGpu_->id(), out, width_, height_);
+                    gl.Finish();
+                    filterMs_[k] = passes.elapsedMs();
+                } else {
+                    gl.BeginQuery(GL_TIME_ELAPSED, queries_[k]);
+                    gpuFilters_[k]->run(frameGpu_->id(), out, width_, height_);
+                    gl.EndQuery(GL_TIME_ELAPSED);
+                    GLuint64 nanoseconds = 0;
+                    gl.GetQueryObjectui64v(queries_[k], GL_QUERY_RESULT, &nanoseconds);
+                    filterMs_[k] = double(nanoseconds) * 1e-6;
+                }
+                times_[{kMethods[method_[k]], emulated_ ? "gpu (emulated)" : "gpu"}].push_back(filterMs_[k]);
+                // Into the displayed texture on the GPU: the buffer is the texture's pixel source.
+                gl.MemoryBarrier(GL_PIXEL_BUFFER_BARRIER_BIT);
+                gl.BindBuffer(GL_PIXEL_UNPACK_BUFFER, out);
+                gl.BindTexture(GL_TEXTURE_2D, textures_[k]);
+                gl.PixelStorei(GL_UNPACK_ALIGNMENT, 4);
+                gl.TexImage2D(GL_TEXTURE_2D, 0, GL_RGB32F, width_, height_, 0, GL_RGB, GL_FLOAT, nullptr);
+                gl.BindBuffer(GL_PIXEL_UNPACK_BUFFER, 0);
+            } else if (filters_[k]) {
+                outputs_[k].resize(data_.colour.size());
+                filters_[k]->apply(data_.frame(), outputs_[k].data());
+                filterMs_[k] = filters_[k]->figures().ms;
+                times_[{kMethods[method_[k]], "cpu"}].push_back(filterMs_[k]);
+                upload(textures_[k], outputs_[k], data_.colourNames.size() == 4);
+            }
+        }
+        if (const GLenum error = window_->gl().GetError(); error != GL_NO_ERROR)
+            throw Error("dejag view: OpenGL error " + std::to_string(error) + " while filtering");
+    }
+
+    // The supersampled truth of the pose on screen (the box filter over each pixel, as dejag render
+    // --truth makes it), shown in place of the compared method until the view moves on.
+    void accumulateTruth() {
+        render::TruthOptions options;
+        options.samples = args_.truthSamples;
+        Stopwatch clock;
+        const render::Frame truth = renderer_->renderTruth(double(time_ - 1), options);
+        truthMs_ = clock.elapsedMs();
+        upload(textures_[1], frameChannels(truth, 0, 3, true), false);
+        showTruth_ = true;
     }
 
     void setUpDisplay() {
@@ -248,21 +356,30 @@ class Viewer {
         }
     }
 
-    void upload(GLuint texture, const std::vector<float>& rgb) {
+    void upload(GLuint texture, const std::vector<float>& rgb, bool alpha) {
         const render::GlFunctions& gl = window_->gl();
         gl.BindTexture(GL_TEXTURE_2D, texture);
         gl.PixelStorei(GL_UNPACK_ALIGNMENT, 4);
-        const bool alpha = data_.colourNames.size() == 4;
         gl.TexImage2D(GL_TEXTURE_2D, 0, alpha ? GL_RGBA32F : GL_RGB32F, width_, height_, 0,
                       alpha ? GL_RGBA : GL_RGB, GL_FLOAT, rgb.data());
+    }
+
+    // "fxaa 1.2 ms gpu": a side's method, its last time and where it ran.
+    std::string describe(int k) const {
+        char text[160];
+        if (k == 1 && showTruth_) {
+            std::snprintf(text, sizeof text, "truth (%d samples, %.0f ms)", args_.truthSamples, truthMs_);
+            return text;
+        }
+        std::snprintf(text, sizeof text, "%s %.1f ms %s", kMethods[method_[k]], filterMs_[k],
+                      gpuFilters_[k] ? (emulated_ ? "gpu (emulated)" : "gpu") : "cpu");
+        return text;
     }
 
     void draw() {
         const render::GlFunctions& gl = window_->gl();
         if (!haveFrame_) return;
-        const bool compare = filters_[1] != nullptr;
-        upload(textures_[0], outputs_[0]);
-        if (compare) upload(textures_[1], outputs_[1]);
+        const bool compare = method_[1] >= 0 || showTruth_;
         int fw = 0, fh = 0;
         window_->framebufferSize(&fw, &fh);
         gl.BindFramebuffer(GL_FRAMEBUFFER, 0);
@@ -273,6 +390,7 @@ class Viewer {
         gl.BindTexture(GL_TEXTURE_2D, textures_[0]);
         gl.ActiveTexture(GL_TEXTURE1);
         gl.BindTexture(GL_TEXTURE_2D, textures_[compare ? 1 : 0]);
+        gl.ActiveTexture(GL_TEXTURE0);
         gl.Uniform1i(gl.GetUniformLocation(program_, "imageA"), 0);
         gl.Uniform1i(gl.GetUniformLocation(program_, "imageB"), 1);
         // Split: A left of the middle, B right; flip: one of them whole (f switches).
@@ -281,22 +399,36 @@ class Viewer {
         gl.Uniform3f(gl.GetUniformLocation(program_, "lens"), 0.5f, 0.5f, lens_ ? 1.0f : 0.0f);
         gl.BindVertexArray(vertexArray_);
         gl.DrawArrays(GL_TRIANGLES, 0, 3);
-        // The overlay: what is shown and each pass's time, in the title (the CPU passes; GPU timer queries
-        // where the methods run on the GPU).
+        // The overlay: what is shown, each pass's time (GPU timer queries for the GPU passes) and the rate.
         const double now = fps_.elapsedMs();
         frameMs_ = 0.9 * frameMs_ + 0.1 * (now - lastFrame_);
         lastFrame_ = now;
-        char title[512];
-        std::snprintf(
-            title, sizeof title, "dejag view  %s  frame %d%s  A: %s %.1f ms%s%s  render %.1f ms  %.0f fps",
-            scenes_[size_t(sceneIndex_)].c_str(), time_ - 1, paused_ ? " (paused)" : "", kMethods[methodA_],
-            filterMs_[0], compare ? "  B: " : "",
-            compare ? (std::string(kMethods[methodB_]) + " " + std::to_string(int(filterMs_[1] + 0.5)) +
-                       " ms" + (flip_ ? (showB_ ? " [shown]" : " [hidden]") : ""))
-                          .c_str()
-                    : "",
-            renderMs_, frameMs_ > 0 ? 1000.0 / frameMs_ : 0.0);
-        window_->setTitle(title);
+        std::string title = "dejag view  " + scenes_[size_t(sceneIndex_)] + "  frame " +
+                            std::to_string(time_ - 1) + (paused_ ? " (paused)" : "") + "  A: " + describe(0);
+        if (compare) title += "  B: " + describe(1) + (flip_ ? (showB_ ? " [shown]" : " [hidden]") : "");
+        char tail[96];
+        std::snprintf(tail, sizeof tail, "  render %.1f ms  %.0f fps", renderMs_,
+                      frameMs_ > 0 ? 1000.0 / frameMs_ : 0.0);
+        window_->setTitle(title + tail);
+    }
+
+    // At the end, each method's median time per frame and where it ran: a line each, or JSON lines.
+    void summarise() const {
+        const std::string renderer = window_->description();
+        for (const auto& [key, times] : times_) {
+            const double ms = median(times);
+            if (args_.json) {
+                nlohmann::json row = {{"method", key.first}, {"device", key.second}, {"frames", times.size()},
+                                      {"median_ms", ms},     {"size", args_.size},   {"opengl", renderer}};
+                std::printf("%s\n", row.dump().c_str());
+            } else {
+                std::printf("%-13s %-15s %6.2f ms a frame (median of %zu)\n", key.first.c_str(),
+                            key.second.c_str(), ms, times.size());
+            }
+        }
+        if (!args_.json && !times_.empty())
+            std::printf("OpenGL: %s%s\n", renderer.c_str(),
+                        emulated_ ? " (emulated on the CPU: the GPU times are CPU times)" : "");
     }
 
     void screenshot(const std::string& path) {
@@ -321,19 +453,28 @@ class Viewer {
     ViewArguments args_;
     int width_ = 0, height_ = 0;
     std::vector<std::string> scenes_;
-    int sceneIndex_ = 0, methodA_ = 0, methodB_ = -1;
+    int sceneIndex_ = 0, method_[2] = {0, -1};
     std::vector<ScriptedKey> script_;
     std::unique_ptr<render::Window> window_;
     std::unique_ptr<render::Scene> scene_;
     std::unique_ptr<render::Renderer> renderer_;
+    // Per side: the CPU filter, or the GPU form and its output buffer; why a side runs on the CPU.
     std::unique_ptr<infer::Filter> filters_[2];
+    std::unique_ptr<infer::GlslFilter> gpuFilters_[2];
+    std::unique_ptr<infer::GlslFrameBuffer> outputGpu_[2];
+    std::string whyCpu_[2];
+    std::unique_ptr<infer::GlslFrameImport> import_;
+    std::unique_ptr<infer::GlslFrameBuffer> frameGpu_;
+    bool gpuDevice_ = false, emulated_ = false;
     infer::FrameData data_;
     std::vector<float> outputs_[2];
-    bool haveFrame_ = false, paused_ = false, step_ = false, flip_ = false, showB_ = false, lens_ = false;
+    bool haveFrame_ = false, paused_ = false, step_ = false, flip_ = false, showB_ = false, lens_ = false,
+         showTruth_ = false;
     int time_ = 0, shown_ = 0;
-    double renderMs_ = 0, filterMs_[2] = {0, 0}, frameMs_ = 0, lastFrame_ = 0;
+    double renderMs_ = 0, filterMs_[2] = {0, 0}, truthMs_ = 0, frameMs_ = 0, lastFrame_ = 0;
     Stopwatch fps_;
-    GLuint program_ = 0, vertexArray_ = 0, textures_[2] = {0, 0};
+    std::map<std::pair<std::string, std::string>, std::vector<double>> times_;  // (method, device) -> ms
+    GLuint program_ = 0, vertexArray_ = 0, textures_[2] = {0, 0}, queries_[2] = {0, 0};
 };
 
 }  // namespace
@@ -356,6 +497,15 @@ void registerViewCommand(CLI::App& app) {
         ->check(CLI::Range(0, 1000000));
     command->add_option("--script", args->script, "key presses by frame: lines of FRAME KEY");
     command->add_option("--screenshot", args->screenshot, "write the last frame shown to this PNG");
+    command
+        ->add_option("--device", args->device,
+                     "where the methods run: gpu (their GLSL forms, on the rendered frame), cpu, or auto "
+                     "(the GPU form where a method has one; key g switches)")
+        ->capture_default_str();
+    command->add_option("--truth-samples", args->truthSamples, "samples of the truth key t accumulates")
+        ->check(CLI::Range(1, 4096))
+        ->capture_default_str();
+    command->add_flag("--json", args->json, "at the end, each method's median time as a JSON line");
     command->add_option("--jitter-spread", args->spread, "the TAAs' camera jitter in pixels")
         ->check(CLI::Range(0.0f, 64.0f))
         ->capture_default_str();
@@ -363,10 +513,10 @@ void registerViewCommand(CLI::App& app) {
     command->footer(
         "Keys: 1-8 the method, shift+1-8 the compared one, c split or flip, f flip, space pause, n one "
         "frame,\n"
-        "r reset the history, z a 4x lens on the middle, tab the next scene, q or escape quit. The window's\n"
-        "title shows the scene, the frame, each method's time and the frame rate. Needs a display (a "
-        "desktop,\n"
-        "or xvfb-run). docs/view.md.");
+        "r reset the history, z a 4x lens on the middle, t (paused) the truth beside it, g GPU or CPU, tab\n"
+        "the next scene, q or escape quit. The window's title shows the scene, the frame, each method's "
+        "time\n"
+        "and where it ran, and the frame rate. Needs a display (a desktop, or xvfb-run). docs/view.md.");
     command->callback([args] {
         applyRuntimeOptions(args->runtime);
         Viewer viewer(*args);

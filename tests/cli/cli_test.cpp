@@ -1575,10 +1575,24 @@ TEST(Cli, ReportRendersInChromiumAndItsFlipShowsTheOtherMethod) {
     EXPECT_GT(methods, captionOnly + 3000) << captionOnly;
 }
 
+// The largest difference, in 8-bit steps, between a screenshot and an image, over the columns [x0, x1).
+int largestStep(const Image& shot, const Image& expected, int x0, int x1) {
+    EXPECT_EQ(shot.width, expected.width);
+    EXPECT_EQ(shot.height, expected.height);
+    int largest = 0;
+    for (int y = 0; y < shot.height; ++y)
+        for (int x = x0; x < x1; ++x)
+            for (int c = 0; c < 3; ++c)
+                largest = std::max(largest, int(std::abs(std::lround(shot.at(x, y, c) * 255) -
+                                                         std::lround(expected.at(x, y, c) * 255))));
+    return largest;
+}
+
 // dejag view under a virtual display (xvfb-run, installed by scripts/install-deps): a script switches
 // the method to FXAA, and the screenshot of the third frame equals what dejag render then dejag filter
-// make of that frame (same jitter) within 1/255; a split screen shows the two methods side by side.
-// Without a display: one error line.
+// make of that frame (same jitter) within 1/255, whether FXAA ran as its GLSL form on the rendered frame
+// or on the CPU; so does the network's GLSL form; a split screen shows the two methods side by side, and
+// paused, key t puts the accumulated truth beside the method. Without a display: one error line.
 TEST(Cli, ViewShowsWhatTheFilterWrites) {
     testing::TempDir dir;
     ASSERT_TRUE(std::filesystem::exists("/usr/bin/xvfb-run")) << "scripts/install-deps installs xvfb";
@@ -1588,51 +1602,54 @@ TEST(Cli, ViewShowsWhatTheFilterWrites) {
     // Under ASan, leak checking is off for the window's runs: Mesa's GLX driver, unloaded when the window
     // closes, leaves a few hundred bytes whose frames no suppression can name (an "unknown module").
     const std::string xvfb = "ASAN_OPTIONS=detect_leaks=0 xvfb-run -a -s '-screen 0 320x240x24' ";
-    RunResult r = run("view --scene pipe --size 96x64 --method none --frames 3 --script '" +
-                          dir.file("keys.txt") + "' --screenshot '" + dir.file("shot.png") + "'",
+    const std::string view = "view --scene pipe --size 96x64 --frames 3 ";
+    RunResult r = run(view + "--method none --device gpu --script '" + dir.file("keys.txt") +
+                          "' --screenshot '" + dir.file("gpu.png") + "'",
                       dir, xvfb);
+    ASSERT_EQ(r.exitCode, 0) << r.err;
+    r = run(view + "--method fxaa --device cpu --screenshot '" + dir.file("cpu-shot.png") + "'", dir, xvfb);
+    ASSERT_EQ(r.exitCode, 0) << r.err;
+    r = run(view + "--method cnn --device gpu --screenshot '" + dir.file("cnn.png") + "'", dir, xvfb);
     ASSERT_EQ(r.exitCode, 0) << r.err;
     r =
         run("render --scene pipe --size 96x64 --frames 3 --jitter halton16 --buffers "
-            "color,albedo,depth,motion,id,prevdepth --quiet --out '" +
+            "color,albedo,depth,motion,id,prevdepth --truth 64 --quiet --out '" +
                 dir.file("r") + "'",
             dir);
     ASSERT_EQ(r.exitCode, 0) << r.err;
-    r = run(
-        "filter --method fxaa --quiet '" + dir.file("r/frame_0002.exr") + "' '" + dir.file("cpu.png") + "'",
-        dir);
-    ASSERT_EQ(r.exitCode, 0) << r.err;
-    const Image shot = readImage(dir.file("shot.png")), cpu = readImage(dir.file("cpu.png"));
-    ASSERT_EQ(shot.width, cpu.width);
-    ASSERT_EQ(shot.height, cpu.height);
-    const Image unfiltered = readImage(dir.file("r/frame_0002.png"));
-    int largest = 0, changedByFxaa = 0;
-    for (size_t i = 0; i < shot.pixels.size(); ++i) {
-        largest = std::max(
-            largest, int(std::abs(std::lround(shot.pixels[i] * 255) - std::lround(cpu.pixels[i] * 255))));
-        changedByFxaa += std::lround(cpu.pixels[i] * 255) != std::lround(unfiltered.pixels[i] * 255);
+    for (const std::string method : {"fxaa", "cnn --gate off --precision fp32"}) {
+        r = run("filter --method " + method + " --quiet '" + dir.file("r/frame_0002.exr") + "' '" +
+                    dir.file(method.substr(0, 4) + ".png") + "'",
+                dir);
+        ASSERT_EQ(r.exitCode, 0) << r.err;
     }
-    EXPECT_LE(largest, 1);
-    EXPECT_GT(changedByFxaa, 20);  // the method did change the frame: the match says something
+    const Image cpu = readImage(dir.file("fxaa.png")), unfiltered = readImage(dir.file("r/frame_0002.png"));
+    EXPECT_LE(largestStep(readImage(dir.file("gpu.png")), cpu, 0, 96), 1);
+    EXPECT_LE(largestStep(readImage(dir.file("cpu-shot.png")), cpu, 0, 96), 1);
+    EXPECT_LE(largestStep(readImage(dir.file("cnn.png")), readImage(dir.file("cnn .png")), 0, 96), 1);
+    // The methods did change the frame, so the matches say something.
+    EXPECT_GT(largestStep(cpu, unfiltered, 0, 96), 8);
+    EXPECT_GT(largestStep(readImage(dir.file("cnn .png")), unfiltered, 0, 96), 8);
     // Split: none on the left half, FXAA on the right.
-    r = run("view --scene pipe --size 96x64 --method none --compare fxaa --frames 3 --screenshot '" +
-                dir.file("split.png") + "'",
-            dir, xvfb);
+    r = run(view + "--method none --compare fxaa --screenshot '" + dir.file("split.png") + "'", dir, xvfb);
     ASSERT_EQ(r.exitCode, 0) << r.err;
     const Image split = readImage(dir.file("split.png"));
-    int leftOff = 0, rightOff = 0;
-    for (int y = 0; y < 64; ++y)
-        for (int x = 0; x < 96; ++x) {
-            if (x >= 47 && x <= 48) continue;  // the dividing line
-            const Image& expected = x < 48 ? unfiltered : cpu;
-            for (int c = 0; c < 3; ++c) {
-                const long d =
-                    std::abs(std::lround(split.at(x, y, c) * 255) - std::lround(expected.at(x, y, c) * 255));
-                (x < 48 ? leftOff : rightOff) += d > 1;
-            }
-        }
-    EXPECT_EQ(leftOff, 0);
-    EXPECT_EQ(rightOff, 0);
+    EXPECT_LE(largestStep(split, unfiltered, 0, 47), 1);  // 47 and 48: the dividing line
+    EXPECT_LE(largestStep(split, cpu, 49, 96), 1);
+    // Paused at the second frame, t: its truth on the right.
+    std::ofstream(dir.file("truth.txt")) << "2 space\n2 t\n";
+    r = run(view + "--method none --script '" + dir.file("truth.txt") + "' --screenshot '" +
+                dir.file("truth.png") + "'",
+            dir, xvfb);
+    ASSERT_EQ(r.exitCode, 0) << r.err;
+    const Image truthShot = readImage(dir.file("truth.png"));
+    EXPECT_LE(largestStep(truthShot, readImage(dir.file("r/frame_0001.png")), 0, 47), 1);
+    EXPECT_LE(largestStep(truthShot, readImage(dir.file("r/truth_0001.png")), 49, 96), 1);
+    EXPECT_GT(
+        largestStep(readImage(dir.file("r/truth_0001.png")), readImage(dir.file("r/frame_0001.png")), 49, 96),
+        8);
+    // A method without a GPU form, on --device gpu: one line naming it.
+    expectOneLineError(run(view + "--method taa-hq --device gpu", dir, xvfb), "no GPU form");
 }
 
 TEST(Cli, FilterRunsFoldersSequencesAndChainsKeepingBitDepthAndAlpha) {
