@@ -182,8 +182,7 @@ class Viewer {
             return;
         }
         import_ = std::make_unique<infer::GlslFrameImport>(*window_);
-        frameGpu_ = std::make_unique<infer::GlslFrameBuffer>(*window_);
-        for (auto& b : outputGpu_) b = std::make_unique<infer::GlslFrameBuffer>(*window_);
+        for (auto& b : outputGpu_) b = std::make_unique<infer::GlslBuffer>(*window_);
         window_->gl().GenQueries(2, queries_);
         const std::string description = window_->description();
         emulated_ = description.find("llvmpipe") != std::string::npos ||
@@ -231,6 +230,8 @@ class Viewer {
         } else if (key == GLFW_KEY_R) {
             for (auto& f : filters_)
                 if (f) f->reset();
+            for (auto& f : gpuFilters_)
+                if (f) f->reset();
         } else if (key == GLFW_KEY_C) {
             flip_ = !flip_;
         } else if (key == GLFW_KEY_F) {
@@ -266,12 +267,19 @@ class Viewer {
     // frame is read back only if a method runs on the CPU.
     void renderAndFilter(int time) {
         const bool cpu = (method_[0] >= 0 && !gpuFilters_[0]) || (method_[1] >= 0 && !gpuFilters_[1]);
+        // The buffers the GPU forms read, besides the colour.
+        infer::BufferSet gpuWanted = 0;
+        for (int k = 0; k < 2; ++k)
+            if (gpuFilters_[k]) {
+                const infer::MethodSpec* spec = infer::findMethod(kMethods[method_[k]]);
+                gpuWanted |= spec->needs | spec->optional;
+            }
         render::FrameRequest request;
         request.time = double(time);
         request.previousTime = double(time - 1);
         request.jitter = render::jitterPixels(unsigned(time % 16), args_.spread);
         request.previousJitter = render::jitterPixels(unsigned((time + 15) % 16), args_.spread);
-        request.buffers = cpu ? render::BufferSet::all() : render::BufferSet{};
+        request.buffers = cpu || gpuWanted ? render::BufferSet::all() : render::BufferSet{};
         request.readBack = cpu;
         Stopwatch clock;
         const render::Frame frame = renderer_->render(request);
@@ -287,22 +295,26 @@ class Viewer {
             data_.hasJitter = true, data_.jitter[0] = float(request.jitter.x),
             data_.jitter[1] = float(-request.jitter.y);
         }
-        if (gpuFilters_[0] || gpuFilters_[1])
-            import_->run(renderer_->colourTexture(), frameGpu_->ensure(width_, height_), width_, height_);
+        infer::GlslFrame gpuFrame;
+        if (gpuFilters_[0] || gpuFilters_[1]) {
+            gpuFrame = import_->run(renderer_->textures(), width_, height_, gpuWanted, float(scene_->far));
+            gpuFrame.hasJitter = true, gpuFrame.jitter[0] = float(request.jitter.x),
+            gpuFrame.jitter[1] = float(-request.jitter.y);
+        }
         for (int k = 0; k < 2; ++k) {
             if (gpuFilters_[k]) {
                 const render::GlFunctions& gl = window_->compute();
-                const unsigned out = outputGpu_[k]->ensure(width_, height_);
+                const unsigned out = outputGpu_[k]->ensure(size_t(width_) * size_t(height_) * 3);
                 if (emulated_) {
                     // llvmpipe defers a dispatch's work past the query's end: the wall time, drained.
                     gl.Finish();
                     Stopwatch passes;
-                    gpuFilters_[k]->run(frameGpu_->id(), out, width_, height_);
+                    gpuFilters_[k]->run(gpuFrame, out);
                     gl.Finish();
                     filterMs_[k] = passes.elapsedMs();
                 } else {
                     gl.BeginQuery(GL_TIME_ELAPSED, queries_[k]);
-                    gpuFilters_[k]->run(frameGpu_->id(), out, width_, height_);
+                    gpuFilters_[k]->run(gpuFrame, out);
                     gl.EndQuery(GL_TIME_ELAPSED);
                     GLuint64 nanoseconds = 0;
                     gl.GetQueryObjectui64v(queries_[k], GL_QUERY_RESULT, &nanoseconds);
@@ -461,10 +473,9 @@ class Viewer {
     // Per side: the CPU filter, or the GPU form and its output buffer; why a side runs on the CPU.
     std::unique_ptr<infer::Filter> filters_[2];
     std::unique_ptr<infer::GlslFilter> gpuFilters_[2];
-    std::unique_ptr<infer::GlslFrameBuffer> outputGpu_[2];
+    std::unique_ptr<infer::GlslBuffer> outputGpu_[2];
     std::string whyCpu_[2];
     std::unique_ptr<infer::GlslFrameImport> import_;
-    std::unique_ptr<infer::GlslFrameBuffer> frameGpu_;
     bool gpuDevice_ = false, emulated_ = false;
     infer::FrameData data_;
     std::vector<float> outputs_[2];

@@ -12,7 +12,9 @@
 #include "infer/glsl_fxaa.h"
 #include "infer/glsl_network.h"
 #include "infer/glsl_smaa.h"
+#include "infer/glsl_taa_hq.h"
 #include "infer/smaa.h"
+#include "infer/taa_hq.h"
 #include "nn/glsl.h"
 #include "nn/model.h"
 
@@ -28,12 +30,12 @@ void dispatch(const render::GlFunctions& gl, int width, int height) {
 class GlslNone final : public GlslFilter {
   public:
     explicit GlslNone(render::GlContext& context) : GlslFilter("none"), context_(context) {}
-    void run(unsigned in, unsigned out, int width, int height) override {
+    void run(const GlslFrame& frame, unsigned out) override {
         const render::GlFunctions& gl = context_.compute();
-        gl.BindBuffer(GL_COPY_READ_BUFFER, in);
+        gl.BindBuffer(GL_COPY_READ_BUFFER, frame.colour);
         gl.BindBuffer(GL_COPY_WRITE_BUFFER, out);
         gl.CopyBufferSubData(GL_COPY_READ_BUFFER, GL_COPY_WRITE_BUFFER, 0, 0,
-                             GLsizeiptr(size_t(width) * size_t(height) * 3 * sizeof(float)));
+                             GLsizeiptr(size_t(frame.width) * size_t(frame.height) * 3 * sizeof(float)));
     }
 
   private:
@@ -44,8 +46,8 @@ class GlslFxaaFilter final : public GlslFilter {
   public:
     GlslFxaaFilter(render::GlContext& context, const FxaaOptions& options)
         : GlslFilter("fxaa"), fxaa_(context, options, 3) {}
-    void run(unsigned in, unsigned out, int width, int height) override {
-        fxaa_.dispatch(in, out, width, height);
+    void run(const GlslFrame& frame, unsigned out) override {
+        fxaa_.dispatch(frame.colour, out, frame.width, frame.height);
     }
 
   private:
@@ -56,12 +58,30 @@ class GlslSmaaFilter final : public GlslFilter {
   public:
     GlslSmaaFilter(render::GlContext& context, const SmaaOptions& options)
         : GlslFilter("smaa"), smaa_(context, options) {}
-    void run(unsigned in, unsigned out, int width, int height) override {
-        smaa_.dispatch(in, out, width, height);
+    void run(const GlslFrame& frame, unsigned out) override {
+        smaa_.dispatch(frame.colour, out, frame.width, frame.height);
     }
 
   private:
     GlslSmaa smaa_;
+};
+
+class GlslTaaHqFilter final : public GlslFilter {
+  public:
+    GlslTaaHqFilter(render::GlContext& context, const TaaHqOptions& options)
+        : GlslFilter("taa-hq"), taa_(context, options) {}
+    void run(const GlslFrame& frame, unsigned out) override {
+        if (!frame.motion) throw Error("taa-hq needs the frame's motion buffer");
+        const bool depth = frame.depth && frame.previousDepth;
+        taa_.dispatch(frame.colour, frame.motion, depth ? frame.depth : 0, depth ? frame.previousDepth : 0,
+                      frame.hasJitter ? frame.jitter[0] : 0.0f, frame.hasJitter ? frame.jitter[1] : 0.0f, out,
+                      frame.width, frame.height);
+    }
+    bool temporal() const override { return true; }
+    void reset() override { taa_.reset(); }
+
+  private:
+    GlslTaaHq taa_;
 };
 
 // The frame as the network's input, as nn/frame_network.h meets it: planes of R, G, B (or the luma of a
@@ -151,16 +171,20 @@ class GlslCnn final : public GlslFilter {
         gl.DeleteProgram(pack_);
         gl.DeleteProgram(unpack_);
     }
-    void run(unsigned in, unsigned out, int width, int height) override {
+    void run(const GlslFrame& frame, unsigned out) override {
         const render::GlFunctions& gl = context_.compute();
+        const int width = frame.width, height = frame.height;
+        unsigned in = frame.colour;
         const int d = runner_.network().sizeDivisor;
         const int pw = (width + d - 1) / d * d, ph = (height + d - 1) / d * d;
         const unsigned planes = runner_.prepare(pw, ph);
+        GlslFrame through = frame;
+        const size_t floats = size_t(width) * size_t(height) * 3;
         if (input_) {
-            input_->run(in, inputFrame_.ensure(width, height), width, height);
-            in = inputFrame_.id();
+            input_->run(frame, inputFrame_.ensure(floats));
+            through.colour = in = inputFrame_.id();
         }
-        if (guide_) guide_->run(in, guideFrame_.ensure(width, height), width, height);
+        if (guide_) guide_->run(through, guideFrame_.ensure(floats));
         gl.UseProgram(pack_);
         gl.BindBufferBase(GL_SHADER_STORAGE_BUFFER, 1, in);
         gl.BindBufferBase(GL_SHADER_STORAGE_BUFFER, 2, guide_ ? guideFrame_.id() : in);
@@ -182,7 +206,7 @@ class GlslCnn final : public GlslFilter {
     render::GlContext& context_;
     GlslNetworkRunner runner_;
     std::unique_ptr<GlslFilter> input_, guide_;
-    GlslFrameBuffer inputFrame_, guideFrame_;
+    GlslBuffer inputFrame_, guideFrame_;
     bool grey_ = false;
     unsigned pack_ = 0, unpack_ = 0;
 };
@@ -199,6 +223,10 @@ const std::map<std::string, Maker>& glslMethods() {
         {"fxaa",
          [](MethodParameters& p, render::GlContext& c, std::string*) -> std::unique_ptr<GlslFilter> {
              return std::make_unique<GlslFxaaFilter>(c, fxaaOptions(p));
+         }},
+        {"taa-hq",
+         [](MethodParameters& p, render::GlContext& c, std::string*) -> std::unique_ptr<GlslFilter> {
+             return std::make_unique<GlslTaaHqFilter>(c, taaHqOptions(p));
          }},
         {"smaa",
          [](MethodParameters& p, render::GlContext& c, std::string* whyNot) -> std::unique_ptr<GlslFilter> {
@@ -263,8 +291,9 @@ std::unique_ptr<GlslFilter> makeGlslFilter(render::GlContext& context, const std
 
 namespace {
 
-// data/image.h's linearToSrgb on max(v, 0), clamped to [0, 1], as frameFromImage encodes a linear frame:
-// base/srgb.h's curve, in the same float operations (precise: none fused), so the same bits.
+// A texture's first `channels` channels into a buffer, rows flipped: encoded as data/image.h's
+// linearToSrgb on max(v, 0) and clamped to [0, 1] (base/srgb.h's curve in the same float operations,
+// precise: the same bits), or divided by `divisor` (in double, as frameFromImage divides).
 std::string importShader() {
     const PowerCurve& curve = srgbEncodeCurve7();
     std::string c, factor;
@@ -273,8 +302,11 @@ std::string importShader() {
     return R"(#version 430
 layout(local_size_x = 8, local_size_y = 8) in;
 layout(std430, binding = 4) writeonly buffer Result { float result[]; };
-uniform sampler2D colour;
+uniform sampler2D image;
 uniform ivec2 size;
+uniform int channels;
+uniform bool encoded;
+uniform float divisor;
 const float C[8] = float[]()" +
            c + R"();
 const float FACTOR[16] = float[]()" +
@@ -299,18 +331,26 @@ float encode(float x) {
 void main() {
     ivec2 p = ivec2(gl_GlobalInvocationID.xy);
     if (p.x >= size.x || p.y >= size.y) return;
-    vec3 c = texelFetch(colour, ivec2(p.x, size.y - 1 - p.y), 0).rgb;
-    int o = (p.y * size.x + p.x) * 3;
-    result[o] = encode(c.r);
-    result[o + 1] = encode(c.g);
-    result[o + 2] = encode(c.b);
+    vec4 texel = texelFetch(image, ivec2(p.x, size.y - 1 - p.y), 0);
+    int o = (p.y * size.x + p.x) * channels;
+    for (int k = 0; k < channels; ++k) {
+        float v = texel[k];
+        result[o + k] = encoded ? encode(v) : divisor == 1.0 ? v : float(double(v) / double(divisor));
+    }
 }
 )";
 }
 
 }  // namespace
 
-GlslFrameImport::GlslFrameImport(render::GlContext& context) : context_(context) {
+GlslFrameImport::GlslFrameImport(render::GlContext& context)
+    : context_(context),
+      colour_(context),
+      albedo_(context),
+      depth_(context),
+      motion_(context),
+      ids_(context),
+      previousDepth_(context) {
     program_ = render::compileComputeProgram(context_.compute(), importShader(), "the frame import pass");
 }
 
@@ -318,24 +358,58 @@ GlslFrameImport::~GlslFrameImport() {
     context_.gl().DeleteProgram(program_);
 }
 
-void GlslFrameImport::run(unsigned texture, unsigned out, int width, int height) {
+void GlslFrameImport::import(unsigned texture, int channels, bool encode, float divisor, GlslBuffer& out) {
     const render::GlFunctions& gl = context_.compute();
+    const int width = frame_.width, height = frame_.height;
+    out.ensure(size_t(width) * size_t(height) * size_t(channels));
     gl.UseProgram(program_);
     gl.ActiveTexture(GL_TEXTURE0);
     gl.BindTexture(GL_TEXTURE_2D, texture);
-    gl.Uniform1i(gl.GetUniformLocation(program_, "colour"), 0);
+    gl.Uniform1i(gl.GetUniformLocation(program_, "image"), 0);
     gl.Uniform2i(gl.GetUniformLocation(program_, "size"), width, height);
-    gl.BindBufferBase(GL_SHADER_STORAGE_BUFFER, 4, out);
+    gl.Uniform1i(gl.GetUniformLocation(program_, "channels"), channels);
+    gl.Uniform1i(gl.GetUniformLocation(program_, "encoded"), encode ? 1 : 0);
+    gl.Uniform1f(gl.GetUniformLocation(program_, "divisor"), divisor);
+    gl.BindBufferBase(GL_SHADER_STORAGE_BUFFER, 4, out.id());
     dispatch(gl, width, height);
 }
 
-GlslFrameBuffer::~GlslFrameBuffer() {
+const GlslFrame& GlslFrameImport::run(const render::GpuBuffers& textures, int width, int height,
+                                      BufferSet wanted, float depthFar) {
+    frame_ = GlslFrame{};
+    frame_.width = width, frame_.height = height;
+    import(textures.colour, 3, true, 1.0f, colour_);
+    frame_.colour = colour_.id();
+    if (contains(wanted, Buffer::Albedo)) {
+        import(textures.albedo, 3, true, 1.0f, albedo_);
+        frame_.albedo = albedo_.id();
+    }
+    if (contains(wanted, Buffer::Depth)) {
+        import(textures.depth, 1, false, depthFar, depth_);
+        frame_.depth = depth_.id();
+    }
+    if (contains(wanted, Buffer::Motion)) {
+        import(textures.motion, 2, false, 1.0f, motion_);
+        frame_.motion = motion_.id();
+    }
+    if (contains(wanted, Buffer::Ids)) {
+        import(textures.id, 1, false, 1.0f, ids_);
+        frame_.ids = ids_.id();
+    }
+    if (contains(wanted, Buffer::PreviousDepth)) {
+        import(textures.previousDepth, 1, false, depthFar, previousDepth_);
+        frame_.previousDepth = previousDepth_.id();
+    }
+    return frame_;
+}
+
+GlslBuffer::~GlslBuffer() {
     if (buffer_) context_.gl().DeleteBuffers(1, &buffer_);
 }
 
-unsigned GlslFrameBuffer::ensure(int width, int height) {
+unsigned GlslBuffer::ensure(size_t floats) {
     const render::GlFunctions& gl = context_.compute();
-    const size_t bytes = size_t(width) * size_t(height) * 3 * sizeof(float);
+    const size_t bytes = std::max<size_t>(floats, 1) * sizeof(float);
     if (!buffer_) gl.GenBuffers(1, &buffer_);
     if (bytes > bytes_) {
         gl.BindBuffer(GL_SHADER_STORAGE_BUFFER, buffer_);

@@ -121,6 +121,26 @@ class TaaHqFilter final : public Filter {
 
 }  // namespace
 
+TaaHqOptions taaHqOptions(const MethodParameters& p) {
+    TaaHqOptions o;
+    o.clipGamma = float(p.number("clip-gamma", 1e-3, 8));
+    o.maxSamples = p.integer("max-samples", 1, 4096);
+    o.movingSamples = p.integer("moving-samples", 1, 4096);
+    o.clippedSamples = float(p.number("clipped-samples", 0, 4096));
+    o.depthTolerance = float(p.number("depth-tolerance", 1e-4, 10));
+    o.sharpen = float(p.number("sharpen", 0, 1));
+    o.staticLock = p.flag("static-lock");
+    const std::string filter = p.text("history-filter");
+    if (filter != "catmull-rom" && filter != "bilinear")
+        throw Error("taa-hq: history-filter is catmull-rom or bilinear, not '" + filter + "'");
+    o.catmullRom = filter == "catmull-rom";
+    if (const std::string j = p.text("jitter"); j != "frames") {
+        o.jitterList = parseJitterList(j);
+        if (o.jitterList.empty()) throw Error("taa-hq: the jitter list is empty (use 'frames' or X,Y pairs)");
+    }
+    return o;
+}
+
 MethodSpec taaHqMethod() {
     const TaaHqOptions d;
     MethodSpec spec;
@@ -149,24 +169,7 @@ MethodSpec taaHqMethod() {
     spec.optional = Buffer::Depth | Buffer::PreviousDepth | Buffer::Jitter;
     spec.temporal = true;
     spec.make = [](MethodParameters& p) -> std::unique_ptr<Filter> {
-        TaaHqOptions o;
-        o.clipGamma = float(p.number("clip-gamma", 1e-3, 8));
-        o.maxSamples = p.integer("max-samples", 1, 4096);
-        o.movingSamples = p.integer("moving-samples", 1, 4096);
-        o.clippedSamples = float(p.number("clipped-samples", 0, 4096));
-        o.depthTolerance = float(p.number("depth-tolerance", 1e-4, 10));
-        o.sharpen = float(p.number("sharpen", 0, 1));
-        o.staticLock = p.flag("static-lock");
-        const std::string filter = p.text("history-filter");
-        if (filter != "catmull-rom" && filter != "bilinear")
-            throw Error("taa-hq: history-filter is catmull-rom or bilinear, not '" + filter + "'");
-        o.catmullRom = filter == "catmull-rom";
-        if (const std::string j = p.text("jitter"); j != "frames") {
-            o.jitterList = parseJitterList(j);
-            if (o.jitterList.empty())
-                throw Error("taa-hq: the jitter list is empty (use 'frames' or X,Y pairs)");
-        }
-        return std::make_unique<TaaHqFilter>(o);
+        return std::make_unique<TaaHqFilter>(taaHqOptions(p));
     };
     return spec;
 }

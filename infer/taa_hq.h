@@ -74,5 +74,7 @@ class TaaHq {
 
 // The method "taa-hq" of infer/filter.h.
 MethodSpec taaHqMethod();
+// The options the method's parameters give (shared with its GPU form, infer/glsl_filter.h).
+TaaHqOptions taaHqOptions(const MethodParameters& parameters);
 
 }  // namespace dejag::infer

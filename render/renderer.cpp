@@ -211,6 +211,7 @@ struct Renderer::Impl {
     GLuint sceneProgram = 0, accumulateProgram = 0, emptyVao = 0;
     GLuint gbuffer = 0, accumulation = 0;
     std::array<GLuint, kSlotCount> targets{};
+    GLuint previousDepthTarget = 0;  // the previous frame's depth of a frame left on the GPU
     GLuint accumulationTarget = 0, squaresTarget = 0, depthStencil = 0;
     // Multisampled colour and depth, created on first use.
     GLuint msaaFramebuffer = 0, msaaColour = 0, msaaDepth = 0;
@@ -413,6 +414,7 @@ Renderer::Renderer(const GlContext& context, const Scene& scene, int width, int 
     m.targets[kDepthSlot] = m.makeTarget(GL_R32F, GL_RED);
     m.targets[kMotionSlot] = m.makeTarget(GL_RG32F, GL_RG);
     m.targets[kIdSlot] = m.makeTarget(GL_R32F, GL_RED);
+    m.previousDepthTarget = m.makeTarget(GL_R32F, GL_RED);
     m.accumulationTarget = m.makeTarget(GL_RGBA32F, GL_RGBA);
     m.squaresTarget = m.makeTarget(GL_RGBA32F, GL_RGBA);
     gl.GenRenderbuffers(1, &m.depthStencil);
@@ -449,6 +451,7 @@ Renderer::~Renderer() {
     gl.DeleteVertexArrays(1, &m.emptyVao);
     if (!m.textures.empty()) gl.DeleteTextures(GLsizei(m.textures.size()), m.textures.data());
     gl.DeleteTextures(kSlotCount, m.targets.data());
+    gl.DeleteTextures(1, &m.previousDepthTarget);
     gl.DeleteTextures(1, &m.accumulationTarget);
     gl.DeleteTextures(1, &m.squaresTarget);
     gl.DeleteRenderbuffers(1, &m.depthStencil);
@@ -532,14 +535,19 @@ Frame Renderer::render(const FrameRequest& request) {
             m.readInto(frame, GL_COLOR_ATTACHMENT0 + kMotionSlot, GL_RG, 2, offset), offset += 2;
         if (b.id && read) m.readInto(frame, GL_COLOR_ATTACHMENT0 + kIdSlot, GL_RED, 1, offset), offset += 1;
     }
-    if (b.previousDepth && read) {
-        // The previous frame's depth: its pose and its jitter.
+    if (b.previousDepth) {
+        // The previous frame's depth: its pose and its jitter, into a texture of its own (attached in the
+        // depth slot's place while it is drawn), so the depth stays for a pass on the GPU.
+        gl.FramebufferTexture2D(GL_FRAMEBUFFER, GL_COLOR_ATTACHMENT0 + kDepthSlot, GL_TEXTURE_2D,
+                                m.previousDepthTarget, 0);
         m.selectDrawBuffers({kDepthSlot});
         std::array<float, 4> far{float(m.scene.far), 0, 0, 0};
         gl.ClearBufferfv(GL_COLOR, kDepthSlot, far.data());
         gl.ClearBufferfi(GL_DEPTH_STENCIL, 0, 1.0f, 0);
         m.drawScene(previousTime, previousTime, request.previousJitter);
-        m.readInto(frame, GL_COLOR_ATTACHMENT0 + kDepthSlot, GL_RED, 1, offset);
+        if (read) m.readInto(frame, GL_COLOR_ATTACHMENT0 + kDepthSlot, GL_RED, 1, offset);
+        gl.FramebufferTexture2D(GL_FRAMEBUFFER, GL_COLOR_ATTACHMENT0 + kDepthSlot, GL_TEXTURE_2D,
+                                m.targets[kDepthSlot], 0);
     }
     if (const GLenum error = gl.GetError(); error != GL_NO_ERROR)
         throw Error("OpenGL: error " + std::to_string(error) + " while rendering");
@@ -548,6 +556,14 @@ Frame Renderer::render(const FrameRequest& request) {
 
 GLuint Renderer::colourTexture() const {
     return impl_->targets[kColourSlot];
+}
+
+GpuBuffers Renderer::textures() const {
+    const Impl& m = *impl_;
+    GpuBuffers t;
+    t.colour = m.targets[kColourSlot], t.albedo = m.targets[kAlbedoSlot], t.depth = m.targets[kDepthSlot];
+    t.motion = m.targets[kMotionSlot], t.id = m.targets[kIdSlot], t.previousDepth = m.previousDepthTarget;
+    return t;
 }
 
 Frame Renderer::renderTruth(double time, const TruthOptions& options, TruthStats* stats) {

@@ -35,6 +35,13 @@ struct Frame {
     int channels() const { return int(channelNames.size()); }
 };
 
+// The textures of a frame left on the GPU (FrameRequest::readBack = false), OpenGL's rows (row 0 at the
+// bottom): colour and albedo RGBA32F in linear light, depth, id and previous depth R32F, motion RG32F; in
+// the units of the channels above.
+struct GpuBuffers {
+    GLuint colour = 0, albedo = 0, depth = 0, motion = 0, id = 0, previousDepth = 0;
+};
+
 struct FrameRequest {
     double time = 0;           // scene time (frame index)
     double previousTime = -1;  // for motion vectors and prevdepth
@@ -88,6 +95,8 @@ class Renderer {
     // The texture (RGBA32F, linear light, OpenGL's rows: row 0 at the bottom) holding the lit colour of the
     // last render(); valid until the next call.
     GLuint colourTexture() const;
+    // Every buffer's texture, as the last render() left them.
+    GpuBuffers textures() const;
 
   private:
     struct Impl;

@@ -1627,6 +1627,19 @@ TEST(Cli, ViewShowsWhatTheFilterWrites) {
     EXPECT_LE(largestStep(readImage(dir.file("gpu.png")), cpu, 0, 96), 1);
     EXPECT_LE(largestStep(readImage(dir.file("cpu-shot.png")), cpu, 0, 96), 1);
     EXPECT_LE(largestStep(readImage(dir.file("cnn.png")), readImage(dir.file("cnn .png")), 0, 96), 1);
+    // taa-hq over the three frames, its history on the GPU or on the CPU, against dejag filter on the
+    // rendered sequence (each frame's jitter from render.json).
+    r = run("filter --method taa-hq --quiet '" + dir.file("r") + "' '" + dir.file("taa") + "'", dir);
+    ASSERT_EQ(r.exitCode, 0) << r.err;
+    const Image taa = readImage(dir.file("taa/frame_0002.png"));
+    for (const std::string device : {"gpu", "cpu"}) {
+        r = run(view + "--method taa-hq --device " + device + " --screenshot '" +
+                    dir.file("taa-" + device + ".png") + "'",
+                dir, xvfb);
+        ASSERT_EQ(r.exitCode, 0) << r.err;
+        EXPECT_LE(largestStep(readImage(dir.file("taa-" + device + ".png")), taa, 0, 96), 1) << device;
+    }
+    EXPECT_GT(largestStep(taa, unfiltered, 0, 96), 8);
     // The methods did change the frame, so the matches say something.
     EXPECT_GT(largestStep(cpu, unfiltered, 0, 96), 8);
     EXPECT_GT(largestStep(readImage(dir.file("cnn .png")), unfiltered, 0, 96), 8);
@@ -1649,7 +1662,7 @@ TEST(Cli, ViewShowsWhatTheFilterWrites) {
         largestStep(readImage(dir.file("r/truth_0001.png")), readImage(dir.file("r/frame_0001.png")), 49, 96),
         8);
     // A method without a GPU form, on --device gpu: one line naming it.
-    expectOneLineError(run(view + "--method taa-hq --device gpu", dir, xvfb), "no GPU form");
+    expectOneLineError(run(view + "--method taa-sobel --device gpu", dir, xvfb), "no GPU form");
 }
 
 TEST(Cli, FilterRunsFoldersSequencesAndChainsKeepingBitDepthAndAlpha) {
