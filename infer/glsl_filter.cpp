@@ -12,6 +12,7 @@
 #include "infer/glsl_fxaa.h"
 #include "infer/glsl_network.h"
 #include "infer/glsl_smaa.h"
+#include "infer/glsl_taa.h"
 #include "infer/glsl_taa_hq.h"
 #include "infer/smaa.h"
 #include "infer/taa_hq.h"
@@ -64,6 +65,24 @@ class GlslSmaaFilter final : public GlslFilter {
 
   private:
     GlslSmaa smaa_;
+};
+
+class GlslTaaFilter final : public GlslFilter {
+  public:
+    GlslTaaFilter(render::GlContext& context, const TaaOptions& options)
+        : GlslFilter(options.improved ? "taa-sobel" : "taa"), taa_(context, options) {}
+    void run(const GlslFrame& frame, unsigned out) override {
+        TaaFrame f;
+        f.width = frame.width, f.height = frame.height;
+        f.hasJitter = frame.hasJitter, f.jitter[0] = frame.jitter[0], f.jitter[1] = frame.jitter[1];
+        taa_.dispatch(f, frame.colour, frame.albedo, frame.depth, frame.motion, frame.ids,
+                      frame.previousDepth, out);
+    }
+    bool temporal() const override { return true; }
+    void reset() override { taa_.reset(); }
+
+  private:
+    GlslTaa taa_;
 };
 
 class GlslTaaHqFilter final : public GlslFilter {
@@ -211,6 +230,16 @@ class GlslCnn final : public GlslFilter {
     unsigned pack_ = 0, unpack_ = 0;
 };
 
+std::unique_ptr<GlslFilter> makeTaa(MethodParameters& p, render::GlContext& c, std::string* whyNot,
+                                    bool improved) {
+    const TaaOptions options = taaOptions(p, improved);
+    if (options.motionBlur) {
+        *whyNot = "TAA's motion blur has no GPU form";
+        return nullptr;
+    }
+    return std::make_unique<GlslTaaFilter>(c, options);
+}
+
 using Maker = std::function<std::unique_ptr<GlslFilter>(MethodParameters&, render::GlContext&, std::string*)>;
 
 // The GPU forms: one line per method that has one.
@@ -223,6 +252,14 @@ const std::map<std::string, Maker>& glslMethods() {
         {"fxaa",
          [](MethodParameters& p, render::GlContext& c, std::string*) -> std::unique_ptr<GlslFilter> {
              return std::make_unique<GlslFxaaFilter>(c, fxaaOptions(p));
+         }},
+        {"taa",
+         [](MethodParameters& p, render::GlContext& c, std::string* whyNot) -> std::unique_ptr<GlslFilter> {
+             return makeTaa(p, c, whyNot, false);
+         }},
+        {"taa-sobel",
+         [](MethodParameters& p, render::GlContext& c, std::string* whyNot) -> std::unique_ptr<GlslFilter> {
+             return makeTaa(p, c, whyNot, true);
          }},
         {"taa-hq",
          [](MethodParameters& p, render::GlContext& c, std::string*) -> std::unique_ptr<GlslFilter> {

@@ -119,6 +119,19 @@ class TaaFilter final : public Filter {
 
 }  // namespace
 
+TaaOptions taaOptions(const MethodParameters& p, bool improved) {
+    TaaOptions options;
+    options.improved = improved;
+    options.sharpen = p.flag("sharpen");
+    options.unjitter = p.flag("unjitter");
+    options.motionBlur = p.flag("motion-blur");
+    options.motionBlurScale = float(p.number("motion-blur-scale", 0, 100));
+    options.feedbackMin = float(p.number("feedback-min", 0, 1));
+    options.feedbackMax = float(p.number("feedback-max", 0, 1));
+    options.depthThreshold = float(p.number("depth-threshold", 0, 1));
+    return options;
+}
+
 MethodSpec taaMethod(bool improved) {
     const TaaOptions d;
     MethodSpec spec;
@@ -146,16 +159,7 @@ MethodSpec taaMethod(bool improved) {
     spec.temporal = true;
     const BufferSet needs = spec.needs;
     spec.make = [improved, needs](MethodParameters& p) -> std::unique_ptr<Filter> {
-        TaaOptions options;
-        options.improved = improved;
-        options.sharpen = p.flag("sharpen");
-        options.unjitter = p.flag("unjitter");
-        options.motionBlur = p.flag("motion-blur");
-        options.motionBlurScale = float(p.number("motion-blur-scale", 0, 100));
-        options.feedbackMin = float(p.number("feedback-min", 0, 1));
-        options.feedbackMax = float(p.number("feedback-max", 0, 1));
-        options.depthThreshold = float(p.number("depth-threshold", 0, 1));
-        return std::make_unique<TaaFilter>(options, needs);
+        return std::make_unique<TaaFilter>(taaOptions(p, improved), needs);
     };
     return spec;
 }

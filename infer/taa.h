@@ -76,5 +76,7 @@ class Taa {
 // motion-blur, motion-blur-scale, feedback-min, feedback-max, depth-threshold (TaaOptions); they need
 // depth and motion, T-TAA albedo, ids and the previous depth as well, and use each frame's jitter.
 MethodSpec taaMethod(bool improved);
+// The options the method's parameters give (shared with its GPU form, infer/glsl_filter.h).
+TaaOptions taaOptions(const MethodParameters& parameters, bool improved);
 
 }  // namespace dejag::infer

@@ -1640,6 +1640,15 @@ TEST(Cli, ViewShowsWhatTheFilterWrites) {
         EXPECT_LE(largestStep(readImage(dir.file("taa-" + device + ".png")), taa, 0, 96), 1) << device;
     }
     EXPECT_GT(largestStep(taa, unfiltered, 0, 96), 8);
+    // T-TAA's GPU form likewise (the Sobel's own history on the GPU too).
+    r = run("filter --method taa-sobel --quiet '" + dir.file("r") + "' '" + dir.file("tsobel") + "'", dir);
+    ASSERT_EQ(r.exitCode, 0) << r.err;
+    r = run(view + "--method taa-sobel --device gpu --screenshot '" + dir.file("tsobel.png") + "'", dir,
+            xvfb);
+    ASSERT_EQ(r.exitCode, 0) << r.err;
+    EXPECT_LE(
+        largestStep(readImage(dir.file("tsobel.png")), readImage(dir.file("tsobel/frame_0002.png")), 0, 96),
+        1);
     // The methods did change the frame, so the matches say something.
     EXPECT_GT(largestStep(cpu, unfiltered, 0, 96), 8);
     EXPECT_GT(largestStep(readImage(dir.file("cnn .png")), unfiltered, 0, 96), 8);
@@ -1662,7 +1671,7 @@ TEST(Cli, ViewShowsWhatTheFilterWrites) {
         largestStep(readImage(dir.file("r/truth_0001.png")), readImage(dir.file("r/frame_0001.png")), 49, 96),
         8);
     // A method without a GPU form, on --device gpu: one line naming it.
-    expectOneLineError(run(view + "--method taa-sobel --device gpu", dir, xvfb), "no GPU form");
+    expectOneLineError(run(view + "--method cnn-temporal --device gpu", dir, xvfb), "GPU form");
 }
 
 TEST(Cli, FilterRunsFoldersSequencesAndChainsKeepingBitDepthAndAlpha) {

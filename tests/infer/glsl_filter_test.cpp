@@ -145,59 +145,80 @@ TEST(GlslFilter, SmaaMatchesTheCpuFilterForEveryPreset) {
 // frameFromImage's buffers bit for bit, and taa-hq's GPU form follows its CPU filter frame after frame
 // within 1/255 (its history stays on the GPU; the two round apart where the CPU's kernels fuse
 // multiply-adds).
-TEST(GlslFilter, TaaHqFollowsTheCpuFilterOverAMovingSequence) {
+TEST(GlslFilter, EveryTaaFollowsItsCpuFilterOverAMovingSequence) {
     const auto context = render::createOsMesaContext();
-    constexpr int w = 96, h = 64, frames = 12;
+    constexpr int w = 96, h = 64, frames = 10;
+    struct Method {
+        std::string name;
+        FilterParameters parameters;
+        std::unique_ptr<GlslFilter> gpu;
+        std::unique_ptr<Filter> cpu;
+        std::unique_ptr<GlslBuffer> out;
+    };
+    std::vector<Method> methods;
+    for (auto& [name, parameters] : std::vector<std::pair<std::string, FilterParameters>>{
+             {"taa-hq", {}},
+             {"taa-hq", {{"sharpen", "0.5"}, {"history-filter", "bilinear"}}},
+             {"taa", {}},
+             {"taa", {{"unjitter", "false"}, {"sharpen", "false"}}},
+             {"taa-sobel", {}},
+             {"taa-sobel", {{"unjitter", "false"}, {"feedback-min", "0.5"}}}}) {
+        Method m{name, parameters, nullptr, makeFilter(name, parameters),
+                 std::make_unique<GlslBuffer>(*context)};
+        std::string whyNot;
+        m.gpu = makeGlslFilter(*context, name, parameters, &whyNot);
+        ASSERT_TRUE(m.gpu) << whyNot;
+        EXPECT_TRUE(m.gpu->temporal());
+        methods.push_back(std::move(m));
+    }
+    GlslFrameImport import(*context);
     for (const char* sceneName : {"corridor", "atrium", "hairball-rotating"}) {
         const render::Scene scene = render::buildScene(sceneName);
         render::Renderer renderer(*context, scene, w, h);
-        GlslFrameImport import(*context);
-        for (const FilterParameters& parameters :
-             {FilterParameters{}, FilterParameters{{"sharpen", "0.5"}, {"history-filter", "bilinear"}}}) {
-            std::string whyNot;
-            const std::unique_ptr<GlslFilter> gpu = makeGlslFilter(*context, "taa-hq", parameters, &whyNot);
-            ASSERT_TRUE(gpu) << whyNot;
-            EXPECT_TRUE(gpu->temporal());
-            const std::unique_ptr<Filter> cpu = makeFilter("taa-hq", parameters);
-            GlslBuffer out(*context);
-            double largest = 0;
-            int largest8bit = 0;
-            for (int t = 0; t < frames; ++t) {
-                render::FrameRequest request;
-                request.time = t, request.previousTime = t - 1;
-                request.jitter = render::jitterPixels(unsigned(t % 16), 1.0);
-                request.previousJitter = render::jitterPixels(unsigned((t + 15) % 16), 1.0);
-                request.buffers = render::BufferSet::all();
-                const render::Frame rendered = renderer.render(request);
-                FrameOptions options;
-                options.wanted =
-                    Buffer::Albedo | Buffer::Depth | Buffer::Motion | Buffer::Ids | Buffer::PreviousDepth;
-                options.depthFar = scene.far;
-                options.keepExtraChannels = false;  // the colour alone, as the GPU frame holds it
-                FrameData data = frameFromImage(imageFromFrame(rendered), options, "frame");
-                data.hasJitter = true, data.jitter[0] = float(request.jitter.x),
-                data.jitter[1] = float(-request.jitter.y);
-                GlslFrame frame = import.run(renderer.textures(), w, h, options.wanted, float(scene.far));
-                frame.hasJitter = true, frame.jitter[0] = data.jitter[0], frame.jitter[1] = data.jitter[1];
-                if (t == 3) {  // the import, buffer by buffer
-                    const std::pair<unsigned, const std::vector<float>*> buffers[] = {
-                        {frame.colour, &data.colour}, {frame.albedo, &data.albedo},
-                        {frame.depth, &data.depth},   {frame.motion, &data.motion},
-                        {frame.ids, &data.ids},       {frame.previousDepth, &data.previousDepth}};
-                    for (const auto& [buffer, values] : buffers)
-                        EXPECT_EQ(readBuffer(*context, buffer, values->size()), *values) << sceneName;
-                }
-                std::vector<float> cpuOut(data.colour.size());
-                cpu->apply(data.frame(), cpuOut.data());
-                gpu->run(frame, out.ensure(cpuOut.size()));
-                const Difference d = compare(readBuffer(*context, out.id(), cpuOut.size()), cpuOut);
-                largest = std::max(largest, d.largest), largest8bit = std::max(largest8bit, d.largest8bit);
+        std::vector<double> largest(methods.size(), 0.0);
+        std::vector<int> largest8bit(methods.size(), 0);
+        for (Method& m : methods) m.gpu->reset(), m.cpu->reset();
+        for (int t = 0; t < frames; ++t) {
+            render::FrameRequest request;
+            request.time = t, request.previousTime = t - 1;
+            request.jitter = render::jitterPixels(unsigned(t % 16), 1.0);
+            request.previousJitter = render::jitterPixels(unsigned((t + 15) % 16), 1.0);
+            request.buffers = render::BufferSet::all();
+            const render::Frame rendered = renderer.render(request);
+            FrameOptions options;
+            options.wanted =
+                Buffer::Albedo | Buffer::Depth | Buffer::Motion | Buffer::Ids | Buffer::PreviousDepth;
+            options.depthFar = scene.far;
+            options.keepExtraChannels = false;  // the colour alone, as the GPU frame holds it
+            FrameData data = frameFromImage(imageFromFrame(rendered), options, "frame");
+            data.hasJitter = true, data.jitter[0] = float(request.jitter.x),
+            data.jitter[1] = float(-request.jitter.y);
+            GlslFrame frame = import.run(renderer.textures(), w, h, options.wanted, float(scene.far));
+            frame.hasJitter = true, frame.jitter[0] = data.jitter[0], frame.jitter[1] = data.jitter[1];
+            if (t == 3) {  // the import, buffer by buffer
+                const std::pair<unsigned, const std::vector<float>*> buffers[] = {
+                    {frame.colour, &data.colour}, {frame.albedo, &data.albedo},
+                    {frame.depth, &data.depth},   {frame.motion, &data.motion},
+                    {frame.ids, &data.ids},       {frame.previousDepth, &data.previousDepth}};
+                for (const auto& [buffer, values] : buffers)
+                    EXPECT_EQ(readBuffer(*context, buffer, values->size()), *values) << sceneName;
             }
-            std::printf("%s, taa-hq%s: over %d frames, largest |GPU - CPU| %.3g, 8-bit %d\n", sceneName,
-                        parameters.has("sharpen") ? " (sharpen 0.5, bilinear)" : "", frames, largest,
-                        largest8bit);
-            EXPECT_LE(largest, 1e-4) << sceneName;
-            EXPECT_LE(largest8bit, 1) << sceneName;
+            for (size_t k = 0; k < methods.size(); ++k) {
+                Method& m = methods[k];
+                std::vector<float> cpuOut(data.colour.size());
+                m.cpu->apply(data.frame(), cpuOut.data());
+                m.gpu->run(frame, m.out->ensure(cpuOut.size()));
+                const Difference d = compare(readBuffer(*context, m.out->id(), cpuOut.size()), cpuOut);
+                largest[k] = std::max(largest[k], d.largest),
+                largest8bit[k] = std::max(largest8bit[k], d.largest8bit);
+            }
+        }
+        for (size_t k = 0; k < methods.size(); ++k) {
+            std::printf("%s, %s%s: over %d frames, largest |GPU - CPU| %.3g, 8-bit %d\n", sceneName,
+                        methods[k].name.c_str(), k % 2 ? " (variant)" : "", frames, largest[k],
+                        largest8bit[k]);
+            EXPECT_LE(largest[k], 1e-4) << sceneName << ", " << methods[k].name;
+            EXPECT_LE(largest8bit[k], 1) << sceneName << ", " << methods[k].name;
         }
     }
 }
@@ -258,9 +279,11 @@ TEST(GlslFilter, TaaHqRejectsADisoccludedHistoryAsTheCpuDoes) {
 TEST(GlslFilter, MethodsWithoutAGpuFormSayWhyAndBadParametersAreRefused) {
     const auto context = render::createOsMesaContext();
     std::string whyNot;
-    EXPECT_EQ(makeGlslFilter(*context, "taa-sobel", {}, &whyNot), nullptr);
+    EXPECT_EQ(makeGlslFilter(*context, "cnn-temporal", {}, &whyNot), nullptr);
     EXPECT_NE(whyNot.find("no GPU form"), std::string::npos) << whyNot;
     whyNot.clear();
+    EXPECT_EQ(makeGlslFilter(*context, "taa", {{"motion-blur", "true"}}, &whyNot), nullptr);
+    EXPECT_NE(whyNot.find("motion blur"), std::string::npos) << whyNot;
     EXPECT_EQ(makeGlslFilter(*context, "smaa", {{"predication", "on"}}, &whyNot), nullptr);
     EXPECT_NE(whyNot.find("depth"), std::string::npos) << whyNot;
     EXPECT_THROW(makeGlslFilter(*context, "smaa", {{"search-steps", "0"}}, &whyNot), Error);
