@@ -171,7 +171,8 @@ void registerExportCommand(CLI::App& app) {
         "form. docs/onnx.md.\n"
         "--glsl: one compute pass per node (a concatenation: one per input), every tensor a storage buffer "
         "of\n"
-        "planar floats; network.json says what each pass binds and how to dispatch it. docs/glsl.md.");
+        "planar floats; network.json says what each pass binds and how to dispatch it; a recurrent model's\n"
+        "passes compute one frame from the input its caller assembles (its history included). docs/glsl.md.");
     command->callback([args] { runExport(*args); });
 }
 

@@ -240,6 +240,132 @@ std::unique_ptr<GlslFilter> makeTaa(MethodParameters& p, render::GlContext& c, s
     return std::make_unique<GlslTaaFilter>(c, options);
 }
 
+// "cnn-temporal": the recurrent network's passes on an input assembled as the CPU filter assembles it
+// (infer/cnn_temporal.h): the frame, the network's previous output (kept here, on the GPU), the motion,
+// the jitter and the depths, padded to the network's stride by repeating the last row and column; on a
+// fresh start the colour stands in for the shown history, nothing is kept and the motion is 0.
+constexpr const char* kTemporalPackShader = R"(#version 430
+layout(local_size_x = 8, local_size_y = 8) in;
+layout(std430, binding = 0) readonly buffer Colour { float colour[]; };
+layout(std430, binding = 1) readonly buffer Motion { float motion[]; };
+layout(std430, binding = 2) readonly buffer Depth { float depth[]; };
+layout(std430, binding = 3) readonly buffer PreviousDepth { float previousDepth[]; };
+layout(std430, binding = 5) readonly buffer State { float state[]; };
+layout(std430, binding = 4) writeonly buffer Planes { float planes[]; };
+uniform ivec2 size;
+uniform ivec2 padded;
+uniform bool fresh;
+uniform bool hasDepth;
+uniform vec2 jitter;
+void main() {
+    ivec2 p = ivec2(gl_GlobalInvocationID.xy);
+    if (p.x >= padded.x || p.y >= padded.y) return;
+    int s = min(p.y, size.y - 1) * size.x + min(p.x, size.x - 1), d = p.y * padded.x + p.x;
+    int plane = padded.x * padded.y;
+    for (int c = 0; c < 3; ++c) planes[c * plane + d] = colour[3 * s + c];
+    for (int c = 0; c < STATE; ++c)
+        planes[(3 + c) * plane + d] = !fresh ? state[c * plane + d] : c < 3 ? colour[3 * s + c] : 0.0;
+    planes[(3 + STATE) * plane + d] = fresh ? 0.0 : motion[2 * s];
+    planes[(4 + STATE) * plane + d] = fresh ? 0.0 : motion[2 * s + 1];
+    planes[(5 + STATE) * plane + d] = jitter.x;
+    planes[(6 + STATE) * plane + d] = jitter.y;
+    if (DEPTH) {
+        planes[(7 + STATE) * plane + d] = hasDepth ? depth[s] : 0.0;
+        planes[(8 + STATE) * plane + d] = !hasDepth ? 0.0 : fresh ? depth[s] : previousDepth[s];
+    }
+}
+)";
+
+constexpr const char* kTemporalUnpackShader = R"(#version 430
+layout(local_size_x = 8, local_size_y = 8) in;
+layout(std430, binding = 1) readonly buffer Planes { float planes[]; };
+layout(std430, binding = 4) writeonly buffer Result { float result[]; };
+uniform ivec2 size;
+uniform ivec2 padded;
+void main() {
+    ivec2 p = ivec2(gl_GlobalInvocationID.xy);
+    if (p.x >= size.x || p.y >= size.y) return;
+    int plane = padded.x * padded.y, s = p.y * padded.x + p.x, o = (p.y * size.x + p.x) * 3;
+    for (int c = 0; c < 3; ++c) result[o + c] = clamp(planes[c * plane + s], 0.0, 1.0);
+}
+)";
+
+class GlslCnnTemporal final : public GlslFilter {
+  public:
+    GlslCnnTemporal(render::GlContext& context, const nn::Model& model, const std::string& differences)
+        : GlslFilter("cnn-temporal", differences),
+          context_(context),
+          runner_(context, nn::exportGlsl(model)),
+          state_(context),
+          empty_(context) {
+        const int inputs = runner_.network().inputChannels;
+        stateChannels_ = runner_.network().outputChannels;
+        depth_ = inputs == 3 + stateChannels_ + 6;
+        if (stateChannels_ < 3 || (inputs != 3 + stateChannels_ + 4 && !depth_))
+            throw Error("model '" + model.name() + "' is not a temporal network");
+        std::string pack = kTemporalPackShader;
+        pack.insert(pack.find('\n') + 1, "const int STATE = " + std::to_string(stateChannels_) +
+                                             ";\nconst bool DEPTH = " + (depth_ ? "true" : "false") + ";\n");
+        const render::GlFunctions& gl = context_.compute();
+        pack_ = render::compileComputeProgram(gl, pack, "the temporal network's input pass");
+        unpack_ =
+            render::compileComputeProgram(gl, kTemporalUnpackShader, "the temporal network's output pass");
+        empty_.ensure(1);
+    }
+    ~GlslCnnTemporal() override {
+        const render::GlFunctions& gl = context_.gl();
+        gl.DeleteProgram(pack_);
+        gl.DeleteProgram(unpack_);
+    }
+    bool temporal() const override { return true; }
+    void reset() override { fresh_ = true; }
+    void run(const GlslFrame& frame, unsigned out) override {
+        if (!frame.motion) throw Error("cnn-temporal needs the frame's motion buffer");
+        const render::GlFunctions& gl = context_.compute();
+        const int W = frame.width, H = frame.height, d = runner_.network().sizeDivisor;
+        const int pw = (W + d - 1) / d * d, ph = (H + d - 1) / d * d;
+        if (W != width_ || H != height_) width_ = W, height_ = H, fresh_ = true;
+        const size_t stateFloats = size_t(stateChannels_) * size_t(pw) * size_t(ph);
+        const unsigned planes = runner_.prepare(pw, ph);
+        const bool hasDepth = frame.depth && frame.previousDepth;
+        gl.UseProgram(pack_);
+        gl.BindBufferBase(GL_SHADER_STORAGE_BUFFER, 0, frame.colour);
+        gl.BindBufferBase(GL_SHADER_STORAGE_BUFFER, 1, frame.motion);
+        gl.BindBufferBase(GL_SHADER_STORAGE_BUFFER, 2, hasDepth ? frame.depth : empty_.id());
+        gl.BindBufferBase(GL_SHADER_STORAGE_BUFFER, 3, hasDepth ? frame.previousDepth : empty_.id());
+        gl.BindBufferBase(GL_SHADER_STORAGE_BUFFER, 5, state_.ensure(stateFloats));
+        gl.BindBufferBase(GL_SHADER_STORAGE_BUFFER, 4, planes);
+        gl.Uniform2i(gl.GetUniformLocation(pack_, "size"), W, H);
+        gl.Uniform2i(gl.GetUniformLocation(pack_, "padded"), pw, ph);
+        gl.Uniform1i(gl.GetUniformLocation(pack_, "fresh"), fresh_ ? 1 : 0);
+        gl.Uniform1i(gl.GetUniformLocation(pack_, "hasDepth"), hasDepth ? 1 : 0);
+        gl.Uniform2f(gl.GetUniformLocation(pack_, "jitter"), frame.hasJitter ? frame.jitter[0] : 0.0f,
+                     frame.hasJitter ? frame.jitter[1] : 0.0f);
+        dispatch(gl, pw, ph);
+        const unsigned result = runner_.dispatch();
+        // The whole output is the next frame's history; its R G B, clamped, the frame shown.
+        gl.BindBuffer(GL_COPY_READ_BUFFER, result);
+        gl.BindBuffer(GL_COPY_WRITE_BUFFER, state_.id());
+        gl.CopyBufferSubData(GL_COPY_READ_BUFFER, GL_COPY_WRITE_BUFFER, 0, 0,
+                             GLsizeiptr(stateFloats * sizeof(float)));
+        gl.UseProgram(unpack_);
+        gl.BindBufferBase(GL_SHADER_STORAGE_BUFFER, 1, result);
+        gl.BindBufferBase(GL_SHADER_STORAGE_BUFFER, 4, out);
+        gl.Uniform2i(gl.GetUniformLocation(unpack_, "size"), W, H);
+        gl.Uniform2i(gl.GetUniformLocation(unpack_, "padded"), pw, ph);
+        dispatch(gl, W, H);
+        fresh_ = false;
+    }
+
+  private:
+    render::GlContext& context_;
+    GlslNetworkRunner runner_;
+    GlslBuffer state_, empty_;
+    int stateChannels_ = 0, width_ = 0, height_ = 0;
+    bool depth_ = false, fresh_ = true;
+    unsigned pack_ = 0, unpack_ = 0;
+};
+
 using Maker = std::function<std::unique_ptr<GlslFilter>(MethodParameters&, render::GlContext&, std::string*)>;
 
 // The GPU forms: one line per method that has one.
@@ -260,6 +386,24 @@ const std::map<std::string, Maker>& glslMethods() {
         {"taa-sobel",
          [](MethodParameters& p, render::GlContext& c, std::string* whyNot) -> std::unique_ptr<GlslFilter> {
              return makeTaa(p, c, whyNot, true);
+         }},
+        {"cnn-temporal",
+         [](MethodParameters& p, render::GlContext& c, std::string* whyNot) -> std::unique_ptr<GlslFilter> {
+             const std::string path = p.path("model");
+             const nn::Model model = nn::loadModel(path);
+             if (const std::string clip = p.text("clip"); clip != "auto") {
+                 *whyNot = "clip=" + clip + " has no GPU form (the network's own setting runs)";
+                 return nullptr;
+             }
+             // The CPU form's still gate and bf16 have no counterpart here: every pixel runs, in float32.
+             const bool same = p.text("gate") == "off";
+             try {
+                 return std::make_unique<GlslCnnTemporal>(
+                     c, model,
+                     same ? "" : "every pixel runs (the CPU form's still gate keeps converged still pixels)");
+             } catch (const Error& e) {
+                 throw Error("--model '" + path + "': " + e.what());
+             }
          }},
         {"taa-hq",
          [](MethodParameters& p, render::GlContext& c, std::string*) -> std::unique_ptr<GlslFilter> {

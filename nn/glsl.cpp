@@ -336,11 +336,121 @@ GlslNetwork exportGlsl(const Model& model) {
                 addPass(name, s.str(), inputs, name);
                 break;
             }
-            case GraphOp::Warp:
-            case GraphOp::Accumulate:
+            case GraphOp::Warp: {
+                // The image read at (x - motion x, y - motion y) in index coordinates (nn/layers.h's warp):
+                // bilinear 2 x 2, or the cubic convolution 4 x 4 (a = -0.5 Catmull-Rom, -0.75 bicubic),
+                // each tap clamped to the image; a place that is not a number reads 0, a far one the border.
+                const bool cubic = n.warpFilter != WarpFilter::Bilinear;
+                const float a = n.warpFilter == WarpFilter::CatmullRom ? -0.5f : -0.75f;
+                s << prelude("warp '" + name + "'", 2, false) << "const int C = " << cout
+                  << ", TAPS = " << (cubic ? 4 : 2) << ";\n"
+                  << "const float A = " << glslFloat(a) << ";\n"
+                  << "float near(float t) { precise float v = ((A + 2.0) * t - (A + 3.0)) * t * t + 1.0; "
+                     "return v; }\n"
+                     "float far(float t) { precise float v = ((A * t - 5.0 * A) * t + 8.0 * A) * t - 4.0 * "
+                     "A; "
+                     "return v; }\n"
+                     "float place(float s, float limit) { return isnan(s) ? 0.0 : clamp(s, -limit, 2.0 * "
+                     "limit); "
+                     "}\n"
+                     "void taps(float s, out int first, out float w[4]) {\n"
+                     "    precise float base = floor(s), f = s - base;\n"
+                     "    if (TAPS == 2) {\n"
+                     "        first = int(base);\n"
+                     "        w[0] = 1.0 - f; w[1] = f; w[2] = 0.0; w[3] = 0.0;\n"
+                     "    } else {\n"
+                     "        first = int(base) - 1;\n"
+                     "        w[0] = far(1.0 + f); w[1] = near(f); w[2] = near(1.0 - f); w[3] = far(2.0 - "
+                     "f);\n"
+                     "    }\n"
+                     "}\n"
+                  << kMainStart
+                  << "    precise float sx = float(p.x) - in1[at(0, p.y, p.x, inSize)];\n"
+                     "    precise float sy = float(p.y) - in1[at(1, p.y, p.x, inSize)];\n"
+                     "    sx = place(sx, float(inSize.x + 2));\n"
+                     "    sy = place(sy, float(inSize.y + 2));\n"
+                     "    int fx, fy;\n"
+                     "    float wx[4], wy[4];\n"
+                     "    taps(sx, fx, wx);\n"
+                     "    taps(sy, fy, wy);\n"
+                     "    for (int c = 0; c < C; ++c) {\n"
+                     "        precise float sum = 0.0;\n"
+                     "        for (int j = 0; j < TAPS; ++j) {\n"
+                     "            int y = clamp(fy + j, 0, inSize.y - 1);\n"
+                     "            precise float row = 0.0;\n"
+                     "            for (int i = 0; i < TAPS; ++i)\n"
+                     "                row += wx[i] * in0[at(c, y, clamp(fx + i, 0, inSize.x - 1), inSize)];\n"
+                     "            sum += wy[j] * row;\n"
+                     "        }\n"
+                     "        result[at(c, p.y, p.x, outSize)] = sum;\n"
+                     "    }\n"
+                     "}\n";
+                addPass(name, s.str(), {inputName(n.inputs[0]), inputName(n.inputs[1])}, name);
+                break;
+            }
+            case GraphOp::Accumulate: {
+                // nn/layers.h's accumulatePixel: the frame's k x k softmax filter shown over the history's
+                // kept mean by the trust, the mean kept with the frame's own sample, the confidence grown.
+                const int image = channelsOf(n.inputs[0]), taps = n.kernel * n.kernel;
+                s << prelude("accumulate '" + name + "'", 3, false) << "const int C = " << image
+                  << ", K = " << n.kernel << ", R = " << n.kernel / 2 << ", TAPS = " << taps << ";\n"
+                  << "const float N = " << glslFloat(n.maxCount) << ";\n"
+                  << "const bool CLIP = " << (n.clip ? "true" : "false") << ";\n"
+                  << "float decode(float v) {\n"
+                     "    v = clamp(v, 0.0, 1.0);\n"
+                     "    return v <= 0.04045 ? v / 12.92 : pow((v + 0.055) / 1.055, 2.4);\n"
+                     "}\n"
+                     "float encode(float x) {\n"
+                     "    x = clamp(x, 0.0, 1.0);\n"
+                     "    return x <= 0.0031308 ? x * 12.92 : 1.055 * pow(x, 1.0 / 2.4) - 0.055;\n"
+                     "}\n"
+                  << kMainStart
+                  << "    float w[TAPS];\n"
+                     "    int offset[TAPS];\n"
+                     "    float top = -3.4e38;\n"
+                     "    for (int j = 0; j < TAPS; ++j) {\n"
+                     "        w[j] = in1[at(j, p.y, p.x, outSize)];\n"
+                     "        top = max(top, w[j]);\n"
+                     "    }\n"
+                     "    float sum = 0.0;\n"
+                     "    for (int j = 0; j < TAPS; ++j) { w[j] = exp(w[j] - top); sum += w[j]; }\n"
+                     "    for (int j = 0; j < TAPS; ++j) {\n"
+                     "        w[j] /= sum;\n"
+                     "        offset[j] = clamp(p.y + j / K - R, 0, inSize.y - 1) * inSize.x +\n"
+                     "                    clamp(p.x + j % K - R, 0, inSize.x - 1);\n"
+                     "    }\n"
+                     "    int plane = inSize.x * inSize.y, self = p.y * inSize.x + p.x;\n"
+                     "    float maxConfidence = N / (N + 1.0);\n"
+                     "    float s = clamp(in2[C * plane + self], 0.0, maxConfidence);\n"
+                     "    float n = s / (1.0 - s);\n"
+                     "    float rho = min(1.0, 2.0 / (1.0 + exp(-in1[TAPS * plane + self])));\n"
+                     "    float m = rho * n, a = m / (1.0 + m);\n"
+                     "    for (int c = 0; c < C; ++c) {\n"
+                     "        float spatial = 0.0;\n"
+                     "        for (int j = 0; j < TAPS; ++j) spatial += w[j] * in0[c * plane + offset[j]];\n"
+                     "        float h = in2[c * plane + self];\n"
+                     "        if (CLIP) {\n"
+                     "            float lo = in0[c * plane + offset[0]], hi = lo;\n"
+                     "            for (int j = 1; j < TAPS; ++j) {\n"
+                     "                lo = min(lo, in0[c * plane + offset[j]]);\n"
+                     "                hi = max(hi, in0[c * plane + offset[j]]);\n"
+                     "            }\n"
+                     "            h = clamp(h, decode(lo), decode(hi));\n"
+                     "        }\n"
+                     "        float filtered = decode(spatial), own = decode(in0[c * plane + self]);\n"
+                     "        result[at(c, p.y, p.x, outSize)] = encode(filtered + a * (h - filtered));\n"
+                     "        result[at(C + c, p.y, p.x, outSize)] = own + a * (h - own);\n"
+                     "    }\n"
+                     "    float next = min(1.0 + m, N);\n"
+                     "    result[at(2 * C, p.y, p.x, outSize)] = next / (next + 1.0);\n"
+                     "}\n";
+                addPass(name, s.str(),
+                        {inputName(n.inputs[0]), inputName(n.inputs[1]), inputName(n.inputs[2])}, name);
+                break;
+            }
             case GraphOp::Count:
                 throw Error("model '" + model.name() + "': node '" + name + "' (" + graphOpName(n.op) +
-                            ") has no GLSL form; GLSL export takes single-frame models");
+                            ") has no GLSL form");
         }
     }
     net.output = names[size_t(model.outputNode())];

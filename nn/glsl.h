@@ -5,7 +5,8 @@
 // in one shader storage buffer (binding 0), in the model's own order. Every tensor is a storage buffer of
 // planar float32 (channel, row, column); a pass reads its inputs at bindings 1-3 and writes binding 4,
 // with the uniforms `inSize` (width, height of its first input) and `outSize` (of its output), dispatched
-// as ceil(outSize / 8) work groups of 8 x 8. Recurrent ops (warp, accumulate) are refused, as for ONNX.
+// as ceil(outSize / 8) work groups of 8 x 8. A recurrent network's ops (warp, accumulate) have their
+// passes too: the network computes one frame from the input its caller assembles (infer/glsl_filter.h).
 //
 // docs/glsl.md has the layout a runtime binds; infer/glsl_network.h runs it (OSMesa in the tests).
 #pragma once

@@ -619,7 +619,10 @@ TEST(Cli, ExportWritesOnnxAndRefusesWhatItCannot) {
     expectOneLineError(run("export --glsl --force dejag-fast '" + dir.file("other") + "'", dir),
                        "no GLSL export");
     expectOneLineError(run("export --glsl --size 64x48 dejag-fast '" + dir.file("g2") + "'", dir), "--size");
-    expectOneLineError(run("export --glsl dejag-temporal '" + dir.file("g3") + "'", dir), "no GLSL form");
+    // The recurrent network too: its warps and accumulate are passes (run against the CPU by Glsl.*).
+    r = run("export --glsl dejag-temporal '" + dir.file("g3") + "'", dir);
+    ASSERT_EQ(r.exitCode, 0) << r.err;
+    EXPECT_NE(slurp(dir.file("g3/network.json")).find("\"accumulate\""), std::string::npos);
     r = run("export --glsl fxaa '" + dir.file("fxaa") + "'", dir);
     ASSERT_EQ(r.exitCode, 0) << r.err;
     EXPECT_NE(slurp(dir.file("fxaa/fxaa.comp")).find("#version 430"), std::string::npos);
@@ -1670,8 +1673,18 @@ TEST(Cli, ViewShowsWhatTheFilterWrites) {
     EXPECT_GT(
         largestStep(readImage(dir.file("r/truth_0001.png")), readImage(dir.file("r/frame_0001.png")), 49, 96),
         8);
-    // A method without a GPU form, on --device gpu: one line naming it.
-    expectOneLineError(run(view + "--method cnn-temporal --device gpu", dir, xvfb), "GPU form");
+    // The temporal network's GPU form, its history on the GPU, against dejag filter (ungated, float32).
+    r = run("filter --method cnn-temporal --gate off --precision fp32 --quiet '" + dir.file("r") + "' '" +
+                dir.file("temporal") + "'",
+            dir);
+    ASSERT_EQ(r.exitCode, 0) << r.err;
+    r = run(view + "--method cnn-temporal --device gpu --screenshot '" + dir.file("temporal.png") + "'", dir,
+            xvfb);
+    ASSERT_EQ(r.exitCode, 0) << r.err;
+    EXPECT_LE(largestStep(readImage(dir.file("temporal.png")), readImage(dir.file("temporal/frame_0002.png")),
+                          0, 96),
+              1);
+    expectOneLineError(run(view + "--device fast", dir, xvfb), "--device");
 }
 
 TEST(Cli, FilterRunsFoldersSequencesAndChainsKeepingBitDepthAndAlpha) {

@@ -82,8 +82,9 @@ TEST(Filter, EveryMethodOfTheTableIsMadeFromItsDefaults) {
 }
 
 TEST(Filter, TheFactoryRefusesWhatNoMethodReads) {
-    EXPECT_NE(errorOf([] { makeFilter("blur", {}); }).find("the methods are none, fxaa, smaa, cnn, taa, taa-sobel"),
-              std::string::npos);
+    EXPECT_NE(
+        errorOf([] { makeFilter("blur", {}); }).find("the methods are none, fxaa, smaa, cnn, taa, taa-sobel"),
+        std::string::npos);
     EXPECT_NE(errorOf([] { makeFilter("fxaa,", {}); }).find("empty method"), std::string::npos);
     FilterParameters tile;
     tile.set("tile", "64", "--tile");

@@ -162,7 +162,11 @@ TEST(GlslFilter, EveryTaaFollowsItsCpuFilterOverAMovingSequence) {
              {"taa", {}},
              {"taa", {{"unjitter", "false"}, {"sharpen", "false"}}},
              {"taa-sobel", {}},
-             {"taa-sobel", {{"unjitter", "false"}, {"feedback-min", "0.5"}}}}) {
+             {"taa-sobel", {{"unjitter", "false"}, {"feedback-min", "0.5"}}},
+             {"cnn-temporal",
+              {{"model", testing::sourcePath("models/dejag-temporal.safetensors")},
+               {"gate", "off"},
+               {"precision", "fp32"}}}}) {
         Method m{name, parameters, nullptr, makeFilter(name, parameters),
                  std::make_unique<GlslBuffer>(*context)};
         std::string whyNot;
@@ -279,7 +283,9 @@ TEST(GlslFilter, TaaHqRejectsADisoccludedHistoryAsTheCpuDoes) {
 TEST(GlslFilter, MethodsWithoutAGpuFormSayWhyAndBadParametersAreRefused) {
     const auto context = render::createOsMesaContext();
     std::string whyNot;
-    EXPECT_EQ(makeGlslFilter(*context, "cnn-temporal", {}, &whyNot), nullptr);
+    const std::string temporal = testing::sourcePath("models/dejag-temporal.safetensors");
+    EXPECT_EQ(makeGlslFilter(*context, "cnn-temporal", {{"model", temporal}, {"clip", "on"}}, &whyNot),
+              nullptr);
     EXPECT_NE(whyNot.find("no GPU form"), std::string::npos) << whyNot;
     whyNot.clear();
     EXPECT_EQ(makeGlslFilter(*context, "taa", {{"motion-blur", "true"}}, &whyNot), nullptr);

@@ -128,15 +128,35 @@ TEST(Glsl, WideLayersMatchTheCpu) {
     }
 }
 
-TEST(Glsl, RecurrentModelsAndBadSizesAreRefused) {
+// The recurrent network's frame (its warps, Catmull-Rom and bilinear, and its accumulate) against
+// Model::forward on an input laid out as the filter assembles it: a rendered frame, a history of kept
+// colours and confidences, motion of a few pixels (some whole, some not), the jitter, depths.
+TEST(Glsl, TheTemporalNetworksFrameMatchesTheCpu) {
     testing::TempDir dir;
+    const auto context = render::createOsMesaContext();
     nn::Model temporal = nn::loadModel(testing::sourcePath("models/dejag-temporal.safetensors"));
-    try {
-        nn::exportGlsl(temporal);
-        FAIL() << "exported a warp";
-    } catch (const Error& e) {
-        EXPECT_NE(std::string(e.what()).find("(warp) has no GLSL form"), std::string::npos) << e.what();
+    ASSERT_EQ(temporal.inputChannels(), 16);
+    constexpr int w = 96, h = 64;
+    nn::Tensor input = renderedInput(*context, 16, w, h);
+    nn::Rng rng(11);
+    float* in = input.data();
+    const size_t plane = size_t(w) * h;
+    for (size_t p = 0; p < plane; ++p) {
+        for (int c = 3; c < 9; ++c)
+            in[c * plane + p] = std::clamp(in[(c % 3) * plane + p] + rng.uniform(-0.1f, 0.1f), 0.0f, 1.0f);
+        in[9 * plane + p] = rng.uniform(0.0f, 0.97f);                       // confidence
+        in[10 * plane + p] = p % 7 == 0 ? 2.0f : rng.uniform(-3.0f, 3.0f);  // motion x
+        in[11 * plane + p] = rng.uniform(-1.5f, 1.5f);                      // motion y
+        in[12 * plane + p] = 0.25f, in[13 * plane + p] = -0.375f;           // jitter
+        in[14 * plane + p] = rng.uniform(0.1f, 0.2f), in[15 * plane + p] = rng.uniform(0.1f, 0.2f);
     }
+    const Difference d = compare(temporal, input, *context, dir.file("temporal"));
+    EXPECT_LE(d.largest, 1e-4);
+    EXPECT_LE(d.largest8bit, 1);
+}
+
+TEST(Glsl, BadSizesAndFoldersAreRefused) {
+    testing::TempDir dir;
     nn::Model fast = nn::loadModel(testing::sourcePath("models/dejag-fast.safetensors"));
     const nn::GlslNetwork network = nn::exportGlsl(fast);
     EXPECT_EQ(network.sizeDivisor, 8);
