@@ -7,7 +7,7 @@
 #include <vector>
 
 #include "base/error.h"
-#include "base/srgb.h"
+#include "infer/glsl_srgb.h"
 #include "infer/smaa_area.h"
 #include "nn/glsl.h"
 
@@ -182,26 +182,6 @@ void main() {
 
 // Pass 3: smaaBlendRow.
 constexpr const char* kBlend = R"(
-float power(float x, const float c[8], const float factor[16]) {
-    int bits = floatBitsToInt(x);
-    precise float s = intBitsToFloat((bits & 0x7fffff) | 0x3f800000) - 1.5;
-    precise float poly = c[7];
-    for (int j = 6; j >= 0; --j) poly = poly * s + c[j];
-    precise float v = factor[(bits >> 23) & 15] * poly;
-    return v;
-}
-float decode(float v) {
-    v = clamp(v, 0.0, 1.0);
-    precise float x = v * DECODE_SCALE + DECODE_OFFSET;
-    precise float linear = v * DECODE_LINEAR;
-    return v <= DECODE_KNEE ? linear : power(x, DECODE_C, DECODE_FACTOR);
-}
-float encode(float x) {
-    x = clamp(x, 0.0, ENCODE_TOP);
-    precise float linear = x * 12.92;
-    precise float curve = power(x, ENCODE_C, ENCODE_FACTOR) - 0.055;
-    return x <= ENCODE_KNEE ? linear : curve;
-}
 void main() {
     ivec2 p = ivec2(gl_GlobalInvocationID.xy);
     if (p.x >= size.x || p.y >= size.y) return;
@@ -235,26 +215,19 @@ void main() {
     for (int k = 0; k < 3; ++k) {
         float v0 = frame[self + k], v1 = frame[n1 + k], v2 = frame[n2 + k];
         if (LINEAR) {
-            v0 = decode(v0);
-            v1 = decode(v1);
-            v2 = decode(v2);
+            v0 = decodeSrgb(v0);
+            v1 = decodeSrgb(v1);
+            v2 = decodeSrgb(v2);
         }
         precise float v = (a1 * (v0 + (v1 - v0) * a1) + a2 * (v0 + (v2 - v0) * a2)) * scale;
-        result[self + k] = LINEAR ? encode(v) : v;
+        result[self + k] = LINEAR ? encodeSrgb(v) : v;
     }
 }
 )";
 
-std::string floats(const float* values, int count) {
-    std::string text;
-    for (int i = 0; i < count; ++i) text += (i ? ", " : "") + nn::glslFloat(values[i]);
-    return text;
-}
-
 }  // namespace
 
-GlslSmaa::GlslSmaa(render::GlContext& context, const SmaaOptions& options)
-    : context_(context), options_(options) {
+std::vector<std::string> GlslSmaa::sources(const SmaaOptions& options) {
     Smaa check(options);  // its range checks and their messages
     if (options.predication)
         throw Error("SMAA with predication needs depth, which a GPU frame does not carry");
@@ -272,24 +245,14 @@ GlslSmaa::GlslSmaa(render::GlContext& context, const SmaaOptions& options)
         "const bool CORNERS = " + std::string(options.cornerRounding < 100 ? "true" : "false") +
         ";\nconst float ROUNDING_KEEP = " + nn::glslFloat(1.0f - float(options.cornerRounding) / 100.0f) +
         ";\n";
-    const PowerCurve &dec = srgbDecodeCurve7(), &enc = srgbEncodeCurve7();
     constants += "const bool LINEAR = " + std::string(options.linearBlending ? "true" : "false") + ";\n";
-    constants += "const float DECODE_C[8] = float[](" + floats(dec.c, 8) +
-                 ");\nconst float DECODE_FACTOR[16] = float[](" + floats(dec.factor, 16) +
-                 ");\nconst float ENCODE_C[8] = float[](" + floats(enc.c, 8) +
-                 ");\nconst float ENCODE_FACTOR[16] = float[](" + floats(enc.factor, 16) + ");\n";
-    constants += "const float DECODE_LINEAR = " + nn::glslFloat(1.0f / 12.92f) +
-                 ", DECODE_SCALE = " + nn::glslFloat(1.0f / 1.055f) +
-                 ", DECODE_OFFSET = " + nn::glslFloat(0.055f / 1.055f) +
-                 ", DECODE_KNEE = " + nn::glslFloat(kSrgbDecodeKnee) +
-                 ", ENCODE_KNEE = " + nn::glslFloat(kSrgbEncodeKnee) +
-                 ", ENCODE_TOP = " + nn::glslFloat(0.99999994f) + ";\n";
-    const render::GlFunctions& gl = context_.compute();
-    const char* const passes[3] = {kEdges, kWeights, kBlend};
-    const char* const names[3] = {"GLSL SMAA: edges", "GLSL SMAA: weights", "GLSL SMAA: blending"};
-    for (int i = 0; i < 3; ++i)
-        programs_[i] = render::compileComputeProgram(gl, constants + kHeader + passes[i], names[i]);
-    // The areas: orthogonal ones for every distance a search can report, the diagonal table as it is.
+    constants += glslSrgbFunctions(7, 7);
+    return {constants + kHeader + kEdges, constants + kHeader + kWeights, constants + kHeader + kBlend};
+}
+
+std::vector<float> GlslSmaa::orthogonalAreas(const SmaaOptions& options) {
+    // For every distance a search can report, each way.
+    const int side = 2 * options.searchSteps + 1;
     std::vector<float> orthogonal(size_t(16) * side * side * 2, 0.0f);
     for (int pattern = 0; pattern < 16; ++pattern)
         for (int l = 0; l < side; ++l)
@@ -298,8 +261,21 @@ GlslSmaa::GlslSmaa(render::GlContext& context, const SmaaOptions& options)
                 const size_t i = ((size_t(pattern) * side + size_t(l)) * side + size_t(r)) * 2;
                 orthogonal[i] = a[0], orthogonal[i + 1] = a[1];
             }
-    const float* diagonal = smaaDiagonalAreaTable();
-    const size_t diagonalCount = size_t(16) * kSmaaDiagonalMax * kSmaaDiagonalMax * 2;
+    return orthogonal;
+}
+
+std::vector<float> GlslSmaa::diagonalAreas() {
+    const float* table = smaaDiagonalAreaTable();
+    return std::vector<float>(table, table + size_t(16) * kSmaaDiagonalMax * kSmaaDiagonalMax * 2);
+}
+
+GlslSmaa::GlslSmaa(render::GlContext& context, const SmaaOptions& options)
+    : context_(context), options_(options) {
+    const std::vector<std::string> passes = sources(options);
+    const render::GlFunctions& gl = context_.compute();
+    const char* const names[3] = {"GLSL SMAA: edges", "GLSL SMAA: weights", "GLSL SMAA: blending"};
+    for (int i = 0; i < 3; ++i) programs_[i] = render::compileComputeProgram(gl, passes[size_t(i)], names[i]);
+    const std::vector<float> orthogonal = orthogonalAreas(options), diagonal = diagonalAreas();
     unsigned buffers[4];
     gl.GenBuffers(4, buffers);
     edges_ = buffers[0], weights_ = buffers[1], orthogonal_ = buffers[2], diagonal_ = buffers[3];
@@ -307,7 +283,7 @@ GlslSmaa::GlslSmaa(render::GlContext& context, const SmaaOptions& options)
     gl.BufferData(GL_SHADER_STORAGE_BUFFER, GLsizeiptr(orthogonal.size() * sizeof(float)), orthogonal.data(),
                   GL_STATIC_DRAW);
     gl.BindBuffer(GL_SHADER_STORAGE_BUFFER, diagonal_);
-    gl.BufferData(GL_SHADER_STORAGE_BUFFER, GLsizeiptr(diagonalCount * sizeof(float)), diagonal,
+    gl.BufferData(GL_SHADER_STORAGE_BUFFER, GLsizeiptr(diagonal.size() * sizeof(float)), diagonal.data(),
                   GL_STATIC_DRAW);
 }
 

@@ -6,6 +6,7 @@
 #pragma once
 
 #include <string>
+#include <vector>
 
 #include "infer/smaa.h"
 #include "render/gl.h"
@@ -19,6 +20,11 @@ class GlslSmaa {
     ~GlslSmaa();
     GlslSmaa(const GlslSmaa&) = delete;
     GlslSmaa& operator=(const GlslSmaa&) = delete;
+    // The three passes' sources (edges, weights, blending), and the area tables they read at bindings 5
+    // (orthogonal: [pattern 16][left 2 steps + 1][right 2 steps + 1][2]) and 6 (diagonal: [16][20][20][2]).
+    static std::vector<std::string> sources(const SmaaOptions& options);
+    static std::vector<float> orthogonalAreas(const SmaaOptions& options);
+    static std::vector<float> diagonalAreas();
     // in, out: storage buffers of (height, width, 3) interleaved sRGB-encoded floats; in != out.
     void dispatch(unsigned in, unsigned out, int width, int height);
 

@@ -288,8 +288,7 @@ void main() {
 
 }  // namespace
 
-GlslTaa::GlslTaa(render::GlContext& context, const TaaOptions& options)
-    : context_(context), options_(options) {
+std::vector<std::string> GlslTaa::sources(const TaaOptions& options) {
     Taa check(options);  // its range checks and their messages
     if (options.motionBlur) throw Error("TAA's motion blur has no GPU form (motion-blur=false)");
     const bool improved = options.improved;
@@ -302,16 +301,23 @@ GlslTaa::GlslTaa(render::GlContext& context, const TaaOptions& options)
                  ", DEPTH_THRESHOLD = " + nn::glslFloat(options.depthThreshold) +
                  ", CENTRE_WEIGHT = " + nn::glslFloat(improved ? 2.0f : 5.0f) +
                  ", SIDE_WEIGHT = " + nn::glslFloat(improved ? -0.25f : -1.0f) + ";\n";
+    const bool sobel = options.improved;
+    return {constants + kCommon + kCurrent, sobel ? constants + kCommon + kSobel : "",
+            sobel ? constants + kCommon + kStableSobel + kBilinear + kStableSobelMain : "",
+            constants + kCommon + kBlend + kBilinear + kBlendMain, constants + kCommon + kSharpen};
+}
+
+GlslTaa::GlslTaa(render::GlContext& context, const TaaOptions& options)
+    : context_(context), options_(options) {
+    const bool improved = options.improved;
+    const std::vector<std::string> sources = GlslTaa::sources(options);
     const render::GlFunctions& gl = context_.compute();
-    const std::string sources[5] = {kCurrent, kSobel,
-                                    std::string(kStableSobel) + kBilinear + kStableSobelMain,
-                                    std::string(kBlend) + kBilinear + kBlendMain, kSharpen};
     const char* const names[5] = {"GLSL TAA: the current frame", "GLSL TAA: the Sobel",
                                   "GLSL TAA: the Sobel's TAA", "GLSL TAA: the blend",
                                   "GLSL TAA: the sharpen"};
     for (int k = 0; k < 5; ++k)
         if (improved || (k != 1 && k != 2))
-            programs_[k] = render::compileComputeProgram(gl, constants + kCommon + sources[k], names[k]);
+            programs_[k] = render::compileComputeProgram(gl, sources[size_t(k)], names[k]);
     unsigned buffers[8];
     gl.GenBuffers(8, buffers);
     current_ = buffers[0], sobel_ = buffers[1], sobelHistory_[0] = buffers[2], sobelHistory_[1] = buffers[3];

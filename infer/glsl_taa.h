@@ -6,6 +6,9 @@
 // output has no GPU form.
 #pragma once
 
+#include <string>
+#include <vector>
+
 #include "infer/taa.h"
 #include "render/gl.h"
 
@@ -19,6 +22,9 @@ class GlslTaa {
     GlslTaa(const GlslTaa&) = delete;
     GlslTaa& operator=(const GlslTaa&) = delete;
 
+    // The five passes' sources (the current frame, the Sobel, the Sobel's TAA, the blend, the sharpen;
+    // U-TAA's second and third are empty).
+    static std::vector<std::string> sources(const TaaOptions& options);
     // Storage buffers in infer::Frame's layouts (albedo, ids and previousDepth for T-TAA, else 0); out
     // (H, W, 3) sRGB. The first frame, a size change or reset() starts a new history.
     void dispatch(const TaaFrame& buffers, unsigned colour, unsigned albedo, unsigned depth, unsigned motion,

@@ -7,7 +7,7 @@
 #include <string>
 
 #include "base/error.h"
-#include "base/srgb.h"
+#include "infer/glsl_srgb.h"
 #include "nn/glsl.h"
 
 namespace dejag::infer {
@@ -17,14 +17,6 @@ constexpr const char* kCommon = R"(
 layout(local_size_x = 8, local_size_y = 8) in;
 uniform ivec2 size;
 int clampedPixel(int x, int y) { return clamp(y, 0, size.y - 1) * size.x + clamp(x, 0, size.x - 1); }
-float power(float x, const float c[8], int degree, const float factor[16]) {
-    int bits = floatBitsToInt(x);
-    precise float s = intBitsToFloat((bits & 0x7fffff) | 0x3f800000) - 1.5;
-    precise float poly = c[degree];
-    for (int j = degree - 1; j >= 0; --j) poly = poly * s + c[j];
-    precise float v = factor[(bits >> 23) & 15] * poly;
-    return v;
-}
 )";
 
 // The frame's in-pixel sample (pixel p + shift's) in linear light, the motion snapped to 0 below 1e-3 in
@@ -34,17 +26,11 @@ layout(std430, binding = 1) readonly buffer Colour { float colour[]; };
 layout(std430, binding = 2) readonly buffer Motion { float motion[]; };
 layout(std430, binding = 5) writeonly buffer Current { float current[]; };  // r g b, mx my, moved
 uniform ivec2 shift;
-float decode(float v) {
-    v = isnan(v) ? 0.0 : clamp(v, 0.0, 1.0);
-    precise float x = v * DECODE_SCALE + DECODE_OFFSET;
-    precise float linear = v * DECODE_LINEAR;
-    return v <= DECODE_KNEE ? linear : power(x, DECODE_C, 5, DECODE_FACTOR);
-}
 void main() {
     ivec2 p = ivec2(gl_GlobalInvocationID.xy);
     if (p.x >= size.x || p.y >= size.y) return;
     int i = p.y * size.x + p.x, s = clampedPixel(p.x + shift.x, p.y + shift.y);
-    for (int k = 0; k < 3; ++k) current[6 * i + k] = decode(colour[3 * s + k]);
+    for (int k = 0; k < 3; ++k) current[6 * i + k] = decodeSrgb(colour[3 * s + k]);
     float mx = motion[2 * i], my = motion[2 * i + 1];
     bool none = abs(mx) < 1e-3 && abs(my) < 1e-3;
     current[6 * i + 3] = none ? 0.0 : mx;
@@ -64,12 +50,6 @@ layout(std430, binding = 0) writeonly buffer Result { float result[]; };
 uniform bool fresh;
 uniform bool useDepth;    // depth and the previous depth
 uniform bool haveDepth;   // depth
-float encode(float x) {
-    x = clamp(x, 0.0, ENCODE_TOP);
-    precise float linear = x * 12.92;
-    precise float curve = power(x, ENCODE_C, 6, ENCODE_FACTOR) - 0.055;
-    return x <= ENCODE_KNEE ? linear : curve;
-}
 vec3 ycocg(vec3 c) {
     precise float y = 0.25 * c.r + 0.5 * c.g + 0.25 * c.b, co = 0.5 * (c.r - c.b);
     precise float cg = -0.25 * c.r + 0.5 * c.g - 0.25 * c.b;
@@ -214,7 +194,7 @@ void main() {
     nextHistory[4 * i + 2] = next.b;
     nextHistory[4 * i + 3] = movedNow ? -weight : weight;
     // 6. The output in sRGB.
-    for (int k = 0; k < 3; ++k) result[3 * i + k] = encode(next[k]);
+    for (int k = 0; k < 3; ++k) result[3 * i + k] = encodeSrgb(next[k]);
 }
 )";
 
@@ -243,29 +223,12 @@ void main() {
 }
 )";
 
-std::string floats(const float* values, int count) {
-    std::string text;
-    for (int i = 0; i < count; ++i) text += (i ? ", " : "") + nn::glslFloat(values[i]);
-    return text;
-}
-
 }  // namespace
 
-GlslTaaHq::GlslTaaHq(render::GlContext& context, const TaaHqOptions& options)
-    : context_(context), options_(options) {
+std::vector<std::string> GlslTaaHq::sources(const TaaHqOptions& options) {
     TaaHq check(options);  // its range checks and their messages
-    const PowerCurve decode = fitPower(2.4, 5, 1.0), encode = fitPower(1 / 2.4, 6, 1.055);
     std::string constants = "#version 430\n// dejag: taa-hq (infer/taa_hq.h; docs/glsl.md)\n";
-    constants += "const float DECODE_C[8] = float[](" + floats(decode.c, 8) +
-                 ");\nconst float DECODE_FACTOR[16] = float[](" + floats(decode.factor, 16) +
-                 ");\nconst float ENCODE_C[8] = float[](" + floats(encode.c, 8) +
-                 ");\nconst float ENCODE_FACTOR[16] = float[](" + floats(encode.factor, 16) + ");\n";
-    constants += "const float DECODE_LINEAR = " + nn::glslFloat(1.0f / 12.92f) +
-                 ", DECODE_SCALE = " + nn::glslFloat(1.0f / 1.055f) +
-                 ", DECODE_OFFSET = " + nn::glslFloat(0.055f / 1.055f) +
-                 ", DECODE_KNEE = " + nn::glslFloat(kSrgbDecodeKnee) +
-                 ", ENCODE_KNEE = " + nn::glslFloat(kSrgbEncodeKnee) +
-                 ", ENCODE_TOP = " + nn::glslFloat(0.99999994f) + ";\n";
+    constants += glslSrgbFunctions(5, 6);  // the CPU band kernel's degrees
     constants += "const float GAMMA = " + nn::glslFloat(options.clipGamma) +
                  ", NINTH = " + nn::glslFloat(1.0f / 9.0f) +
                  ", CLIPPED_WEIGHT = " + nn::glslFloat(options.clippedSamples) +
@@ -275,12 +238,16 @@ GlslTaaHq::GlslTaaHq(render::GlContext& context, const TaaHqOptions& options)
                  ", SHARPEN = " + nn::glslFloat(options.sharpen) + ";\n";
     constants += std::string("const bool CATMULL_ROM = ") + (options.catmullRom ? "true" : "false") +
                  ", STATIC_LOCK = " + (options.staticLock ? "true" : "false") + ";\n";
+    return {constants + kCommon + kPrepare, constants + kCommon + kResolve, constants + kCommon + kSharpen};
+}
+
+GlslTaaHq::GlslTaaHq(render::GlContext& context, const TaaHqOptions& options)
+    : context_(context), options_(options) {
+    const std::vector<std::string> passes = sources(options);
     const render::GlFunctions& gl = context_.compute();
-    const char* const passes[3] = {kPrepare, kResolve, kSharpen};
     const char* const names[3] = {"GLSL taa-hq: the current sample", "GLSL taa-hq: the resolve",
                                   "GLSL taa-hq: the sharpen"};
-    for (int k = 0; k < 3; ++k)
-        programs_[k] = render::compileComputeProgram(gl, constants + kCommon + passes[k], names[k]);
+    for (int k = 0; k < 3; ++k) programs_[k] = render::compileComputeProgram(gl, passes[size_t(k)], names[k]);
     unsigned buffers[5];
     gl.GenBuffers(5, buffers);
     current_ = buffers[0], history_[0] = buffers[1], history_[1] = buffers[2], unsharpened_ = buffers[3];

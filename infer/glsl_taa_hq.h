@@ -5,6 +5,9 @@
 // output only. The history (linear R G B and the signed weight per pixel) stays on the GPU.
 #pragma once
 
+#include <string>
+#include <vector>
+
 #include "infer/taa_hq.h"
 #include "render/gl.h"
 
@@ -17,6 +20,8 @@ class GlslTaaHq {
     GlslTaaHq(const GlslTaaHq&) = delete;
     GlslTaaHq& operator=(const GlslTaaHq&) = delete;
 
+    // The three passes' sources: the current samples, the resolve, the sharpen (docs/glsl.md).
+    static std::vector<std::string> sources(const TaaHqOptions& options);
     // Storage buffers in infer::Frame's layouts: colour (H, W, 3) sRGB, motion (H, W, 2), depth and
     // previousDepth (H, W) or both 0; out (H, W, 3) sRGB. jitter: the frame's image shift (pixels, +y
     // down). The first frame, a size change or reset() starts a new history.
