@@ -9,7 +9,7 @@
 #include "app/commands.h"
 #include "base/error.h"
 #include "base/files.h"
-#include "infer/glsl_fxaa.h"
+#include "infer/glsl_filter.h"
 #include "nn/glsl.h"
 #include "nn/model.h"
 #include "nn/onnx.h"
@@ -21,6 +21,7 @@ namespace fs = std::filesystem;
 
 struct ExportArguments {
     std::string model, output, size;
+    std::vector<std::string> settings;  // --set NAME=VALUE (a method's)
     bool onnx = false, glsl = false, force = false, json = false;
 };
 
@@ -36,7 +37,8 @@ void runGlslExport(const ExportArguments& args) {
             throw Error("'" + args.output + "' holds no GLSL export (no network.json): not replaced");
         for (const auto& entry : fs::directory_iterator(args.output)) {
             const std::string name = entry.path().filename().string();
-            if (entry.path().extension() == ".comp" || name == "network.json" || name == "weights.bin")
+            if (entry.path().extension() == ".comp" || entry.path().extension() == ".bin" ||
+                name == "network.json")
                 fs::remove(entry.path());
         }
     }
@@ -44,33 +46,37 @@ void runGlslExport(const ExportArguments& args) {
     if (!folder.empty() && !fs::is_directory(folder))
         throw Error("cannot write '" + args.output + "': the folder '" + folder.string() +
                     "' does not exist");
-    if (args.model == "fxaa") {  // the method, not a network: one shader and what it binds
+    if (infer::findMethod(args.model)) {  // a method, not a network: its passes and what they bind
+        infer::FilterParameters parameters;
+        for (const std::string& assignment : args.settings) parameters.setAssignment(assignment);
+        const infer::GlslMethodFiles files = infer::glslMethodFiles(args.model, parameters);
         std::error_code made;
         fs::create_directories(args.output, made);
-        const std::string shader = infer::fxaaGlslSource(infer::FxaaOptions{}, 3);
-        writeTextFileAtomically((fs::path(args.output) / "fxaa.comp").string(), shader);
-        const nlohmann::json description = {
-            {"format", "dejag-glsl-1"},
-            {"method", "fxaa"},
-            {"preset", 39},
-            {"passes", {{{"shader", "fxaa.comp"}, {"inputs", {"frame"}}, {"output", "result"}}}},
-            {"layout", "frame and result: interleaved float32 R, G, B per pixel, rows packed, sRGB-encoded"},
-            {"bindings",
-             "1: frame, 4: result; uniform ivec2 size (width, height); dispatch ceil(size / 8) "
-             "groups of 8 x 8"}};
+        for (const auto& [name, source] : files.passes)
+            writeTextFileAtomically((fs::path(args.output) / name).string(), source);
+        for (const auto& [name, values] : files.tables)
+            writeBytesAtomically((fs::path(args.output) / name).string(),
+                                 std::string_view(reinterpret_cast<const char*>(values.data()),
+                                                  values.size() * sizeof(float)));
         writeTextFileAtomically((fs::path(args.output) / "network.json").string(),
-                                description.dump(2) + "\n");
-        if (args.json)
-            std::printf(
-                "%s\n",
-                nlohmann::json{{"method", "fxaa"}, {"output", args.output}, {"format", "glsl"}, {"passes", 1}}
-                    .dump()
-                    .c_str());
-        else
-            std::printf("wrote %s/: fxaa.comp (FXAA 3.11, preset 39, GLSL 430) and network.json\n",
-                        args.output.c_str());
+                                files.description.dump(2) + "\n");
+        if (args.json) {
+            std::printf("%s\n", nlohmann::json{{"method", args.model},
+                                               {"output", args.output},
+                                               {"format", "glsl"},
+                                               {"passes", files.passes.size()},
+                                               {"tables", files.tables.size()}}
+                                    .dump()
+                                    .c_str());
+        } else {
+            std::string names;
+            for (const auto& [name, source] : files.passes) names += (names.empty() ? "" : ", ") + name;
+            for (const auto& [name, values] : files.tables) names += ", " + name;
+            std::printf("wrote %s/: %s (GLSL 430) and network.json\n", args.output.c_str(), names.c_str());
+        }
         return;
     }
+    if (!args.settings.empty()) throw Error("--set is for a method (fxaa, smaa, taa, taa-sobel, taa-hq)");
     const std::string path = shippedModelPath(args.model);
     const nn::Model model = nn::loadModel(path);
     const nn::GlslNetwork network = nn::exportGlsl(model);
@@ -154,13 +160,19 @@ void registerExportCommand(CLI::App& app) {
         "--glsl", args->glsl,
         "write GLSL 430 compute shaders, one per pass, with weights.bin and network.json into the "
         "folder OUT");
-    command->add_option("MODEL", args->model, "model file, or a shipped model's name (dejag-fast)")
+    command
+        ->add_option("MODEL", args->model,
+                     "model file, a shipped model's name (dejag-fast), or for --glsl a method (fxaa, smaa, "
+                     "taa, taa-sobel, taa-hq)")
         ->required();
     command->add_option("OUT", args->output, "the file to write (model.onnx), or the folder (--glsl)")
         ->required();
     command->add_option("--size", args->size,
                         "fix the input to WIDTHxHEIGHT (default: symbolic height and width; some runtimes "
                         "need them fixed)");
+    command->add_option(
+        "--set", args->settings,
+        "--glsl of a method: a parameter NAME=VALUE (repeatable; dejag filter --list-methods)");
     command->add_flag("--force", args->force, "overwrite OUT if it exists");
     command->add_flag("--json", args->json, "print what was written as JSON");
     command->footer(

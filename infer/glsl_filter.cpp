@@ -7,11 +7,11 @@
 
 #include "base/error.h"
 #include "base/luma.h"
-#include "base/srgb.h"
 #include "infer/fxaa.h"
 #include "infer/glsl_fxaa.h"
 #include "infer/glsl_network.h"
 #include "infer/glsl_smaa.h"
+#include "infer/glsl_srgb.h"
 #include "infer/glsl_taa.h"
 #include "infer/glsl_taa_hq.h"
 #include "infer/smaa.h"
@@ -476,11 +476,7 @@ namespace {
 // linearToSrgb on max(v, 0) and clamped to [0, 1] (base/srgb.h's curve in the same float operations,
 // precise: the same bits), or divided by `divisor` (in double, as frameFromImage divides).
 std::string importShader() {
-    const PowerCurve& curve = srgbEncodeCurve7();
-    std::string c, factor;
-    for (int j = 0; j < 8; ++j) c += (j ? ", " : "") + nn::glslFloat(curve.c[j]);
-    for (int j = 0; j < 16; ++j) factor += (j ? ", " : "") + nn::glslFloat(curve.factor[j]);
-    return R"(#version 430
+    return "#version 430\n" + glslSrgbFunctions(7, 7) + R"(
 layout(local_size_x = 8, local_size_y = 8) in;
 layout(std430, binding = 4) writeonly buffer Result { float result[]; };
 uniform sampler2D image;
@@ -488,26 +484,10 @@ uniform ivec2 size;
 uniform int channels;
 uniform bool encoded;
 uniform float divisor;
-const float C[8] = float[]()" +
-           c + R"();
-const float FACTOR[16] = float[]()" +
-           factor + R"();
-const float KNEE = )" +
-           nn::glslFloat(kSrgbEncodeKnee) +
-           R"(;
+// data/image.h's linearToSrgb on max(v, 0), clamped to [0, 1] (from 1 on, 1).
 float encode(float x) {
     x = max(x, 0.0);
-    if (x <= KNEE) {
-        precise float linear = x * 12.92;
-        return linear;
-    }
-    if (x >= 1.0) return 1.0;
-    int bits = floatBitsToInt(x);
-    precise float s = intBitsToFloat((bits & 0x7fffff) | 0x3f800000) - 1.5;
-    precise float poly = C[7];
-    for (int j = 6; j >= 0; --j) poly = poly * s + C[j];
-    precise float e = FACTOR[(bits >> 23) & 15] * poly - 0.055;
-    return clamp(e, 0.0, 1.0);
+    return x >= 1.0 ? 1.0 : clamp(encodeSrgb(x), 0.0, 1.0);
 }
 void main() {
     ivec2 p = ivec2(gl_GlobalInvocationID.xy);
@@ -598,6 +578,171 @@ unsigned GlslBuffer::ensure(size_t floats) {
         bytes_ = bytes;
     }
     return buffer_;
+}
+
+namespace {
+
+using nlohmann::json;
+
+// One pass of a method's description: its shader, what each binding holds, its uniforms.
+json passJson(const std::string& shader, const json& bindings, const json& uniforms,
+              const std::string& grid) {
+    return {{"shader", shader}, {"bindings", bindings}, {"uniforms", uniforms}, {"dispatch", grid}};
+}
+
+}  // namespace
+
+GlslMethodFiles glslMethodFiles(const std::string& method, const FilterParameters& parameters) {
+    const MethodSpec* spec = findMethod(method);
+    if (!spec) {
+        makeFilter(method, parameters);  // its one line: an unknown method, or a chain
+        throw Error("'" + method + "' is not one method: export a chain's methods one by one");
+    }
+    MethodParameters view(*spec, parameters);
+    std::string accepted;
+    for (const ParameterSpec& p : spec->parameters) accepted += (accepted.empty() ? "" : ", ") + p.name;
+    const std::string perPixel = "ceil(size / 8) work groups of 8 x 8, one invocation per pixel";
+    const json sizeUniform = {{"size", "ivec2: the frame's width and height"}};
+    GlslMethodFiles files;
+    json& d = files.description;
+    d["format"] = "dejag-glsl-1";
+    d["method"] = method;
+    d["layout"] =
+        "storage buffers of float32, rows packed top row first; a frame (height, width, 3) interleaved R G "
+        "B, "
+        "sRGB-encoded in [0, 1]; depth and previous depth linear depth / far (height, width); motion "
+        "(height, "
+        "width, 2): pixels moved since the previous frame, +y down";
+    d["between passes"] = "glMemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT)";
+    if (method == "fxaa") {
+        const FxaaOptions options = fxaaOptions(view);
+        files.passes.push_back({"fxaa.comp", fxaaGlslSource(options, 3)});
+        d["preset"] = options.preset;
+        d["buffers"] = {{"frame", "the frame"}, {"result", "the frame anti-aliased"}};
+        d["passes"] = {passJson("fxaa.comp", {{"1", "frame"}, {"4", "result"}}, sizeUniform, perPixel)};
+    } else if (method == "smaa") {
+        const SmaaOptions options = smaaOptions(view);
+        const std::vector<std::string> sources = GlslSmaa::sources(options);
+        const char* const names[3] = {"0_edges.comp", "1_weights.comp", "2_blending.comp"};
+        for (int k = 0; k < 3; ++k) files.passes.push_back({names[k], sources[size_t(k)]});
+        files.tables.push_back({"orthogonal_areas.bin", GlslSmaa::orthogonalAreas(options)});
+        files.tables.push_back({"diagonal_areas.bin", GlslSmaa::diagonalAreas()});
+        d["buffers"] = {{"frame", "the frame"},
+                        {"edges", "int32 per pixel: bit 0 its left boundary, bit 1 its top"},
+                        {"weights", "4 floats per pixel"},
+                        {"orthogonal", "orthogonal_areas.bin, loaded once"},
+                        {"diagonal", "diagonal_areas.bin, loaded once"},
+                        {"result", "the frame anti-aliased"}};
+        d["passes"] = {
+            passJson(names[0], {{"1", "frame"}, {"2", "edges"}}, sizeUniform, perPixel),
+            passJson(names[1], {{"2", "edges"}, {"3", "weights"}, {"5", "orthogonal"}, {"6", "diagonal"}},
+                     sizeUniform, perPixel),
+            passJson(names[2], {{"1", "frame"}, {"2", "edges"}, {"3", "weights"}, {"4", "result"}},
+                     sizeUniform, perPixel)};
+    } else if (method == "taa-hq") {
+        const TaaHqOptions options = taaHqOptions(view);
+        if (!options.jitterList.empty())
+            throw Error("taa-hq's GPU form reads each frame's jitter (jitter=frames)");
+        const std::vector<std::string> sources = GlslTaaHq::sources(options);
+        const char* const names[3] = {"0_current.comp", "1_resolve.comp", "2_sharpen.comp"};
+        for (int k = 0; k < 3; ++k)
+            if (k < 2 || options.sharpen > 0) files.passes.push_back({names[k], sources[size_t(k)]});
+        d["buffers"] = {
+            {"colour", "the frame"},
+            {"motion", "the motion"},
+            {"depth",
+             "optional, with previous depth (bind a 1-float buffer and set useDepth and haveDepth false)"},
+            {"previous depth", "optional, the previous frame's depth"},
+            {"current", "6 floats per pixel"},
+            {"history A, history B",
+             "4 floats per pixel each (linear R G B, the signed weight), used in turn"},
+            {"unsharpened", "a frame, when the sharpen is on"},
+            {"result", "the frame anti-aliased"}};
+        const std::string resolveOut = options.sharpen > 0 ? "unsharpened" : "result";
+        d["passes"] = {passJson(names[0], {{"1", "colour"}, {"2", "motion"}, {"5", "current"}},
+                                {{"size", "ivec2: width, height"},
+                                 {"shift",
+                                  "ivec2: -floor(-jitter + 0.5) per axis, clamped to the size (jitter: the "
+                                  "frame's image shift, pixels, +y down)"}},
+                                perPixel),
+                       passJson(names[1],
+                                {{"3", "depth"},
+                                 {"4", "previous depth"},
+                                 {"5", "current"},
+                                 {"6", "the history read (A on even frames)"},
+                                 {"7", "the history written (B on even frames)"},
+                                 {"0", resolveOut}},
+                                {{"size", "ivec2: width, height"},
+                                 {"fresh", "bool: the first frame of a history (a cut, a new size)"},
+                                 {"useDepth", "bool: depth and previous depth bound"},
+                                 {"haveDepth", "bool: depth bound"}},
+                                perPixel)};
+        if (options.sharpen > 0)
+            d["passes"].push_back(
+                passJson(names[2], {{"1", "unsharpened"}, {"0", "result"}}, sizeUniform, perPixel));
+        d["between frames"] = "the history written is the next frame's history read";
+    } else if (method == "taa" || method == "taa-sobel") {
+        const TaaOptions options = taaOptions(view, method == "taa-sobel");
+        const std::vector<std::string> sources = GlslTaa::sources(options);
+        const char* const names[5] = {"0_current.comp", "1_sobel.comp", "2_sobel_taa.comp", "3_blend.comp",
+                                      "4_sharpen.comp"};
+        const bool sobel = options.improved;
+        for (int k = 0; k < 5; ++k)
+            if (!sources[size_t(k)].empty()) files.passes.push_back({names[k], sources[size_t(k)]});
+        d["buffers"] = {{"colour", "the frame"},
+                        {"albedo", "the albedo, sRGB-encoded (T-TAA)"},
+                        {"depth", "the depth"},
+                        {"motion", "the motion"},
+                        {"ids", "object IDs, a float per pixel (T-TAA)"},
+                        {"previous depth", "the previous frame's depth (T-TAA)"},
+                        {"current", "5 floats per pixel"},
+                        {"sobel", "1 float per pixel (T-TAA)"},
+                        {"sobel history A, B", "1 float per pixel each, used in turn (T-TAA)"},
+                        {"history A, B", "a frame each (unsharpened), used in turn"},
+                        {"result", "the frame anti-aliased"}};
+        const json fresh = {{"size", "ivec2: width, height"},
+                            {"fresh", "bool: the first frame of a history (a cut, a new size)"}};
+        d["passes"] = json::array();
+        d["passes"].push_back(passJson(
+            names[0], {{"1", "colour"}, {"2", "albedo (T-TAA)"}, {"5", "current"}},
+            {{"size", "ivec2: width, height"},
+             {"unjitter", "bool: the frame has a non-zero jitter (and unjitter is on)"},
+             {"offset", "ivec2: floor(jitter)"},
+             {"weights",
+              "vec4: (1 - fx)(1 - fy), fx (1 - fy), (1 - fx) fy, fx fy of f = jitter - floor(jitter)"}},
+            perPixel));
+        if (sobel) {
+            d["passes"].push_back(passJson(names[1], {{"3", "depth"}, {"5", "current"}, {"6", "sobel"}},
+                                           sizeUniform, perPixel));
+            d["passes"].push_back(passJson(names[2],
+                                           {{"4", "motion"},
+                                            {"6", "sobel"},
+                                            {"7", "the Sobel history read (A on even frames)"},
+                                            {"0", "the Sobel history written"}},
+                                           fresh, perPixel));
+        }
+        d["passes"].push_back(passJson(names[3],
+                                       {{"1", "ids (T-TAA)"},
+                                        {"2", "previous depth (T-TAA)"},
+                                        {"3", "depth"},
+                                        {"4", "motion"},
+                                        {"5", "current"},
+                                        {"6", "the Sobel history written this frame (T-TAA)"},
+                                        {"7", "the history read (A on even frames)"},
+                                        {"0", "the history written"}},
+                                       fresh, perPixel));
+        d["passes"].push_back(
+            passJson(names[4], {{"7", "the history written"}, {"0", "result"}}, sizeUniform, perPixel));
+        d["between frames"] = "the histories written are the next frame's histories read";
+    } else {
+        throw Error("'" + method + "' has no GLSL export of its own: " +
+                    (method == "cnn" || method == "cnn-temporal"
+                         ? "export its network (dejag export --glsl MODEL)"
+                         : "the method has no GPU form"));
+    }
+    for (const ParameterSpec& p : spec->parameters) view.text(p.name);
+    parameters.requireAllUsed(method, accepted);
+    return files;
 }
 
 }  // namespace dejag::infer

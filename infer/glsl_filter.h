@@ -11,7 +11,10 @@
 #pragma once
 
 #include <memory>
+#include <nlohmann/json.hpp>
 #include <string>
+#include <utility>
+#include <vector>
 
 #include "infer/filter.h"
 #include "render/gl.h"
@@ -97,5 +100,19 @@ class GlslFrameImport {
     GlslBuffer colour_, albedo_, depth_, motion_, ids_, previousDepth_;
     GlslFrame frame_;
 };
+
+// A method's GPU form as files an engine loads: each pass's source, the tables some passes read, and a
+// description (network.json): the buffers, each pass's bindings and uniforms, the dispatch, and what is
+// kept from one frame to the next.
+struct GlslMethodFiles {
+    std::vector<std::pair<std::string, std::string>> passes;         // file name (.comp), source
+    std::vector<std::pair<std::string, std::vector<float>>> tables;  // file name (.bin), float32 values
+    nlohmann::json description;
+};
+
+// fxaa, smaa, taa, taa-sobel or taa-hq with `parameters` (checked as makeFilter checks them). Throws
+// dejag::Error for another method (a network is exported from its model, nn/glsl.h) and for settings its
+// GPU form does not take.
+GlslMethodFiles glslMethodFiles(const std::string& method, const FilterParameters& parameters);
 
 }  // namespace dejag::infer

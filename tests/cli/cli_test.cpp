@@ -627,6 +627,19 @@ TEST(Cli, ExportWritesOnnxAndRefusesWhatItCannot) {
     ASSERT_EQ(r.exitCode, 0) << r.err;
     EXPECT_NE(slurp(dir.file("fxaa/fxaa.comp")).find("#version 430"), std::string::npos);
     EXPECT_TRUE(std::filesystem::exists(dir.file("fxaa/network.json")));
+    // The other methods, with their settings: passes, tables and the description.
+    r = run("export --glsl smaa --set preset=high '" + dir.file("smaa") + "'", dir);
+    ASSERT_EQ(r.exitCode, 0) << r.err;
+    EXPECT_EQ(filesIn(dir.file("smaa")), 6u);  // 3 passes, 2 tables, network.json
+    EXPECT_EQ(std::filesystem::file_size(dir.file("smaa/orthogonal_areas.bin")),
+              size_t(16 * 33 * 33 * 2 * 4));
+    r = run("export --glsl taa-sobel '" + dir.file("tsobel") + "'", dir);
+    ASSERT_EQ(r.exitCode, 0) << r.err;
+    EXPECT_EQ(filesIn(dir.file("tsobel")), 6u);
+    expectOneLineError(run("export --glsl taa --set motion-blur=true '" + dir.file("t2") + "'", dir),
+                       "motion blur");
+    expectOneLineError(run("export --glsl fxaa --set gate=off '" + dir.file("t3") + "'", dir), "gate");
+    expectOneLineError(run("export --glsl --set subpix=1 dejag-fast '" + dir.file("t4") + "'", dir), "--set");
 }
 
 // The filter overwrites nothing unless asked: an existing output, of one image or any frame of a sequence,

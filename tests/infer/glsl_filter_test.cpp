@@ -280,6 +280,38 @@ TEST(GlslFilter, TaaHqRejectsADisoccludedHistoryAsTheCpuDoes) {
     EXPECT_LE(largest, 1e-5);
 }
 
+// The files `dejag export --glsl METHOD` writes: every pass compiles, the description names each pass's
+// shader and bindings, the tables are the sizes the passes index; a network or a chain is refused.
+TEST(GlslFilter, MethodFilesCompileAndDescribeTheirPasses) {
+    const auto context = render::createOsMesaContext();
+    const std::pair<std::string, FilterParameters> cases[] = {{"fxaa", {}},
+                                                              {"smaa", {{"preset", "high"}}},
+                                                              {"taa", {}},
+                                                              {"taa-sobel", {}},
+                                                              {"taa-hq", {{"sharpen", "0.5"}}}};
+    const size_t passes[] = {1, 3, 3, 5, 3};
+    for (size_t k = 0; k < std::size(cases); ++k) {
+        const auto& [method, parameters] = cases[k];
+        const GlslMethodFiles files = glslMethodFiles(method, parameters);
+        EXPECT_EQ(files.passes.size(), passes[k]) << method;
+        ASSERT_EQ(files.description["passes"].size(), files.passes.size()) << method;
+        for (size_t i = 0; i < files.passes.size(); ++i) {
+            EXPECT_EQ(files.description["passes"][i]["shader"], files.passes[i].first) << method;
+            EXPECT_FALSE(files.description["passes"][i]["bindings"].empty()) << method;
+            context->gl().DeleteProgram(render::compileComputeProgram(
+                context->compute(), files.passes[i].second, files.passes[i].first));
+        }
+    }
+    const GlslMethodFiles smaa = glslMethodFiles("smaa", {{"preset", "high"}});  // 16 search steps
+    ASSERT_EQ(smaa.tables.size(), 2u);
+    EXPECT_EQ(smaa.tables[0].second.size(), size_t(16 * 33 * 33 * 2));
+    EXPECT_EQ(smaa.tables[1].second.size(), size_t(16 * 20 * 20 * 2));
+    EXPECT_THROW(glslMethodFiles("cnn", {}), Error);
+    EXPECT_THROW(glslMethodFiles("fxaa,smaa", {}), Error);
+    EXPECT_THROW(glslMethodFiles("smaa", {{"predication", "on"}}), Error);
+    EXPECT_THROW(glslMethodFiles("fxaa", {{"gate", "off"}}), Error);
+}
+
 TEST(GlslFilter, MethodsWithoutAGpuFormSayWhyAndBadParametersAreRefused) {
     const auto context = render::createOsMesaContext();
     std::string whyNot;
