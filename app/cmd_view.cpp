@@ -187,6 +187,9 @@ class Viewer {
         const std::string description = window_->description();
         emulated_ = description.find("llvmpipe") != std::string::npos ||
                     description.find("softpipe") != std::string::npos;
+        // Where OpenGL runs on the CPU, dejag's own CPU filters are the fast path: auto starts there (key g
+        // switches; --device gpu insists).
+        if (emulated_ && args_.device == "auto") gpuDevice_ = false;
     }
 
     void buildScene() {
@@ -511,7 +514,8 @@ void registerViewCommand(CLI::App& app) {
     command
         ->add_option("--device", args->device,
                      "where the methods run: gpu (their GLSL forms, on the rendered frame), cpu, or auto "
-                     "(the GPU form where a method has one; key g switches)")
+                     "(the GLSL forms on a GPU, the CPU filters where OpenGL is emulated on the CPU; key g "
+                     "switches)")
         ->capture_default_str();
     command->add_option("--truth-samples", args->truthSamples, "samples of the truth key t accumulates")
         ->check(CLI::Range(1, 4096))
