@@ -25,6 +25,7 @@
 #include "render/halton.h"
 #include "render/renderer.h"
 #include "render/scene.h"
+#include "render/text.h"
 #include "render/window.h"
 
 namespace dejag::cli {
@@ -38,13 +39,13 @@ struct ViewArguments {
                 mode = "split", device = "auto";
     int frames = 0;  // 0: until the window closes
     int truthSamples = 64;
-    bool json = false;
+    bool json = false, noOverlay = false;
     float spread = 1.7f;
     RuntimeOptions runtime;
 };
 
-// A scripted key press: at frame `frame`, the key named (1-8, shift+1-8, space, n, r, c, f, z, t, g, tab,
-// q).
+// A scripted key press: at frame `frame`, the key named (1-8, shift+1-8, space, n, r, c, f, z, t, g, o,
+// tab, q).
 struct ScriptedKey {
     int frame = 0;
     int key = 0, mods = 0;
@@ -56,9 +57,9 @@ int keyCode(const std::string& name, int* mods) {
     if (k.rfind("shift+", 0) == 0) *mods = GLFW_MOD_SHIFT, k = k.substr(6);
     if (k.size() == 1 && k[0] >= '1' && k[0] <= '9') return GLFW_KEY_1 + (k[0] - '1');
     static const std::map<std::string, int> named = {
-        {"space", GLFW_KEY_SPACE}, {"n", GLFW_KEY_N}, {"r", GLFW_KEY_R},          {"c", GLFW_KEY_C},
-        {"f", GLFW_KEY_F},         {"z", GLFW_KEY_Z}, {"t", GLFW_KEY_T},          {"g", GLFW_KEY_G},
-        {"tab", GLFW_KEY_TAB},     {"q", GLFW_KEY_Q}, {"escape", GLFW_KEY_ESCAPE}};
+        {"space", GLFW_KEY_SPACE}, {"n", GLFW_KEY_N},     {"r", GLFW_KEY_R}, {"c", GLFW_KEY_C},
+        {"f", GLFW_KEY_F},         {"z", GLFW_KEY_Z},     {"t", GLFW_KEY_T}, {"g", GLFW_KEY_G},
+        {"o", GLFW_KEY_O},         {"tab", GLFW_KEY_TAB}, {"q", GLFW_KEY_Q}, {"escape", GLFW_KEY_ESCAPE}};
     if (auto it = named.find(k); it != named.end()) return it->second;
     return -1;
 }
@@ -77,8 +78,9 @@ std::vector<ScriptedKey> readScript(const std::string& path) {
         char* end = nullptr;
         k.frame = int(std::strtol(frame.c_str(), &end, 10));
         if (!(fields >> key) || !end || *end || k.frame < 0 || (k.key = keyCode(key, &k.mods)) < 0)
-            throw Error("script '" + path + "', line " + std::to_string(number) +
-                        ": expected FRAME KEY (a key: 1-8, shift+1-8, space, n, r, c, f, z, t, g, tab, q)");
+            throw Error(
+                "script '" + path + "', line " + std::to_string(number) +
+                ": expected FRAME KEY (a key: 1-8, shift+1-8, space, n, r, c, f, z, t, g, o, tab, q)");
         keys.push_back(k);
     }
     return keys;
@@ -101,6 +103,8 @@ uniform sampler2D imageA;
 uniform sampler2D imageB;
 uniform float split;
 uniform vec3 lens;
+uniform sampler2D overlay;  // the text's coverage
+uniform vec4 overlayRect;   // its place: left, top, right, bottom (0..1); empty: no overlay
 vec3 at(vec2 p) { return p.x < split ? texture(imageA, p).rgb : texture(imageB, p).rgb; }
 void main() {
     vec2 p = uv;
@@ -108,10 +112,14 @@ void main() {
         p = lens.xy + (uv - vec2(0.85, 0.15)) / 4.0;
         colour = vec4(at(p), 1.0);
         if (abs(uv.x - 0.7) < 0.003 || abs(uv.y - 0.3) < 0.004) colour = vec4(1.0, 0.2, 0.2, 1.0);
-        return;
+    } else {
+        colour = vec4(at(p), 1.0);
+        if (split > 0.0 && split < 1.0 && abs(uv.x - split) < 0.0015) colour = vec4(1.0, 1.0, 1.0, 1.0);
     }
-    colour = vec4(at(p), 1.0);
-    if (split > 0.0 && split < 1.0 && abs(uv.x - split) < 0.0015) colour = vec4(1.0, 1.0, 1.0, 1.0);
+    if (uv.x >= overlayRect.x && uv.x < overlayRect.z && uv.y >= overlayRect.y && uv.y < overlayRect.w) {
+        float coverage = texture(overlay, (uv - overlayRect.xy) / (overlayRect.zw - overlayRect.xy)).r;
+        colour.rgb = mix(colour.rgb * 0.35, vec3(1.0), coverage);
+    }
 })";
 
 class Viewer {
@@ -126,6 +134,7 @@ class Viewer {
         if (args.device != "auto" && args.device != "gpu" && args.device != "cpu")
             throw Error("--device is auto, gpu or cpu, not '" + args.device + "'");
         flip_ = args.mode == "flip";
+        overlay_ = !args.noOverlay;
         for (const render::SceneInfo& info : render::sceneCatalogue()) scenes_.push_back(info.name);
         sceneIndex_ = int(std::find(scenes_.begin(), scenes_.end(), args.scene) - scenes_.begin());
         if (sceneIndex_ >= int(scenes_.size())) render::buildScene(args.scene);  // unknown: its one line
@@ -143,6 +152,7 @@ class Viewer {
         const render::GlFunctions& gl = window_->gl();
         gl.DeleteQueries(2, queries_);
         gl.DeleteTextures(2, textures_);
+        gl.DeleteTextures(1, &overlayTexture_);
         gl.DeleteVertexArrays(1, &vertexArray_);
         gl.DeleteProgram(program_);
     }
@@ -241,6 +251,8 @@ class Viewer {
             showB_ = !showB_;
         } else if (key == GLFW_KEY_Z) {
             lens_ = !lens_;
+        } else if (key == GLFW_KEY_O) {
+            overlay_ = !overlay_;
         } else if (key == GLFW_KEY_T) {
             if (paused_ && haveFrame_ && !showTruth_)
                 accumulateTruth();
@@ -362,7 +374,8 @@ class Viewer {
             "the viewer's display program");
         gl.GenVertexArrays(1, &vertexArray_);
         gl.GenTextures(2, textures_);
-        for (GLuint t : textures_) {
+        gl.GenTextures(1, &overlayTexture_);
+        for (GLuint t : {textures_[0], textures_[1], overlayTexture_}) {
             gl.BindTexture(GL_TEXTURE_2D, t);
             gl.TexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MIN_FILTER, GL_NEAREST);
             gl.TexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MAG_FILTER, GL_NEAREST);
@@ -395,8 +408,37 @@ class Viewer {
         const render::GlFunctions& gl = window_->gl();
         if (!haveFrame_) return;
         const bool compare = method_[1] >= 0 || showTruth_;
+        // The overlay: what is shown, each method's time and where it ran (GPU timer queries for the GPU
+        // passes), the render time and the rate; in the title too.
+        const double now = fps_.elapsedMs();
+        frameMs_ = 0.9 * frameMs_ + 0.1 * (now - lastFrame_);
+        lastFrame_ = now;
+        std::vector<std::string> lines = {scenes_[size_t(sceneIndex_)] + "  frame " +
+                                              std::to_string(time_ - 1) + (paused_ ? " (paused)" : ""),
+                                          "A: " + describe(0)};
+        if (compare)
+            lines.push_back("B: " + describe(1) + (flip_ ? (showB_ ? " [shown]" : " [hidden]") : ""));
+        char tail[96];
+        std::snprintf(tail, sizeof tail, "render %.1f ms  %.0f fps", renderMs_,
+                      frameMs_ > 0 ? 1000.0 / frameMs_ : 0.0);
+        lines.push_back(tail);
+        std::string title = "dejag view";
+        for (const std::string& line : lines) title += "  " + line;
+        window_->setTitle(title);
         int fw = 0, fh = 0;
         window_->framebufferSize(&fw, &fh);
+        float rect[4] = {0, 0, 0, 0};
+        if (overlay_) {
+            if (!text_) text_ = std::make_unique<render::TextRenderer>(std::clamp(fh / 36, 10, 24));
+            const render::TextBitmap bitmap = text_->render(lines);
+            gl.BindTexture(GL_TEXTURE_2D, overlayTexture_);
+            gl.PixelStorei(GL_UNPACK_ALIGNMENT, 1);
+            gl.TexImage2D(GL_TEXTURE_2D, 0, GL_R8, bitmap.width, bitmap.height, 0, GL_RED, GL_UNSIGNED_BYTE,
+                          bitmap.coverage.data());
+            rect[0] = 8.0f / float(fw), rect[1] = 8.0f / float(fh);
+            rect[2] = rect[0] + float(bitmap.width) / float(fw),
+            rect[3] = rect[1] + float(bitmap.height) / float(fh);
+        }
         gl.BindFramebuffer(GL_FRAMEBUFFER, 0);
         gl.Viewport(0, 0, fw, fh);
         gl.Disable(GL_DEPTH_TEST);
@@ -405,26 +447,19 @@ class Viewer {
         gl.BindTexture(GL_TEXTURE_2D, textures_[0]);
         gl.ActiveTexture(GL_TEXTURE1);
         gl.BindTexture(GL_TEXTURE_2D, textures_[compare ? 1 : 0]);
+        gl.ActiveTexture(GL_TEXTURE2);
+        gl.BindTexture(GL_TEXTURE_2D, overlayTexture_);
         gl.ActiveTexture(GL_TEXTURE0);
         gl.Uniform1i(gl.GetUniformLocation(program_, "imageA"), 0);
         gl.Uniform1i(gl.GetUniformLocation(program_, "imageB"), 1);
+        gl.Uniform1i(gl.GetUniformLocation(program_, "overlay"), 2);
+        gl.Uniform4f(gl.GetUniformLocation(program_, "overlayRect"), rect[0], rect[1], rect[2], rect[3]);
         // Split: A left of the middle, B right; flip: one of them whole (f switches).
         const float split = !compare ? 1.0f : flip_ ? (showB_ ? 0.0f : 1.0f) : 0.5f;
         gl.Uniform1f(gl.GetUniformLocation(program_, "split"), split);
         gl.Uniform3f(gl.GetUniformLocation(program_, "lens"), 0.5f, 0.5f, lens_ ? 1.0f : 0.0f);
         gl.BindVertexArray(vertexArray_);
         gl.DrawArrays(GL_TRIANGLES, 0, 3);
-        // The overlay: what is shown, each pass's time (GPU timer queries for the GPU passes) and the rate.
-        const double now = fps_.elapsedMs();
-        frameMs_ = 0.9 * frameMs_ + 0.1 * (now - lastFrame_);
-        lastFrame_ = now;
-        std::string title = "dejag view  " + scenes_[size_t(sceneIndex_)] + "  frame " +
-                            std::to_string(time_ - 1) + (paused_ ? " (paused)" : "") + "  A: " + describe(0);
-        if (compare) title += "  B: " + describe(1) + (flip_ ? (showB_ ? " [shown]" : " [hidden]") : "");
-        char tail[96];
-        std::snprintf(tail, sizeof tail, "  render %.1f ms  %.0f fps", renderMs_,
-                      frameMs_ > 0 ? 1000.0 / frameMs_ : 0.0);
-        window_->setTitle(title + tail);
     }
 
     // At the end, each method's median time per frame and where it ran: a line each, or JSON lines.
@@ -488,7 +523,9 @@ class Viewer {
     double renderMs_ = 0, filterMs_[2] = {0, 0}, truthMs_ = 0, frameMs_ = 0, lastFrame_ = 0;
     Stopwatch fps_;
     std::map<std::pair<std::string, std::string>, std::vector<double>> times_;  // (method, device) -> ms
-    GLuint program_ = 0, vertexArray_ = 0, textures_[2] = {0, 0}, queries_[2] = {0, 0};
+    GLuint program_ = 0, vertexArray_ = 0, textures_[2] = {0, 0}, queries_[2] = {0, 0}, overlayTexture_ = 0;
+    bool overlay_ = true;
+    std::unique_ptr<render::TextRenderer> text_;
 };
 
 }  // namespace
@@ -521,17 +558,17 @@ void registerViewCommand(CLI::App& app) {
         ->check(CLI::Range(1, 4096))
         ->capture_default_str();
     command->add_flag("--json", args->json, "at the end, each method's median time as a JSON line");
+    command->add_flag("--no-overlay", args->noOverlay, "start without the text overlay (key o)");
     command->add_option("--jitter-spread", args->spread, "the TAAs' camera jitter in pixels")
         ->check(CLI::Range(0.0f, 64.0f))
         ->capture_default_str();
     addRuntimeOptions(command, args->runtime);
     command->footer(
-        "Keys: 1-8 the method, shift+1-8 the compared one, c split or flip, f flip, space pause, n one "
-        "frame,\n"
-        "r reset the history, z a 4x lens on the middle, t (paused) the truth beside it, g GPU or CPU, tab\n"
-        "the next scene, q or escape quit. The window's title shows the scene, the frame, each method's "
-        "time\n"
-        "and where it ran, and the frame rate. Needs a display (a desktop, or xvfb-run). docs/view.md.");
+        "Keys: 1-8 the method, shift+1-8 the compared one, c split or flip, f flip, space pause, n one\n"
+        "frame, r reset the history, z a 4x lens on the middle, t (paused) the truth beside it, g GPU or\n"
+        "CPU, o the overlay, tab the next scene, q or escape quit. The overlay (and the title) shows the\n"
+        "scene, the frame, each method's time and where it ran, and the frame rate. Needs a display (a\n"
+        "desktop, or xvfb-run). docs/view.md.");
     command->callback([args] {
         applyRuntimeOptions(args->runtime);
         Viewer viewer(*args);

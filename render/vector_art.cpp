@@ -1,8 +1,5 @@
 #include "render/vector_art.h"
 
-#include <ft2build.h>
-#include FT_FREETYPE_H
-
 #include <algorithm>
 #include <cmath>
 #include <filesystem>
@@ -10,6 +7,7 @@
 
 #include "base/error.h"
 #include "base/random.h"
+#include "render/freetype.h"
 
 namespace dejag::render {
 
@@ -252,10 +250,6 @@ void vectorArtScene(Scene& s, const SceneOptions& o) {
 
 namespace {
 
-struct FontFile {
-    const char* path;
-    const char* package;
-};
 const std::vector<FontFile>& fonts() {
     static const std::vector<FontFile> list = {
         {"/usr/share/fonts/truetype/dejavu/DejaVuSans.ttf", "fonts-dejavu-core"},
@@ -281,27 +275,6 @@ const std::vector<FontFile>& fonts() {
     };
     return list;
 }
-
-struct FreeType {
-    FT_Library library = nullptr;
-    FreeType() {
-        if (FT_Init_FreeType(&library)) throw Error("FreeType failed to initialise");
-    }
-    ~FreeType() { FT_Done_FreeType(library); }
-};
-struct Face {
-    FT_Face face = nullptr;
-    Face(FT_Library library, const FontFile& file) {
-        if (!std::filesystem::exists(file.path))
-            throw Error(std::string("font ") + file.path + " is missing (Debian package " + file.package +
-                        "; scripts/install-deps installs it)");
-        if (FT_New_Face(library, file.path, 0, &face))
-            throw Error(std::string("font ") + file.path + " cannot be read by FreeType");
-    }
-    ~Face() { FT_Done_Face(face); }
-    Face(const Face&) = delete;
-    Face& operator=(const Face&) = delete;
-};
 
 // Words of several lengths and cases, digits and punctuation: what type on screens and pages shows.
 const char* const kWords[] = {

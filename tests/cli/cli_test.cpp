@@ -1618,7 +1618,7 @@ TEST(Cli, ViewShowsWhatTheFilterWrites) {
     // Under ASan, leak checking is off for the window's runs: Mesa's GLX driver, unloaded when the window
     // closes, leaves a few hundred bytes whose frames no suppression can name (an "unknown module").
     const std::string xvfb = "ASAN_OPTIONS=detect_leaks=0 xvfb-run -a -s '-screen 0 320x240x24' ";
-    const std::string view = "view --scene pipe --size 96x64 --frames 3 ";
+    const std::string view = "view --scene pipe --size 96x64 --frames 3 --no-overlay ";
     RunResult r = run(view + "--method none --device gpu --script '" + dir.file("keys.txt") +
                           "' --screenshot '" + dir.file("gpu.png") + "'",
                       dir, xvfb);
@@ -1698,6 +1698,23 @@ TEST(Cli, ViewShowsWhatTheFilterWrites) {
                           0, 96),
               1);
     expectOneLineError(run(view + "--device fast", dir, xvfb), "--device");
+    // The text overlay (on by default): drawn in the top left corner, nowhere else.
+    for (const char* overlay : {"", "--no-overlay "}) {
+        r = run(std::string("view --scene pipe --size 320x180 --frames 2 --method none ") + overlay +
+                    "--screenshot '" + dir.file(*overlay ? "plain.png" : "overlay.png") + "'",
+                dir, xvfb);
+        ASSERT_EQ(r.exitCode, 0) << r.err;
+    }
+    const Image withText = readImage(dir.file("overlay.png")), plain = readImage(dir.file("plain.png"));
+    int inside = 0, outside = 0;
+    for (int y = 0; y < 180; ++y)
+        for (int x = 0; x < 320; ++x) {
+            bool differs = false;
+            for (int c = 0; c < 3; ++c) differs = differs || withText.at(x, y, c) != plain.at(x, y, c);
+            (x < 240 && y < 120 ? inside : outside) += differs;
+        }
+    EXPECT_GT(inside, 500);
+    EXPECT_EQ(outside, 0);
 }
 
 TEST(Cli, FilterRunsFoldersSequencesAndChainsKeepingBitDepthAndAlpha) {
