@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <functional>
 #include <map>
+#include <utility>
 
 #include "base/error.h"
 #include "base/luma.h"
@@ -43,28 +44,19 @@ class GlslNone final : public GlslFilter {
     render::GlContext& context_;
 };
 
-class GlslFxaaFilter final : public GlslFilter {
+// A single-frame method's GPU form: its passes (GlslFxaa, GlslSmaa) on the frame's colour.
+template <class Passes>
+class GlslColourFilter final : public GlslFilter {
   public:
-    GlslFxaaFilter(render::GlContext& context, const FxaaOptions& options)
-        : GlslFilter("fxaa"), fxaa_(context, options, 3) {}
+    template <class... Arguments>
+    GlslColourFilter(const std::string& name, render::GlContext& context, Arguments&&... arguments)
+        : GlslFilter(name), passes_(context, std::forward<Arguments>(arguments)...) {}
     void run(const GlslFrame& frame, unsigned out) override {
-        fxaa_.dispatch(frame.colour, out, frame.width, frame.height);
+        passes_.dispatch(frame.colour, out, frame.width, frame.height);
     }
 
   private:
-    GlslFxaa fxaa_;
-};
-
-class GlslSmaaFilter final : public GlslFilter {
-  public:
-    GlslSmaaFilter(render::GlContext& context, const SmaaOptions& options)
-        : GlslFilter("smaa"), smaa_(context, options) {}
-    void run(const GlslFrame& frame, unsigned out) override {
-        smaa_.dispatch(frame.colour, out, frame.width, frame.height);
-    }
-
-  private:
-    GlslSmaa smaa_;
+    Passes passes_;
 };
 
 class GlslTaaFilter final : public GlslFilter {
@@ -377,7 +369,7 @@ const std::map<std::string, Maker>& glslMethods() {
          }},
         {"fxaa",
          [](MethodParameters& p, render::GlContext& c, std::string*) -> std::unique_ptr<GlslFilter> {
-             return std::make_unique<GlslFxaaFilter>(c, fxaaOptions(p));
+             return std::make_unique<GlslColourFilter<GlslFxaa>>("fxaa", c, fxaaOptions(p), 3);
          }},
         {"taa",
          [](MethodParameters& p, render::GlContext& c, std::string* whyNot) -> std::unique_ptr<GlslFilter> {
@@ -416,7 +408,7 @@ const std::map<std::string, Maker>& glslMethods() {
                  *whyNot = "SMAA's predication reads depth, which a GPU frame does not carry";
                  return nullptr;
              }
-             return std::make_unique<GlslSmaaFilter>(c, options);
+             return std::make_unique<GlslColourFilter<GlslSmaa>>("smaa", c, options);
          }},
         {"cnn",
          [](MethodParameters& p, render::GlContext& c, std::string* whyNot) -> std::unique_ptr<GlslFilter> {
