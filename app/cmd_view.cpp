@@ -150,7 +150,6 @@ class Viewer {
     ~Viewer() {
         if (!window_) return;
         const render::GlFunctions& gl = window_->gl();
-        gl.DeleteQueries(2, queries_);
         gl.DeleteTextures(2, textures_);
         gl.DeleteTextures(1, &overlayTexture_);
         gl.DeleteVertexArrays(1, &vertexArray_);
@@ -193,7 +192,6 @@ class Viewer {
         }
         import_ = std::make_unique<infer::GlslFrameImport>(*window_);
         for (auto& b : outputGpu_) b = std::make_unique<infer::GlslBuffer>(*window_);
-        window_->gl().GenQueries(2, queries_);
         const std::string description = window_->description();
         emulated_ = description.find("llvmpipe") != std::string::npos ||
                     description.find("softpipe") != std::string::npos;
@@ -320,22 +318,23 @@ class Viewer {
             if (gpuFilters_[k]) {
                 const render::GlFunctions& gl = window_->compute();
                 const unsigned out = outputGpu_[k]->ensure(size_t(width_) * size_t(height_) * 3);
-                if (emulated_) {
-                    // llvmpipe defers a dispatch's work past the query's end: the wall time, drained.
-                    gl.Finish();
-                    Stopwatch passes;
-                    gpuFilters_[k]->run(gpuFrame, out);
-                    gl.Finish();
-                    filterMs_[k] = passes.elapsedMs();
-                } else {
-                    gl.BeginQuery(GL_TIME_ELAPSED, queries_[k]);
-                    gpuFilters_[k]->run(gpuFrame, out);
-                    gl.EndQuery(GL_TIME_ELAPSED);
-                    GLuint64 nanoseconds = 0;
-                    gl.GetQueryObjectui64v(queries_[k], GL_QUERY_RESULT, &nanoseconds);
-                    filterMs_[k] = double(nanoseconds) * 1e-6;
+                // Each pass timed (a timer query; on llvmpipe, which does a dispatch's work after the
+                // query has ended, the wall time between glFinish calls); the method's time their sum.
+                render::PassTimer timer;
+                timer.wallClock = emulated_;
+                window_->passTimer = &timer;
+                gpuFilters_[k]->run(gpuFrame, out);
+                window_->passTimer = nullptr;
+                const std::pair<std::string, std::string> key = {kMethods[method_[k]],
+                                                                 emulated_ ? "gpu (emulated)" : "gpu"};
+                filterMs_[k] = 0;
+                auto& passes = passTimes_[key];
+                for (size_t i = 0; i < timer.passes.size(); ++i) {
+                    filterMs_[k] += timer.passes[i].second;
+                    if (passes.size() <= i) passes.push_back({timer.passes[i].first, {}});
+                    passes[i].second.push_back(timer.passes[i].second);
                 }
-                times_[{kMethods[method_[k]], emulated_ ? "gpu (emulated)" : "gpu"}].push_back(filterMs_[k]);
+                times_[key].push_back(filterMs_[k]);
                 // Into the displayed texture on the GPU: the buffer is the texture's pixel source.
                 gl.MemoryBarrier(GL_PIXEL_BUFFER_BARRIER_BIT);
                 gl.BindBuffer(GL_PIXEL_UNPACK_BUFFER, out);
@@ -470,6 +469,11 @@ class Viewer {
             if (args_.json) {
                 nlohmann::json row = {{"method", key.first}, {"device", key.second}, {"frames", times.size()},
                                       {"median_ms", ms},     {"size", args_.size},   {"opengl", renderer}};
+                if (const auto found = passTimes_.find(key); found != passTimes_.end()) {
+                    row["passes"] = nlohmann::json::array();
+                    for (const auto& [name, passTimes] : found->second)
+                        row["passes"].push_back({{"name", name}, {"median_ms", median(passTimes)}});
+                }
                 std::printf("%s\n", row.dump().c_str());
             } else {
                 std::printf("%-13s %-15s %6.2f ms a frame (median of %zu)\n", key.first.c_str(),
@@ -523,7 +527,10 @@ class Viewer {
     double renderMs_ = 0, filterMs_[2] = {0, 0}, truthMs_ = 0, frameMs_ = 0, lastFrame_ = 0;
     Stopwatch fps_;
     std::map<std::pair<std::string, std::string>, std::vector<double>> times_;  // (method, device) -> ms
-    GLuint program_ = 0, vertexArray_ = 0, textures_[2] = {0, 0}, queries_[2] = {0, 0}, overlayTexture_ = 0;
+    // (method, device) -> each GPU pass's name and times, in dispatch order.
+    std::map<std::pair<std::string, std::string>, std::vector<std::pair<std::string, std::vector<double>>>>
+        passTimes_;
+    GLuint program_ = 0, vertexArray_ = 0, textures_[2] = {0, 0}, overlayTexture_ = 0;
     bool overlay_ = true;
     std::unique_ptr<render::TextRenderer> text_;
 };

@@ -23,11 +23,6 @@
 namespace dejag::infer {
 namespace {
 
-void dispatch(const render::GlFunctions& gl, int width, int height) {
-    gl.DispatchCompute(GLuint((width + 7) / 8), GLuint((height + 7) / 8), 1);
-    gl.MemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT);
-}
-
 // "none": the frame copied.
 class GlslNone final : public GlslFilter {
   public:
@@ -202,7 +197,7 @@ class GlslCnn final : public GlslFilter {
         gl.BindBufferBase(GL_SHADER_STORAGE_BUFFER, 4, planes);
         gl.Uniform2i(gl.GetUniformLocation(pack_, "size"), width, height);
         gl.Uniform2i(gl.GetUniformLocation(pack_, "padded"), pw, ph);
-        dispatch(gl, pw, ph);
+        render::dispatchPass(context_, "network input", pw, ph);
         const unsigned result = runner_.dispatch();
         gl.UseProgram(unpack_);
         gl.BindBufferBase(GL_SHADER_STORAGE_BUFFER, 1, result);
@@ -210,7 +205,7 @@ class GlslCnn final : public GlslFilter {
         gl.BindBufferBase(GL_SHADER_STORAGE_BUFFER, 4, out);
         gl.Uniform2i(gl.GetUniformLocation(unpack_, "size"), width, height);
         gl.Uniform2i(gl.GetUniformLocation(unpack_, "padded"), pw, ph);
-        dispatch(gl, width, height);
+        render::dispatchPass(context_, "network output", width, height);
     }
 
   private:
@@ -333,7 +328,7 @@ class GlslCnnTemporal final : public GlslFilter {
         gl.Uniform1i(gl.GetUniformLocation(pack_, "hasDepth"), hasDepth ? 1 : 0);
         gl.Uniform2f(gl.GetUniformLocation(pack_, "jitter"), frame.hasJitter ? frame.jitter[0] : 0.0f,
                      frame.hasJitter ? frame.jitter[1] : 0.0f);
-        dispatch(gl, pw, ph);
+        render::dispatchPass(context_, "network input", pw, ph);
         const unsigned result = runner_.dispatch();
         // The whole output is the next frame's history; its R G B, clamped, the frame shown.
         gl.BindBuffer(GL_COPY_READ_BUFFER, result);
@@ -345,7 +340,7 @@ class GlslCnnTemporal final : public GlslFilter {
         gl.BindBufferBase(GL_SHADER_STORAGE_BUFFER, 4, out);
         gl.Uniform2i(gl.GetUniformLocation(unpack_, "size"), W, H);
         gl.Uniform2i(gl.GetUniformLocation(unpack_, "padded"), pw, ph);
-        dispatch(gl, W, H);
+        render::dispatchPass(context_, "network output", W, H);
         fresh_ = false;
     }
 
@@ -524,7 +519,7 @@ void GlslFrameImport::import(unsigned texture, int channels, bool encode, float 
     gl.Uniform1i(gl.GetUniformLocation(program_, "encoded"), encode ? 1 : 0);
     gl.Uniform1f(gl.GetUniformLocation(program_, "divisor"), divisor);
     gl.BindBufferBase(GL_SHADER_STORAGE_BUFFER, 4, out.id());
-    dispatch(gl, width, height);
+    render::dispatchPass(context_, "import", width, height);
 }
 
 const GlslFrame& GlslFrameImport::run(const render::GpuBuffers& textures, int width, int height,

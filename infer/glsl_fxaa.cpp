@@ -197,8 +197,7 @@ void GlslFxaa::dispatch(unsigned in, unsigned out, int width, int height) {
     gl.BindBufferBase(GL_SHADER_STORAGE_BUFFER, 1, in);
     gl.BindBufferBase(GL_SHADER_STORAGE_BUFFER, 4, out);
     gl.Uniform2i(gl.GetUniformLocation(program_, "size"), width, height);
-    gl.DispatchCompute(GLuint((width + 7) / 8), GLuint((height + 7) / 8), 1);
-    gl.MemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT);
+    render::dispatchPass(context_, "fxaa", width, height);
 }
 
 }  // namespace dejag::infer

@@ -71,8 +71,7 @@ unsigned GlslNetworkRunner::dispatch() {
         const auto [outW, outH] = sizeOf(out);
         gl.Uniform2i(gl.GetUniformLocation(programs_[p], "inSize"), inW, inH);
         gl.Uniform2i(gl.GetUniformLocation(programs_[p], "outSize"), outW, outH);
-        gl.DispatchCompute(GLuint((outW + 7) / 8), GLuint((outH + 7) / 8), 1);
-        gl.MemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT);
+        render::dispatchPass(context_, pass.name, outW, outH);
     }
     return buffers_[index.at(network_.output)];
 }

@@ -312,11 +312,11 @@ void GlslSmaa::dispatch(unsigned in, unsigned out, int width, int height) {
     gl.BindBufferBase(GL_SHADER_STORAGE_BUFFER, 4, out);
     gl.BindBufferBase(GL_SHADER_STORAGE_BUFFER, 5, orthogonal_);
     gl.BindBufferBase(GL_SHADER_STORAGE_BUFFER, 6, diagonal_);
-    for (unsigned program : programs_) {
-        gl.UseProgram(program);
-        gl.Uniform2i(gl.GetUniformLocation(program, "size"), width, height);
-        gl.DispatchCompute(GLuint((width + 7) / 8), GLuint((height + 7) / 8), 1);
-        gl.MemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT);
+    const char* const names[3] = {"smaa edges", "smaa weights", "smaa blending"};
+    for (int k = 0; k < 3; ++k) {
+        gl.UseProgram(programs_[k]);
+        gl.Uniform2i(gl.GetUniformLocation(programs_[k], "size"), width, height);
+        render::dispatchPass(context_, names[k], width, height);
     }
 }
 

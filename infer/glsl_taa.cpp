@@ -369,14 +369,15 @@ void GlslTaa::dispatch(const TaaFrame& f, unsigned colour, unsigned albedo, unsi
     const int ix = int(std::floor(jx)), iy = int(std::floor(jy));
     const float fx = jx - float(ix), fy = jy - float(iy);
     const float w00 = (1 - fx) * (1 - fy), w01 = fx * (1 - fy), w10 = (1 - fx) * fy, w11 = fx * fy;
+    int pass = 0;
     const auto use = [&](int k) {
+        pass = k;
         gl.UseProgram(programs_[k]);
         gl.Uniform2i(gl.GetUniformLocation(programs_[k], "size"), W, H);
     };
-    const auto grid = [&] {
-        gl.DispatchCompute(GLuint((W + 7) / 8), GLuint((H + 7) / 8), 1);
-        gl.MemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT);
-    };
+    const char* const passNames[5] = {"taa current", "taa sobel", "taa sobel history", "taa blend",
+                                      "taa sharpen"};
+    const auto grid = [&] { render::dispatchPass(context_, passNames[pass], W, H); };
     const auto bind = [&](unsigned binding, unsigned buffer) {
         gl.BindBufferBase(GL_SHADER_STORAGE_BUFFER, binding, buffer ? buffer : empty_);
     };

@@ -289,10 +289,7 @@ void GlslTaaHq::dispatch(unsigned colour, unsigned motion, unsigned depth, unsig
     const int shiftX = std::clamp(-int(std::floor(-jitterX + 0.5f)), -W, W);
     const int shiftY = std::clamp(-int(std::floor(-jitterY + 0.5f)), -H, H);
     const bool useDepth = depth && previousDepth;
-    const auto grid = [&] {
-        gl.DispatchCompute(GLuint((W + 7) / 8), GLuint((H + 7) / 8), 1);
-        gl.MemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT);
-    };
+    const auto grid = [&](const char* pass) { render::dispatchPass(context_, pass, W, H); };
     // The current samples.
     gl.UseProgram(programs_[0]);
     gl.Uniform2i(gl.GetUniformLocation(programs_[0], "size"), W, H);
@@ -300,7 +297,7 @@ void GlslTaaHq::dispatch(unsigned colour, unsigned motion, unsigned depth, unsig
     gl.BindBufferBase(GL_SHADER_STORAGE_BUFFER, 1, colour);
     gl.BindBufferBase(GL_SHADER_STORAGE_BUFFER, 2, motion);
     gl.BindBufferBase(GL_SHADER_STORAGE_BUFFER, 5, current_);
-    grid();
+    grid("taa-hq current");
     // The resolve: the history read, the next written.
     const unsigned resolved = options_.sharpen > 0 ? unsharpened_ : out;
     gl.UseProgram(programs_[1]);
@@ -314,14 +311,14 @@ void GlslTaaHq::dispatch(unsigned colour, unsigned motion, unsigned depth, unsig
     gl.BindBufferBase(GL_SHADER_STORAGE_BUFFER, 6, history_[read_]);
     gl.BindBufferBase(GL_SHADER_STORAGE_BUFFER, 7, history_[1 - read_]);
     gl.BindBufferBase(GL_SHADER_STORAGE_BUFFER, 0, resolved);
-    grid();
+    grid("taa-hq resolve");
     read_ = 1 - read_;
     if (options_.sharpen > 0) {
         gl.UseProgram(programs_[2]);
         gl.Uniform2i(gl.GetUniformLocation(programs_[2], "size"), W, H);
         gl.BindBufferBase(GL_SHADER_STORAGE_BUFFER, 1, unsharpened_);
         gl.BindBufferBase(GL_SHADER_STORAGE_BUFFER, 0, out);
-        grid();
+        grid("taa-hq sharpen");
     }
 }
 

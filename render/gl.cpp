@@ -1,5 +1,7 @@
 #include "render/gl.h"
 
+#include <chrono>
+
 #include <GL/osmesa.h>
 
 #include <string>
@@ -125,6 +127,35 @@ class OsMesaContext final : public GlContext {
 
 std::unique_ptr<GlContext> createOsMesaContext() {
     return std::make_unique<OsMesaContext>();
+}
+
+void dispatchPass(GlContext& context, const std::string& name, int width, int height) {
+    const GlFunctions& gl = context.compute();
+    PassTimer* timer = context.passTimer;
+    const auto run = [&] {
+        gl.DispatchCompute(GLuint((width + 7) / 8), GLuint((height + 7) / 8), 1);
+        gl.MemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT);
+    };
+    if (!timer) return run();
+    if (timer->wallClock) {
+        gl.Finish();
+        const auto start = std::chrono::steady_clock::now();
+        run();
+        gl.Finish();
+        timer->passes.push_back(
+            {name,
+             std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count()});
+        return;
+    }
+    GLuint query = 0;
+    gl.GenQueries(1, &query);
+    gl.BeginQuery(GL_TIME_ELAPSED, query);
+    run();
+    gl.EndQuery(GL_TIME_ELAPSED);
+    GLuint64 nanoseconds = 0;
+    gl.GetQueryObjectui64v(query, GL_QUERY_RESULT, &nanoseconds);
+    gl.DeleteQueries(1, &query);
+    timer->passes.push_back({name, double(nanoseconds) * 1e-6});
 }
 
 }  // namespace dejag::render

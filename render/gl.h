@@ -9,6 +9,7 @@
 #include <memory>
 #include <string>
 #include <utility>
+#include <vector>
 
 namespace dejag::render {
 
@@ -115,6 +116,14 @@ struct GlFunctions {
 
 using GlProc = void (*)();
 
+// Times the compute passes dispatched through dispatchPass() while it is set on a context (dejag view):
+// each by a GL_TIME_ELAPSED query, or (wallClock) between two glFinish calls, for drivers such as
+// llvmpipe that do a dispatch's work after the query has ended.
+struct PassTimer {
+    bool wallClock = false;
+    std::vector<std::pair<std::string, double>> passes;  // name, milliseconds, in dispatch order
+};
+
 // A current OpenGL (>= 3.3 core) context.
 class GlContext {
   public:
@@ -125,6 +134,8 @@ class GlContext {
     const GlFunctions& gl() const { return gl_; }
     // gl() with the compute functions loaded too; throws dejag::Error if the context has none (below 4.3).
     const GlFunctions& compute();
+    // While set, dispatchPass() times each pass into it.
+    PassTimer* passTimer = nullptr;
 
   protected:
     // Loads every function of DEJAG_GL_FUNCTIONS; throws dejag::Error naming the first one missing.
@@ -139,6 +150,10 @@ GLuint compileProgram(const GlFunctions& gl, std::initializer_list<std::pair<GLe
                       const std::string& what);
 // A compute shader as a program (needs compute(): OpenGL 4.3).
 GLuint compileComputeProgram(const GlFunctions& gl, const std::string& source, const std::string& what);
+
+// One compute pass over width x height pixels (work groups of 8 x 8) with the bound program, then a
+// storage-buffer barrier; timed into context.passTimer when one is set.
+void dispatchPass(GlContext& context, const std::string& name, int width, int height);
 
 // The default: an off-screen OSMesa context (llvmpipe). Throws dejag::Error if OSMesa cannot create an
 // OpenGL 3.3+ core context.

@@ -1625,8 +1625,17 @@ TEST(Cli, ViewShowsWhatTheFilterWrites) {
     ASSERT_EQ(r.exitCode, 0) << r.err;
     r = run(view + "--method fxaa --device cpu --screenshot '" + dir.file("cpu-shot.png") + "'", dir, xvfb);
     ASSERT_EQ(r.exitCode, 0) << r.err;
-    r = run(view + "--method cnn --device gpu --screenshot '" + dir.file("cnn.png") + "'", dir, xvfb);
+    r = run(view + "--method cnn --device gpu --json --screenshot '" + dir.file("cnn.png") + "'", dir, xvfb);
     ASSERT_EQ(r.exitCode, 0) << r.err;
+    {  // --json: the method's median and each of its GPU passes' (the input pass, the layers, the output)
+        const std::vector<nlohmann::json> rows = jsonLines(r.out);
+        ASSERT_EQ(rows.size(), 1u) << r.out;
+        EXPECT_EQ(rows[0]["method"], "cnn");
+        EXPECT_EQ(rows[0]["frames"], 3);
+        ASSERT_GE(rows[0]["passes"].size(), 4u);
+        EXPECT_EQ(rows[0]["passes"][0]["name"], "network input");
+        EXPECT_EQ(rows[0]["passes"].back()["name"], "network output");
+    }
     r =
         run("render --scene pipe --size 96x64 --frames 3 --jitter halton16 --buffers "
             "color,albedo,depth,motion,id,prevdepth --truth 64 --quiet --out '" +
