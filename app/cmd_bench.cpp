@@ -15,9 +15,11 @@
 #include "app/cli.h"
 #include "app/commands.h"
 #include "base/error.h"
+#include "base/thread_pool.h"
 #include "bench/accuracy.h"
 #include "bench/bench.h"
 #include "bench/filter_bench.h"
+#include "bench/glsl_bench.h"
 #include "bench/quality.h"
 #include "bench/reach.h"
 #include "bench/render_bench.h"
@@ -256,6 +258,61 @@ void registerBenchCommand(CLI::App& app) {
             "at least, at the memory bandwidth measured in this run (a network: its multiply-adds at the FMA "
             "peak measured in this run)\n",
             filterArgs->size.c_str());
+    });
+
+    struct GlslBenchArguments {
+        int repeat = 5;
+        std::string size = "960x540", methods;
+        bool json = false;
+    };
+    auto glslArgs = std::make_shared<GlslBenchArguments>();
+    CLI::App* glslBench = bench->add_subcommand(
+        "glsl",
+        "every method's GPU form (GLSL, off screen) beside its CPU filter on the same rendered frames");
+    glslBench->add_option("--repeat", glslArgs->repeat, "timed frames per method (median reported)")
+        ->check(CLI::Range(1, 1000))
+        ->capture_default_str();
+    glslBench->add_option("--size", glslArgs->size, "frame size WIDTHxHEIGHT")->capture_default_str();
+    glslBench->add_option("--methods", glslArgs->methods, "comma-separated methods (default: every one)");
+    glslBench->add_flag("--json", glslArgs->json, "one JSON object per method");
+    glslBench->callback([glslArgs] {
+        bench::GlslBenchOptions options;
+        const Size size = parseSize(glslArgs->size, "--size");
+        options.width = size.width, options.height = size.height;
+        options.repeat = glslArgs->repeat;
+        if (!glslArgs->methods.empty()) options.methods = splitList(glslArgs->methods);
+        options.pathResolver = shippedModelPath;
+        const std::vector<nlohmann::json> rows = bench::benchGlsl(options);
+        if (glslArgs->json) {
+            for (const nlohmann::json& row : rows) std::printf("%s\n", row.dump().c_str());
+            return;
+        }
+        std::printf("%-13s %10s %10s %8s  %s\n", "method", "GPU ms", "CPU ms", "GPU/CPU",
+                    "slowest GPU passes");
+        for (const nlohmann::json& row : rows) {
+            std::vector<std::pair<double, std::string>> passes;
+            for (const nlohmann::json& p : row["passes"])
+                passes.push_back({p["ms"].get<double>(), p["name"].get<std::string>()});
+            std::sort(passes.rbegin(), passes.rend());
+            std::string slowest;
+            for (size_t i = 0; i < std::min<size_t>(3, passes.size()); ++i) {
+                char text[96];
+                std::snprintf(text, sizeof text, "%s%s %.1f", i ? ", " : "", passes[i].second.c_str(),
+                              passes[i].first);
+                slowest += text;
+            }
+            std::printf("%-13s %10.2f %10.2f %8.1f  %s\n", row["method"].get<std::string>().c_str(),
+                        row["gpu_ms"].get<double>(), row["cpu_ms"].get<double>(),
+                        row["gpu_over_cpu"].get<double>(), slowest.c_str());
+        }
+        if (!rows.empty())
+            std::printf(
+                "frames: hard-edges %s along its camera path, every buffer, Halton jitter; OpenGL: %s%s; the "
+                "CPU "
+                "filters with their defaults (gated, bf16 where the CPU has it), on %d threads\n",
+                glslArgs->size.c_str(), rows[0]["opengl"].get<std::string>().c_str(),
+                rows[0]["emulated"].get<bool>() ? " (emulated on the CPU: its times are CPU times)" : "",
+                threadCount());
     });
 
     struct StabilityArguments {

@@ -29,10 +29,12 @@ class GlslNone final : public GlslFilter {
     explicit GlslNone(render::GlContext& context) : GlslFilter("none"), context_(context) {}
     void run(const GlslFrame& frame, unsigned out) override {
         const render::GlFunctions& gl = context_.compute();
-        gl.BindBuffer(GL_COPY_READ_BUFFER, frame.colour);
-        gl.BindBuffer(GL_COPY_WRITE_BUFFER, out);
-        gl.CopyBufferSubData(GL_COPY_READ_BUFFER, GL_COPY_WRITE_BUFFER, 0, 0,
-                             GLsizeiptr(size_t(frame.width) * size_t(frame.height) * 3 * sizeof(float)));
+        render::timedPass(context_, "copy", [&] {
+            gl.BindBuffer(GL_COPY_READ_BUFFER, frame.colour);
+            gl.BindBuffer(GL_COPY_WRITE_BUFFER, out);
+            gl.CopyBufferSubData(GL_COPY_READ_BUFFER, GL_COPY_WRITE_BUFFER, 0, 0,
+                                 GLsizeiptr(size_t(frame.width) * size_t(frame.height) * 3 * sizeof(float)));
+        });
     }
 
   private:

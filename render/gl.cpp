@@ -129,18 +129,14 @@ std::unique_ptr<GlContext> createOsMesaContext() {
     return std::make_unique<OsMesaContext>();
 }
 
-void dispatchPass(GlContext& context, const std::string& name, int width, int height) {
-    const GlFunctions& gl = context.compute();
+void timedPass(GlContext& context, const std::string& name, const std::function<void()>& work) {
     PassTimer* timer = context.passTimer;
-    const auto run = [&] {
-        gl.DispatchCompute(GLuint((width + 7) / 8), GLuint((height + 7) / 8), 1);
-        gl.MemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT);
-    };
-    if (!timer) return run();
+    if (!timer) return work();
+    const GlFunctions& gl = context.gl();
     if (timer->wallClock) {
         gl.Finish();
         const auto start = std::chrono::steady_clock::now();
-        run();
+        work();
         gl.Finish();
         timer->passes.push_back(
             {name,
@@ -150,12 +146,20 @@ void dispatchPass(GlContext& context, const std::string& name, int width, int he
     GLuint query = 0;
     gl.GenQueries(1, &query);
     gl.BeginQuery(GL_TIME_ELAPSED, query);
-    run();
+    work();
     gl.EndQuery(GL_TIME_ELAPSED);
     GLuint64 nanoseconds = 0;
     gl.GetQueryObjectui64v(query, GL_QUERY_RESULT, &nanoseconds);
     gl.DeleteQueries(1, &query);
     timer->passes.push_back({name, double(nanoseconds) * 1e-6});
+}
+
+void dispatchPass(GlContext& context, const std::string& name, int width, int height) {
+    const GlFunctions& gl = context.compute();
+    timedPass(context, name, [&] {
+        gl.DispatchCompute(GLuint((width + 7) / 8), GLuint((height + 7) / 8), 1);
+        gl.MemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT);
+    });
 }
 
 }  // namespace dejag::render

@@ -5,6 +5,7 @@
 
 #include <GL/glcorearb.h>
 
+#include <functional>
 #include <initializer_list>
 #include <memory>
 #include <string>
@@ -154,6 +155,8 @@ GLuint compileComputeProgram(const GlFunctions& gl, const std::string& source, c
 // One compute pass over width x height pixels (work groups of 8 x 8) with the bound program, then a
 // storage-buffer barrier; timed into context.passTimer when one is set.
 void dispatchPass(GlContext& context, const std::string& name, int width, int height);
+// Any other GPU work (a buffer copy) timed as a pass the same way.
+void timedPass(GlContext& context, const std::string& name, const std::function<void()>& work);
 
 // The default: an off-screen OSMesa context (llvmpipe). Throws dejag::Error if OSMesa cannot create an
 // OpenGL 3.3+ core context.

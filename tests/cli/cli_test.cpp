@@ -1604,6 +1604,30 @@ int largestStep(const Image& shot, const Image& expected, int x0, int x1) {
     return largest;
 }
 
+// dejag bench glsl: every GPU form beside its CPU filter on rendered frames, each pass timed, the OpenGL
+// renderer named (off screen: no display needed).
+TEST(Cli, BenchGlslTimesEveryGpuPassBesideTheCpuFilter) {
+    testing::TempDir dir;
+    const RunResult r =
+        run("bench glsl --size 64x48 --repeat 2 --json --methods none,smaa,taa-hq,cnn-temporal", dir);
+    ASSERT_EQ(r.exitCode, 0) << r.err;
+    const std::vector<nlohmann::json> rows = jsonLines(r.out);
+    ASSERT_EQ(rows.size(), 4u) << r.out;
+    const size_t passes[] = {1, 3, 2,
+                             0};  // none: its copy; smaa: 3; taa-hq: 2 (no sharpen); the network: many
+    for (size_t k = 0; k < rows.size(); ++k) {
+        EXPECT_EQ(rows[k]["frames"], 2);
+        EXPECT_GT(rows[k]["gpu_ms"].get<double>(), 0.0) << rows[k].dump();
+        EXPECT_GT(rows[k]["cpu_ms"].get<double>(), 0.0) << rows[k].dump();
+        if (passes[k]) {
+            EXPECT_EQ(rows[k]["passes"].size(), passes[k]) << rows[k].dump();
+        }
+        EXPECT_NE(rows[k]["opengl"].get<std::string>().find("OSMesa"), std::string::npos);
+    }
+    EXPECT_GT(rows[3]["passes"].size(), 10u);
+    expectOneLineError(run("bench glsl --methods fxaa,nothing", dir), "nothing");
+}
+
 // dejag view under a virtual display (xvfb-run, installed by scripts/install-deps): a script switches
 // the method to FXAA, and the screenshot of the third frame equals what dejag render then dejag filter
 // make of that frame (same jitter) within 1/255, whether FXAA ran as its GLSL form on the rendered frame
