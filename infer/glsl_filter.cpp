@@ -436,25 +436,40 @@ const std::map<std::string, Maker>& glslMethods() {
     return table;
 }
 
+// The one method named (an unknown method or a chain is makeFilter's error, or `chain`'s).
+const MethodSpec& singleMethod(const std::string& method, const FilterParameters& parameters,
+                               const std::string& chain) {
+    const MethodSpec* spec = findMethod(method);
+    if (!spec) {
+        makeFilter(method, parameters);  // its one line: an unknown method, or a chain
+        throw Error("'" + method + "' " + chain);
+    }
+    return *spec;
+}
+
+// Every parameter checked as the CPU form checks it (a GPU form ignores those it has no use for), and
+// none given that the method does not take.
+void requireParametersRead(const MethodSpec& spec, const MethodParameters& view,
+                           const FilterParameters& parameters) {
+    std::string accepted;
+    for (const ParameterSpec& p : spec.parameters) {
+        view.text(p.name);
+        accepted += (accepted.empty() ? "" : ", ") + p.name;
+    }
+    parameters.requireAllUsed(spec.name, accepted);
+}
+
 }  // namespace
 
 std::unique_ptr<GlslFilter> makeGlslFilter(render::GlContext& context, const std::string& method,
                                            const FilterParameters& parameters, std::string* whyNot) {
-    const MethodSpec* spec = findMethod(method);
-    if (!spec) {
-        makeFilter(method, parameters);  // its one line: an unknown method, or a chain
-        throw Error("'" + method + "' has no GPU form: only single methods have");
-    }
-    MethodParameters view(*spec, parameters);
-    std::string accepted;
-    for (const ParameterSpec& p : spec->parameters) accepted += (accepted.empty() ? "" : ", ") + p.name;
+    const MethodSpec& spec = singleMethod(method, parameters, "has no GPU form: only single methods have");
+    MethodParameters view(spec, parameters);
     const auto found = glslMethods().find(method);
     std::unique_ptr<GlslFilter> filter;
     std::string reason = "'" + method + "' has no GPU form yet";
     if (found != glslMethods().end()) filter = found->second(view, context, &reason);
-    // Every parameter is checked as the CPU form checks it (a GPU form ignores those it has no use for).
-    for (const ParameterSpec& p : spec->parameters) view.text(p.name);
-    parameters.requireAllUsed(method, accepted);
+    requireParametersRead(spec, view, parameters);
     if (!filter && whyNot) *whyNot = reason;
     return filter;
 }
@@ -582,14 +597,9 @@ json passJson(const std::string& shader, const json& bindings, const json& unifo
 }  // namespace
 
 GlslMethodFiles glslMethodFiles(const std::string& method, const FilterParameters& parameters) {
-    const MethodSpec* spec = findMethod(method);
-    if (!spec) {
-        makeFilter(method, parameters);  // its one line: an unknown method, or a chain
-        throw Error("'" + method + "' is not one method: export a chain's methods one by one");
-    }
-    MethodParameters view(*spec, parameters);
-    std::string accepted;
-    for (const ParameterSpec& p : spec->parameters) accepted += (accepted.empty() ? "" : ", ") + p.name;
+    const MethodSpec& spec =
+        singleMethod(method, parameters, "is not one method: export a chain's methods one by one");
+    MethodParameters view(spec, parameters);
     const std::string perPixel = "ceil(size / 8) work groups of 8 x 8, one invocation per pixel";
     const json sizeUniform = {{"size", "ivec2: the frame's width and height"}};
     GlslMethodFiles files;
@@ -729,8 +739,7 @@ GlslMethodFiles glslMethodFiles(const std::string& method, const FilterParameter
                          ? "export its network (dejag export --glsl MODEL)"
                          : "the method has no GPU form"));
     }
-    for (const ParameterSpec& p : spec->parameters) view.text(p.name);
-    parameters.requireAllUsed(method, accepted);
+    requireParametersRead(spec, view, parameters);
     return files;
 }
 
