@@ -40,6 +40,7 @@ struct ViewArguments {
     int frames = 0;  // 0: until the window closes
     int truthSamples = 64;
     bool json = false, noOverlay = false;
+    std::string model, temporalModel;  // the networks of keys 7 and 8 ("": the shipped defaults)
     float spread = 1.7f;
     RuntimeOptions runtime;
 };
@@ -210,17 +211,20 @@ class Viewer {
 
     // Each side's method: its GPU form where the device allows and the method has one, else the CPU filter.
     void makeFilters() {
-        infer::FilterParameters parameters;
-        parameters.setPathResolver(shippedModelPath);  // the shipped networks, from any folder
         for (int k = 0; k < 2; ++k) {
             filters_[k].reset(), gpuFilters_[k].reset();
             whyCpu_[k].clear();
             if (method_[k] < 0) continue;
-            const char* method = kMethods[method_[k]];
+            const std::string method = kMethods[method_[k]];
+            infer::FilterParameters parameters;
+            parameters.setPathResolver(shippedModelPath);  // the shipped networks, from any folder
+            if (method == "cnn" && !args_.model.empty()) parameters.set("model", args_.model, "--model");
+            if (method == "cnn-temporal" && !args_.temporalModel.empty())
+                parameters.set("model", args_.temporalModel, "--temporal-model");
             if (gpuDevice_) gpuFilters_[k] = infer::makeGlslFilter(*window_, method, parameters, &whyCpu_[k]);
             if (!gpuDevice_) whyCpu_[k] = "--device cpu";
             if (!gpuFilters_[k] && args_.device == "gpu")
-                throw Error("--device gpu: " + (whyCpu_[k].empty() ? std::string(method) : whyCpu_[k]));
+                throw Error("--device gpu: " + (whyCpu_[k].empty() ? method : whyCpu_[k]));
             if (!gpuFilters_[k]) filters_[k] = infer::makeFilter(method, parameters);
         }
     }
@@ -566,6 +570,11 @@ void registerViewCommand(CLI::App& app) {
         ->capture_default_str();
     command->add_flag("--json", args->json, "at the end, each method's median time as a JSON line");
     command->add_flag("--no-overlay", args->noOverlay, "start without the text overlay (key o)");
+    command->add_option("--model", args->model,
+                        "the single-frame network of key 7 (cnn): a model file or a shipped name (default "
+                        "dejag-fast)");
+    command->add_option("--temporal-model", args->temporalModel,
+                        "the recurrent network of key 8 (cnn-temporal) (default dejag-temporal)");
     command->add_option("--jitter-spread", args->spread, "the TAAs' camera jitter in pixels")
         ->check(CLI::Range(0.0f, 64.0f))
         ->capture_default_str();

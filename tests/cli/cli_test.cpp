@@ -1676,6 +1676,18 @@ TEST(Cli, ViewShowsWhatTheFilterWrites) {
     EXPECT_LE(largestStep(readImage(dir.file("gpu.png")), cpu, 0, 96), 1);
     EXPECT_LE(largestStep(readImage(dir.file("cpu-shot.png")), cpu, 0, 96), 1);
     EXPECT_LE(largestStep(readImage(dir.file("cnn.png")), readImage(dir.file("cnn .png")), 0, 96), 1);
+    // --model: key 7's network, here dejag-guided, whose GPU form runs SMAA's first.
+    r = run("filter --method cnn --model dejag-guided --gate off --precision fp32 --quiet '" +
+                dir.file("r/frame_0002.exr") + "' '" + dir.file("guided.png") + "'",
+            dir);
+    ASSERT_EQ(r.exitCode, 0) << r.err;
+    r = run(view + "--method cnn --model dejag-guided --device gpu --screenshot '" +
+                dir.file("guided-gpu.png") + "'",
+            dir, xvfb);
+    ASSERT_EQ(r.exitCode, 0) << r.err;
+    EXPECT_LE(largestStep(readImage(dir.file("guided-gpu.png")), readImage(dir.file("guided.png")), 0, 96),
+              1);
+    expectOneLineError(run(view + "--method cnn --model nosuch", dir, xvfb), "nosuch");
     // taa-hq over the three frames, its history on the GPU or on the CPU, against dejag filter on the
     // rendered sequence (each frame's jitter from render.json).
     r = run("filter --method taa-hq --quiet '" + dir.file("r") + "' '" + dir.file("taa") + "'", dir);
