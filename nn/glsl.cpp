@@ -78,23 +78,36 @@ nlohmann::json GlslNetwork::description() const {
             {{"name", b.name}, {"channels", b.channels}, {"scale", {b.scaleNum, b.scaleDen}}});
     for (const GlslPass& p : passes)
         passesJson.push_back({{"shader", p.name + ".comp"}, {"inputs", p.inputs}, {"output", p.output}});
-    return {{"format", "dejag-glsl-1"},
-            {"model", model},
-            {"architecture", architecture},
-            {"input_channels", inputChannels},
-            {"output_channels", outputChannels},
-            {"size_divisor", sizeDivisor},
-            {"layout",
-             "every buffer planar float32 (channel, row, column); input: the model's input (sRGB-encoded "
-             "values in [0, 1]); a buffer's width and height are the input's times scale[0] / scale[1]"},
-            {"bindings",
-             "0: weights.bin, 1-3: the pass's inputs in order, 4: its output; uniforms inSize (first input) "
-             "and outSize (output), ivec2 (width, height); dispatch ceil(outSize / 8) groups of 8 x 8, a "
-             "memory barrier (GL_SHADER_STORAGE_BARRIER_BIT) between passes"},
-            {"weights", "weights.bin"},
-            {"buffers", buffersJson},
-            {"passes", passesJson},
-            {"output", output}};
+    nlohmann::json d = {
+        {"format", "dejag-glsl-1"},
+        {"model", model},
+        {"architecture", architecture},
+        {"input_channels", inputChannels},
+        {"output_channels", outputChannels},
+        {"size_divisor", sizeDivisor},
+        {"layout",
+         "every buffer planar float32 (channel, row, column); input: the model's input (sRGB-encoded "
+         "values in [0, 1]); a buffer's width and height are the input's times scale[0] / scale[1]"},
+        {"bindings",
+         "0: weights.bin, 1-3: the pass's inputs in order, 4: its output; uniforms inSize (first input) "
+         "and outSize (output), ivec2 (width, height); dispatch ceil(outSize / 8) groups of 8 x 8, a "
+         "memory barrier (GL_SHADER_STORAGE_BARRIER_BIT) between passes"},
+        {"weights", "weights.bin"},
+        {"buffers", buffersJson},
+        {"passes", passesJson},
+        {"output", output}};
+    bool recurrent = false;
+    for (const nlohmann::json& node : architecture.value("nodes", nlohmann::json::array()))
+        recurrent = recurrent || node.value("op", "") == "warp" || node.value("op", "") == "accumulate";
+    if (recurrent)
+        d["recurrent"] =
+            "one frame per run: the input holds the frame and the network's own previous output (its whole "
+            "output, kept between frames: the history), then the motion, the jitter" +
+            std::string(inputChannels == 3 + outputChannels + 6 ? " and the depths" : "") +
+            " (architecture.input_colour has the layout); on a fresh start the colour stands in for the "
+            "previous output's R G B, its other channels and the motion are 0 (infer/glsl_filter.h's "
+            "cnn-temporal assembles it so)";
+    return d;
 }
 
 GlslNetwork exportGlsl(const Model& model) {
