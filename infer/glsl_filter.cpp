@@ -265,20 +265,6 @@ void main() {
 }
 )";
 
-constexpr const char* kTemporalUnpackShader = R"(#version 430
-layout(local_size_x = 8, local_size_y = 8) in;
-layout(std430, binding = 1) readonly buffer Planes { float planes[]; };
-layout(std430, binding = 4) writeonly buffer Result { float result[]; };
-uniform ivec2 size;
-uniform ivec2 padded;
-void main() {
-    ivec2 p = ivec2(gl_GlobalInvocationID.xy);
-    if (p.x >= size.x || p.y >= size.y) return;
-    int plane = padded.x * padded.y, s = p.y * padded.x + p.x, o = (p.y * size.x + p.x) * 3;
-    for (int c = 0; c < 3; ++c) result[o + c] = clamp(planes[c * plane + s], 0.0, 1.0);
-}
-)";
-
 class GlslCnnTemporal final : public GlslFilter {
   public:
     GlslCnnTemporal(render::GlContext& context, const nn::Model& model, const std::string& differences)
@@ -297,8 +283,8 @@ class GlslCnnTemporal final : public GlslFilter {
                                              ";\nconst bool DEPTH = " + (depth_ ? "true" : "false") + ";\n");
         const render::GlFunctions& gl = context_.compute();
         pack_ = render::compileComputeProgram(gl, pack, "the temporal network's input pass");
-        unpack_ =
-            render::compileComputeProgram(gl, kTemporalUnpackShader, "the temporal network's output pass");
+        unpack_ = render::compileComputeProgram(gl, withGrey(kUnpackShader, false, false),
+                                                "the temporal network's output pass");
         empty_.ensure(1);
     }
     ~GlslCnnTemporal() override {
@@ -339,6 +325,7 @@ class GlslCnnTemporal final : public GlslFilter {
                              GLsizeiptr(stateFloats * sizeof(float)));
         gl.UseProgram(unpack_);
         gl.BindBufferBase(GL_SHADER_STORAGE_BUFFER, 1, result);
+        gl.BindBufferBase(GL_SHADER_STORAGE_BUFFER, 2, frame.colour);
         gl.BindBufferBase(GL_SHADER_STORAGE_BUFFER, 4, out);
         gl.Uniform2i(gl.GetUniformLocation(unpack_, "size"), W, H);
         gl.Uniform2i(gl.GetUniformLocation(unpack_, "padded"), pw, ph);
