@@ -136,11 +136,13 @@ fuzz-seeds:
 	cmake --build --preset fuzz -j$(JOBS) --target fuzz_make_seeds
 	build/fuzz/fuzz_make_seeds fuzz/corpus
 
-# Regenerates the committed golden files from the Python references (needs Debian's python3-skimage).
-golden:
+# Regenerates the committed golden files from the Python references (needs Debian's python3-skimage,
+# python3-torch and python3-onnx; the ONNX fixtures run the built dejag).
+golden: build
 	@scripts/install-deps --golden
 	/usr/bin/python3 tests/golden/make_metrics_golden.py
 	/usr/bin/python3 tests/golden/make_nn_golden.py
+	/usr/bin/python3 tests/golden/make_onnx_golden.py --dejag $(BUILD_DIR)/dejag
 
 format:
 	clang-format -i $$(git ls-files '*.cpp' '*.h')

@@ -2,6 +2,7 @@
 // messages); the field numbers are those of onnx.proto, named below where they are used.
 #include "nn/onnx.h"
 
+#include <cmath>
 #include <cstdint>
 #include <cstring>
 #include <string>
@@ -36,6 +37,7 @@ class Message {
         bytes_ += value;
     }
     void message(int field, const Message& m) { bytes(field, m.bytes_); }
+    void append(const Message& m) { bytes_ += m.bytes_; }  // m's fields after these
     const std::string& data() const { return bytes_; }
 
   private:
@@ -64,9 +66,9 @@ Message tensor(const std::string& name, const std::vector<int64_t>& dims, const 
     t.bytes(9, std::string(reinterpret_cast<const char*>(values), count * sizeof(float)));
     return t;
 }
-Message tensor(const std::string& name, const std::vector<int64_t>& values) {
+Message tensor(const std::string& name, const std::vector<int64_t>& values, bool scalar = false) {
     Message t;
-    t.sint(1, int64_t(values.size()));
+    if (!scalar) t.sint(1, int64_t(values.size()));
     t.varint(2, kInt64);
     t.bytes(8, name);
     t.bytes(9, std::string(reinterpret_cast<const char*>(values.data()), values.size() * sizeof(int64_t)));
@@ -139,27 +141,42 @@ class GraphWriter {
         n.bytes(3, output);
         n.bytes(4, op);
         for (const Message& a : attributes) n.message(5, a);
-        graph_.message(1, n);
+        nodes_.message(1, n);
         return output;
     }
     // GraphProto: initializer 5.
     std::string constant(const std::string& name, const std::vector<int64_t>& values) {
-        graph_.message(5, tensor(name, values));
+        initializers_.message(5, tensor(name, values));
         return name;
     }
     std::string constant(const std::string& name, const std::vector<int64_t>& dims, const float* values,
                          size_t count) {
-        graph_.message(5, tensor(name, dims, values, count));
+        initializers_.message(5, tensor(name, dims, values, count));
         return name;
     }
     std::string scalar(const std::string& name, float value) {
-        graph_.message(5, tensor(name, {}, &value, 1));
+        initializers_.message(5, tensor(name, {}, &value, 1));
         return name;
     }
-    Message& graph() { return graph_; }
+    std::string scalarInt(const std::string& name, int64_t value) {
+        initializers_.message(5, tensor(name, {value}, true));
+        return name;
+    }
+    // GraphProto with its fields in field-number order (as protobuf's own serialisers write them, so
+    // that the bytes are those of onnx.load(...).graph.SerializeToString()): node 1, name 2,
+    // initializer 5, input 11, output 12.
+    Message graph(const std::string& name, const Message& input, const Message& output) const {
+        Message g;
+        g.append(nodes_);
+        g.bytes(2, name);
+        g.append(initializers_);
+        g.message(11, input);
+        g.message(12, output);
+        return g;
+    }
 
   private:
-    Message graph_;
+    Message nodes_, initializers_;
 };
 
 std::string activationNode(GraphWriter& g, const ActivationDesc& a, const std::string& in,
@@ -196,6 +213,227 @@ std::string slice(GraphWriter& g, const std::string& in, const std::string& out,
                   out);
 }
 
+// The k x k taps of `in` around each pixel, edge pixels repeated (Pad edge, then one Slice per tap), in
+// the order dejag's kernel ops weigh them: row by row, dy and dx from -k/2 to k/2.
+std::vector<std::string> edgeTaps(GraphWriter& g, const std::string& in, const std::string& name, int k) {
+    const int r = k / 2;
+    if (r == 0) return {in};
+    const std::string padded = g.node("Pad", {in, g.constant(name + ".pads", {0, 0, r, r, 0, 0, r, r})},
+                                      name + ".padded", {attribute("mode", std::string("edge"))});
+    std::vector<std::string> taps;
+    for (int j = 0; j < k * k; ++j) {
+        const int dy = j / k - r, dx = j % k - r;
+        // Rows [dy + r, dy + r + H) of the padded image: the end counted from its end.
+        const int64_t endY = dy - r == 0 ? INT64_MAX : dy - r, endX = dx - r == 0 ? INT64_MAX : dx - r;
+        taps.push_back(
+            slice(g, padded, name + ".tap" + std::to_string(j), {dy + r, dx + r}, {endY, endX}, {2, 3}));
+    }
+    return taps;
+}
+
+// Elementwise arithmetic with constants, in forms every runtime reads: OpenCV 4.6 broadcasts a scalar in
+// Add, Sub, Div and Pow, and in Mul only as the second operand, but not in Min, Max or Where; so
+// constants are multiplied from the right, bounds are written with Relu and a piecewise curve with a mask
+// (Greater, then Cast to float).
+class Arithmetic {
+  public:
+    Arithmetic(GraphWriter& g, std::string prefix) : g_(g), prefix_(std::move(prefix)) {}
+    std::string add(const std::string& a, const std::string& b) { return op("Add", a, b); }
+    std::string sub(const std::string& a, const std::string& b) { return op("Sub", a, b); }
+    std::string mul(const std::string& a, const std::string& b) { return op("Mul", a, b); }
+    std::string div(const std::string& a, const std::string& b) { return op("Div", a, b); }
+    // a^e of a >= 0, then a Relu (which changes nothing there): OpenCV 4.6 folds a Mul, Add or Sub by a
+    // constant that follows a Pow into the power layer's scale and shift, which it applies before the
+    // power.
+    std::string pow(const std::string& a, float e) { return relu(op("Pow", a, constant(e))); }
+    std::string relu(const std::string& a) { return g_.node("Relu", {a}, next()); }
+    std::string constant(float v) { return g_.scalar(next(), v); }
+    // min(a, high) = a - relu(a - high); max(a, low) = low + relu(a - low); clamp: both.
+    std::string atMost(const std::string& a, float high) { return sub(a, relu(sub(a, constant(high)))); }
+    std::string atLeast(const std::string& a, float low) {
+        const std::string l = constant(low);
+        return add(l, relu(sub(a, l)));
+    }
+    std::string clamp(const std::string& a, float low, float high) {
+        const std::string l = constant(low);
+        return sub(add(l, relu(sub(a, l))), relu(sub(a, constant(high))));
+    }
+    // below(a) where a <= threshold, else above(a): below + [a > threshold] (above - below).
+    std::string piecewise(const std::string& a, float threshold, const std::string& below,
+                          const std::string& above) {
+        const std::string mask = g_.node("Cast", {g_.node("Greater", {a, constant(threshold)}, next())},
+                                         next(), {attribute("to", int64_t(kFloat))});
+        return add(below, mul(mask, sub(above, below)));
+    }
+    // The sRGB curves of nn/layers.h, on values clamped to [0, 1].
+    std::string srgbDecode(const std::string& v) {
+        const std::string x = clamp(v, 0.0f, 1.0f);
+        return piecewise(x, 0.04045f, div(x, constant(12.92f)),
+                         pow(div(add(x, constant(0.055f)), constant(1.055f)), 2.4f));
+    }
+    std::string srgbEncode(const std::string& v) {
+        const std::string x = clamp(v, 0.0f, 1.0f);
+        return piecewise(x, 0.0031308f, mul(x, constant(12.92f)),
+                         sub(mul(pow(x, 1.0f / 2.4f), constant(1.055f)), constant(0.055f)));
+    }
+    // A name for the result of the next node, or the given one.
+    std::string next() { return prefix_ + "." + std::to_string(count_++); }
+
+  private:
+    std::string op(const char* type, const std::string& a, const std::string& b) {
+        return g_.node(type, {a, b}, next());
+    }
+    GraphWriter& g_;
+    std::string prefix_;
+    int count_ = 0;
+};
+
+// warp: image (1, C, H, W) read at (x - motion_x, y - motion_y) with the separable filter of nn/layers.h,
+// each tap's index clamped to the image. The taps are read by GatherElements on the flattened planes (ONNX
+// has no resampler with Catmull-Rom's kernel, and GridSample needs opset 16); their weights are the cubic
+// convolution kernel's polynomials of the fraction; the size comes from the input's shape, so a symbolic
+// size works.
+std::string warpNode(GraphWriter& g, const std::string& image, const std::string& motion, WarpFilter filter,
+                     const std::string& name) {
+    Arithmetic a(g, name);
+    const std::string shape = g.node("Shape", {image}, name + ".shape");
+    const auto dimension = [&](int axis, const char* tag) {
+        const std::string n = g.node("Gather", {shape, g.scalarInt(name + "." + tag + "_axis", axis)},
+                                     name + "." + tag, {attribute("axis", int64_t(0))});
+        const std::string f =
+            g.node("Cast", {n}, name + "." + tag + "_float", {attribute("to", int64_t(kFloat))});
+        return std::pair{n, f};
+    };
+    const auto [height, heightF] = dimension(2, "height");
+    const auto [width, widthF] = dimension(3, "width");
+    // Pixel indices along x as (1, 1, 1, W) and along y as (1, 1, H, 1).
+    const auto indices = [&](const std::string& size, const char* tag, std::vector<int64_t> dims) {
+        const std::string range = g.node(
+            "Range",
+            {g.scalarInt(name + "." + tag + "_start", 0), size, g.scalarInt(name + "." + tag + "_step", 1)},
+            name + "." + tag + "_range");
+        const std::string f =
+            g.node("Cast", {range}, name + "." + tag + "_range_float", {attribute("to", int64_t(kFloat))});
+        return g.node("Reshape", {f, g.constant(name + "." + tag + "_dims", dims)}, name + "." + tag + "_at");
+    };
+    const std::string xs = indices(width, "x", {1, 1, 1, -1}), ys = indices(height, "y", {1, 1, -1, 1});
+    // Where each pixel reads (1, 1, H, W): NaN reads 0, a huge motion the border (as clampPlace does).
+    const auto place = [&](const std::string& at, const std::string& size, int channel, const char* tag) {
+        const std::string m = slice(g, motion, name + "." + tag + "_motion", {channel}, {channel + 1}, {1});
+        std::string s = a.sub(at, m);
+        const std::string zero = g.scalar(name + "." + tag + "_zero", 0.0f);
+        s = g.node("Where", {g.node("IsNaN", {s}, name + "." + tag + "_nan"), zero, s},
+                   name + "." + tag + "_s");
+        const std::string limit = a.add(size, a.constant(2.0f));
+        const std::string twice = a.mul(limit, a.constant(2.0f));
+        const std::string low = g.node("Neg", {limit}, name + "." + tag + "_low");
+        return g.node("Max", {g.node("Min", {s, twice}, a.next()), low}, a.next());
+    };
+    const std::string sx = place(xs, widthF, 0, "x"), sy = place(ys, heightF, 1, "y");
+    // Each axis' taps: the first index and the weights, as nn/warp.cpp computes them.
+    struct Axis {
+        std::vector<std::string> index, weight;
+    };
+    const auto axisTaps = [&](const std::string& s, const std::string& sizeF, const char* tag) {
+        Axis t;
+        const std::string base = g.node("Floor", {s}, name + "." + tag + "_floor");
+        const std::string f = a.sub(s, base);
+        const std::string one = a.constant(1.0f);
+        int first = 0;
+        if (filter == WarpFilter::Bilinear) {
+            t.weight = {a.sub(one, f), f};
+        } else {
+            const float k = filter == WarpFilter::CatmullRom ? -0.5f : -0.75f;
+            first = -1;
+            // near(t) = ((k + 2) t - (k + 3)) t t + 1; far(t) = ((k t - 5 k) t + 8 k) t - 4 k
+            const auto nearW = [&](const std::string& x) {
+                const std::string p = a.sub(a.mul(x, a.constant(k + 2)), a.constant(k + 3));
+                return a.add(a.mul(a.mul(p, x), x), a.constant(1.0f));
+            };
+            const auto farW = [&](const std::string& x) {
+                const std::string p = a.sub(a.mul(x, a.constant(k)), a.constant(5 * k));
+                return a.sub(a.mul(a.add(a.mul(p, x), a.constant(8 * k)), x), a.constant(4 * k));
+            };
+            t.weight = {farW(a.add(one, f)), nearW(f), nearW(a.sub(one, f)),
+                        farW(a.sub(a.constant(2.0f), f))};
+        }
+        const std::string last = a.sub(sizeF, one), zero = a.constant(0.0f);
+        for (size_t i = 0; i < t.weight.size(); ++i) {
+            const std::string at = a.add(base, a.constant(float(first + int(i))));
+            const std::string inside = g.node("Max", {g.node("Min", {at, last}, a.next()), zero}, a.next());
+            t.index.push_back(g.node("Cast", {inside}, a.next(), {attribute("to", int64_t(kInt64))}));
+        }
+        return t;
+    };
+    const Axis tx = axisTaps(sx, widthF, "x"), ty = axisTaps(sy, heightF, "y");
+    // The planes flattened to (1, C, H W); each tap's flat index (y W + x) expanded over the channels.
+    const std::string flatDims = g.constant(name + ".flat_dims", {0, 0, -1});
+    const std::string flat = g.node("Reshape", {image, flatDims}, name + ".flat");
+    const std::string flatShape = g.node("Shape", {flat}, name + ".flat_shape");
+    std::string sum;
+    for (size_t j = 0; j < ty.index.size(); ++j) {
+        const std::string rowStart = g.node("Mul", {ty.index[j], width}, a.next());
+        std::string row;
+        for (size_t i = 0; i < tx.index.size(); ++i) {
+            const std::string at = g.node("Add", {rowStart, tx.index[i]}, a.next());
+            const std::string index =
+                g.node("Expand", {g.node("Reshape", {at, flatDims}, a.next()), flatShape}, a.next());
+            const std::string read = g.node(
+                "Reshape",
+                {g.node("GatherElements", {flat, index}, a.next(), {attribute("axis", int64_t(2))}), shape},
+                a.next());
+            const std::string term = a.mul(tx.weight[i], read);
+            row = row.empty() ? term : a.add(row, term);
+        }
+        const std::string term = a.mul(ty.weight[j], row);
+        sum = sum.empty() ? term : a.add(sum, term);
+    }
+    return g.node("Identity", {sum}, name);
+}
+
+// accumulate (nn/layers.h): image (1, C, H, W), logits (1, k^2 + 1, H, W), history (1, C + 1, H, W) to
+// (1, 2 C + 1, H, W): the frame shown, the kept mean and the next confidence.
+std::string accumulateNode(GraphWriter& g, const std::string& image, const std::string& logits,
+                           const std::string& history, int channels, int k, float maxCount, bool clip,
+                           const std::string& name) {
+    Arithmetic a(g, name);
+    const int taps = k * k;
+    const std::string w = g.node("Softmax", {slice(g, logits, name + ".kernel_logits", {0}, {taps}, {1})},
+                                 name + ".weights", {attribute("axis", int64_t(1))});
+    const std::string trust = slice(g, logits, name + ".trust", {taps}, {taps + 1}, {1});
+    const std::vector<std::string> read = edgeTaps(g, image, name, k);
+    std::string spatial;
+    for (int j = 0; j < taps; ++j) {
+        const std::string term =
+            a.mul(slice(g, w, name + ".w" + std::to_string(j), {j}, {j + 1}, {1}), read[size_t(j)]);
+        spatial = spatial.empty() ? term : a.add(spatial, term);
+    }
+    std::string h = slice(g, history, name + ".history_colour", {0}, {channels}, {1});
+    if (clip) {
+        // Clamped to [D(min), D(max)] of the taps' samples (pairwise Min and Max of equal shapes).
+        std::string low = read[0], high = read[0];
+        for (int j = 1; j < taps; ++j) {
+            low = g.node("Min", {low, read[size_t(j)]}, a.next());
+            high = g.node("Max", {high, read[size_t(j)]}, a.next());
+        }
+        const std::string lo = a.srgbDecode(low), hi = a.srgbDecode(high);
+        h = a.sub(a.add(lo, a.relu(a.sub(h, lo))), a.relu(a.sub(h, hi)));
+    }
+    const float maxConfidence = maxCount / (maxCount + 1.0f);
+    const std::string s = a.clamp(slice(g, history, name + ".confidence", {channels}, {channels + 1}, {1}),
+                                  0.0f, maxConfidence);
+    const std::string one = a.constant(1.0f);
+    const std::string n = a.div(s, a.sub(one, s));
+    const std::string rho = a.atMost(a.mul(g.node("Sigmoid", {trust}, a.next()), a.constant(2.0f)), 1.0f);
+    const std::string m = a.mul(rho, n);
+    const std::string weight = a.div(m, a.add(one, m));
+    const std::string filtered = a.srgbDecode(spatial), own = a.srgbDecode(image);
+    const std::string shown = a.srgbEncode(a.add(filtered, a.mul(weight, a.sub(h, filtered))));
+    const std::string kept = a.add(own, a.mul(weight, a.sub(h, own)));
+    const std::string count = a.atMost(a.add(one, m), maxCount);
+    const std::string next = a.div(count, a.add(count, one));
+    return g.node("Concat", {shown, kept, next}, name, {attribute("axis", int64_t(1))});
+}
 }  // namespace
 
 std::string exportOnnx(const Model& model, const OnnxOptions& options) {
@@ -233,7 +471,8 @@ std::string exportOnnx(const Model& model, const OnnxOptions& options) {
     const auto inputName = [&](int index) { return index < 0 ? std::string("input") : names[size_t(index)]; };
     for (size_t i = 0; i < nodes.size(); ++i) {
         const GraphNode& n = nodes[i];
-        const std::string name = n.name;
+        // The graph's output is "output" (an Identity below); a node of that name is renamed.
+        const std::string name = n.name == "output" ? "output.node" : n.name;
         const std::string in = n.inputs.empty() ? std::string() : inputName(n.inputs[0]);
         switch (n.op) {
             case GraphOp::Conv2d:
@@ -319,7 +558,7 @@ std::string exportOnnx(const Model& model, const OnnxOptions& options) {
             case GraphOp::KernelFilter: {
                 // out = sum_j w_j tap_j (+ w_k2 third input), w = softmax over channels of the logits with
                 // centreBias added to the centre's; taps are the input's edge-padded shifts.
-                const int k = n.kernel, r = k / 2, taps = k * k;
+                const int k = n.kernel, taps = k * k;
                 const bool third = n.inputs.size() > 2;
                 const int weights = taps + (third ? 1 : 0);
                 std::string logits = inputName(n.inputs[1]);
@@ -333,24 +572,11 @@ std::string exportOnnx(const Model& model, const OnnxOptions& options) {
                 }
                 const std::string w =
                     g.node("Softmax", {logits}, name + ".weights", {attribute("axis", int64_t(1))});
-                const std::string padded =
-                    r > 0 ? g.node("Pad", {in, g.constant(name + ".pads", {0, 0, r, r, 0, 0, r, r})},
-                                   name + ".padded", {attribute("mode", std::string("edge"))})
-                          : in;
+                const std::vector<std::string> read = edgeTaps(g, in, name, k);
                 std::string sum;
                 for (int j = 0; j < weights; ++j) {
                     const std::string tag = name + ".tap" + std::to_string(j);
-                    std::string source;
-                    if (j < taps) {
-                        const int dy = j / k - r, dx = j % k - r;
-                        // Rows [dy + r, dy + r + H) of the padded image: the end counted from its end.
-                        const int64_t endY = dy - r == 0 ? INT64_MAX : dy - r,
-                                      endX = dx - r == 0 ? INT64_MAX : dx - r;
-                        source =
-                            r > 0 ? slice(g, padded, tag, {dy + r, dx + r}, {endY, endX}, {2, 3}) : padded;
-                    } else {
-                        source = inputName(n.inputs[2]);
-                    }
+                    const std::string source = j < taps ? read[size_t(j)] : inputName(n.inputs[2]);
                     const std::string wj = slice(g, w, tag + ".w", {j}, {j + 1}, {1});
                     const std::string term = g.node("Mul", {source, wj}, tag + ".weighted");
                     sum = sum.empty() ? term
@@ -360,22 +586,27 @@ std::string exportOnnx(const Model& model, const OnnxOptions& options) {
                 break;
             }
             case GraphOp::Warp:
-            case GraphOp::Accumulate:
+                names[i] = warpNode(g, in, inputName(n.inputs[1]), n.warpFilter, name);
+                break;
+            case GraphOp::Accumulate: {
+                const Shape& image = n.inputs[0] < 0 ? inputShape : shapes[size_t(n.inputs[0])];
+                names[i] = accumulateNode(g, in, inputName(n.inputs[1]), inputName(n.inputs[2]),
+                                          int(image[1]), n.kernel, n.maxCount, n.clip, name);
+                break;
+            }
             case GraphOp::Count:
-                throw Error("model '" + model.name() + "': node '" + name + "' (" + graphOpName(n.op) +
-                            ") has no ONNX form; ONNX export takes single-frame models");
+                throw Error("model '" + model.name() + "': node '" + name + "' has no ONNX form");
         }
     }
     // The output under its own name.
     const std::string result = names[size_t(model.outputNode())];
     g.node("Identity", {result}, "output");
 
-    Message& graph = g.graph();
-    graph.bytes(2, model.name());  // GraphProto.name
     const std::string height = fixed ? std::to_string(options.height) : "height",
                       width = fixed ? std::to_string(options.width) : "width";
-    graph.message(11, valueInfo("input", {"1", std::to_string(model.inputChannels()), height, width}));
-    graph.message(12, valueInfo("output", {"1", std::to_string(model.outputChannels()), height, width}));
+    const Message graph =
+        g.graph(model.name(), valueInfo("input", {"1", std::to_string(model.inputChannels()), height, width}),
+                valueInfo("output", {"1", std::to_string(model.outputChannels()), height, width}));
 
     // ModelProto: ir_version 1, producer_name 2, producer_version 3, graph 7, opset_import 8,
     // metadata_props 14 (StringStringEntryProto: key 1, value 2).

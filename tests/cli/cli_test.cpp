@@ -582,8 +582,8 @@ TEST(Cli, FilterAndMetricsTakeVideos) {
 }
 
 // dejag export --onnx: a shipped model by name into a file (checked against OpenCV's DNN module by
-// Onnx.*); an existing file without --force, a missing folder, a recurrent model and a size the network
-// cannot take are one line each, and nothing is written. --glsl likewise into a folder.
+// Onnx.*), the recurrent one too; an existing file without --force, a missing folder and a size the
+// network cannot take are one line each, and nothing is written. --glsl likewise into a folder.
 TEST(Cli, ExportWritesOnnxAndRefusesWhatItCannot) {
     testing::TempDir dir;
     RunResult r = run("export --onnx --json dejag-fast '" + dir.file("fast.onnx") + "'", dir);
@@ -601,10 +601,14 @@ TEST(Cli, ExportWritesOnnxAndRefusesWhatItCannot) {
     EXPECT_NE(r.out.find("1x6x48x64"), std::string::npos) << r.out;
     expectOneLineError(run("export --onnx dejag-fast '" + dir.file("no/such/folder/x.onnx") + "'", dir),
                        "does not exist");
-    expectOneLineError(run("export --onnx dejag-temporal '" + dir.file("t.onnx") + "'", dir), "no ONNX form");
+    // The recurrent network too (its values checked by Onnx.RecurrentExportsMatchTheGoldenEvaluation).
+    r = run("export --onnx --json dejag-temporal '" + dir.file("t.onnx") + "'", dir);
+    ASSERT_EQ(r.exitCode, 0) << r.err;
+    EXPECT_EQ(nlohmann::json::parse(r.out)["input_channels"], 16);
+    EXPECT_NE(slurp(dir.file("t.onnx")).find("GatherElements"), std::string::npos);
     expectOneLineError(run("export --onnx --size 30x20 dejag-fast '" + dir.file("s.onnx") + "'", dir), "30");
     expectOneLineError(run("export dejag-fast '" + dir.file("n.onnx") + "'", dir), "--onnx or --glsl");
-    EXPECT_EQ(filesIn(dir.path()), 1u);
+    EXPECT_EQ(filesIn(dir.path()), 2u);
     // --glsl: a folder of passes (run against the CPU by Glsl.*), replaced only when it holds an export.
     r = run("export --glsl --json dejag-fast '" + dir.file("glsl") + "'", dir);
     ASSERT_EQ(r.exitCode, 0) << r.err;

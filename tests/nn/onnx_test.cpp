@@ -1,18 +1,23 @@
-// ONNX export (nn/onnx.h) checked by an independent runtime: OpenCV's DNN module loads each exported file
+// ONNX export (nn/onnx.h) checked by independent runtimes: OpenCV's DNN module loads each exported file
 // and its output must match Model::forward within 1e-4, for every op the exporter writes and for the
-// shipped single-frame models, at fixed sizes (OpenCV 4.6 cannot infer shapes at a symbolic one).
+// shipped single-frame models, at fixed sizes (OpenCV 4.6 cannot infer shapes at a symbolic one). The
+// warp's GatherElements is beyond OpenCV 4.6: those exports are checked against golden outputs of a NumPy
+// evaluator of the ONNX operators (tests/golden/make_onnx_golden.py).
 #include "nn/onnx.h"
 
 #include <gtest/gtest.h>
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
+#include <nlohmann/json.hpp>
 #include <opencv2/core/utils/logger.hpp>
 #include <opencv2/dnn.hpp>
 
 #include "base/error.h"
 #include "base/random.h"
 #include "nn/init.h"
+#include "nn/safetensors.h"
 #include "tests/nn/exportable_ops.h"
 #include "tests/test_util.h"
 
@@ -77,15 +82,120 @@ TEST(Onnx, ShippedSingleFrameModelsMatchOpenCvDnn) {
     }
 }
 
-TEST(Onnx, RecurrentOpsAndImpossibleSizesAreRefused) {
-    Model temporal = loadModel(testing::sourcePath("models/dejag-temporal.safetensors"));
-    try {
-        exportOnnx(temporal);
-        FAIL() << "exported a warp";
-    } catch (const Error& e) {
-        EXPECT_NE(std::string(e.what()).find("'warped' (warp) has no ONNX form"), std::string::npos)
-            << e.what();
+// The accumulate blend (the recurrent network's output) without a warp: OpenCV 4.6 reads every operator
+// of its decomposition. Input channels: the frame 0..2, the logits 3..12, the history 13..16.
+TEST(Onnx, AccumulateMatchesOpenCvDnn) {
+    using nlohmann::json;
+    const auto slice = [](const char* name, int from, int to) {
+        return json{{"name", name}, {"op", "slice"}, {"inputs", {"input"}}, {"from", from}, {"to", to}};
+    };
+    json nodes = {slice("frame", 0, 3), slice("logits", 3, 13), slice("history", 13, 17)};
+    nodes.push_back({{"name", "kept"},
+                     {"op", "accumulate"},
+                     {"inputs", {"frame", "logits", "history"}},
+                     {"kernel", 3},
+                     {"max_count", 32}});
+    nodes.push_back({{"name", "clipped"},
+                     {"op", "accumulate"},
+                     {"inputs", {"frame", "logits", "history"}},
+                     {"kernel", 3},
+                     {"max_count", 8},
+                     {"clip", true}});
+    nodes.push_back({{"name", "out"}, {"op", "concat"}, {"inputs", {"kept", "clipped"}}});
+    Model model = Model::fromArchitecture(
+        {{"name", "accumulate_only"}, {"input_channels", 17}, {"nodes", nodes}, {"output", "out"}});
+    Tensor input = randomInput({1, 17, 20, 28}, 9);
+    Rng rng(4);
+    const int64_t plane = 20 * 28;
+    for (int64_t i = 3 * plane; i < 13 * plane; ++i) input.data()[i] = rng.uniform(-4.0f, 4.0f);  // logits
+    // The confidence from below 0 to above N / (N + 1) (clamped).
+    for (int64_t i = 16 * plane; i < 17 * plane; ++i) input.data()[i] = rng.uniform(-0.1f, 1.0f);
+    OnnxOptions options;
+    options.width = 28, options.height = 20;
+    EXPECT_LE(largestDifference(model, exportOnnx(model, options), input), 1e-4);
+}
+
+// The ModelProto's graph (field 7, length-delimited) as bytes: what onnx.load(...).graph.SerializeToString()
+// gives for dejag's files, whose graph fields are in field-number order.
+std::string graphBytes(const std::string& model) {
+    size_t at = 0;
+    const auto varint = [&] {
+        uint64_t value = 0;
+        for (int shift = 0; at < model.size(); shift += 7) {
+            const auto byte = static_cast<unsigned char>(model[at++]);
+            value |= uint64_t(byte & 0x7f) << shift;
+            if (!(byte & 0x80)) break;
+        }
+        return value;
+    };
+    while (at < model.size()) {
+        const uint64_t key = varint();
+        switch (key & 7) {
+            case 0:
+                varint();
+                break;
+            case 1:
+                at += 8;
+                break;
+            case 5:
+                at += 4;
+                break;
+            case 2: {
+                const size_t length = size_t(varint());
+                if (key >> 3 == 7) return model.substr(at, length);
+                at += length;
+                break;
+            }
+            default:
+                return {};
+        }
     }
+    return {};
+}
+
+// FNV-1a 64 of some bytes, as make_onnx_golden.py computes it.
+std::string fnv1a(const std::string& bytes) {
+    uint64_t h = 0xcbf29ce484222325ull;
+    for (unsigned char c : bytes) h = (h ^ c) * 0x100000001b3ull;
+    char text[17];
+    std::snprintf(text, sizeof text, "%016llx", static_cast<unsigned long long>(h));
+    return text;
+}
+
+// The warps (GatherElements, which OpenCV 4.6 cannot load) and the whole recurrent network, against the
+// outputs of tests/golden/check_onnx.py's NumPy evaluator of the same exported files
+// (tests/golden/make_onnx_golden.py): two steps each, the second dejag-temporal step on the first's output.
+TEST(Onnx, RecurrentExportsMatchTheGoldenEvaluation) {
+    for (const char* name : {"recurrent_ops", "dejag_temporal"}) {
+        SCOPED_TRACE(name);
+        const SafetensorsFile golden = readSafetensors(
+            testing::sourcePath(std::string("tests/golden/onnx/") + name + ".golden.safetensors"));
+        const nlohmann::json config = nlohmann::json::parse(golden.metadata.at("config"));
+        const std::string modelName = config["model"];
+        Model model = loadModel(testing::sourcePath(
+            modelName.find('/') == std::string::npos ? "models/" + modelName + ".safetensors" : modelName));
+        OnnxOptions options;
+        options.width = config["width"], options.height = config["height"];
+        const std::string onnx = exportOnnx(model, options);
+        ASSERT_EQ(fnv1a(graphBytes(onnx)), config["graph_fnv1a"].get<std::string>())
+            << "the export changed since the golden evaluation: run make golden";
+        for (int step = 0; step < 2; ++step) {
+            const StoredTensor& in = golden.at("input" + std::to_string(step));
+            Tensor input(in.shape);
+            std::copy(in.f32.begin(), in.f32.end(), input.data());
+            const std::vector<double> expected = golden.at("output" + std::to_string(step)).asDouble();
+            const Tensor& out = model.forward(input);
+            ASSERT_EQ(out.numel(), int64_t(expected.size()));
+            double worst = 0;
+            for (int64_t i = 0; i < out.numel(); ++i)
+                worst = std::max(worst, std::abs(double(out.data()[i]) - expected[size_t(i)]));
+            std::printf("%s step %d: largest |evaluator - dejag| %.3g\n", name, step, worst);
+            EXPECT_LE(worst, 1e-4) << "step " << step;
+        }
+    }
+}
+
+TEST(Onnx, ImpossibleSizesAreRefused) {
     Model fast = loadModel(testing::sourcePath("models/dejag-fast.safetensors"));
     OnnxOptions options;
     options.width = 30, options.height = 20;  // not divisible by 8: the U-Net's skips cannot meet
