@@ -1,11 +1,17 @@
 // dejag: one binary, a subcommand per stage. Every error is one line on stderr and exit code 2.
+#include <chrono>
 #include <cstdio>
 #include <exception>
 #include <iostream>
 #include <string>
+#include <thread>
 
 #include "app/cli.h"
 #include "app/commands.h"
+#ifdef DEJAG_WITH_MPI
+#include "app/mpi.h"
+#endif
+#include "base/communicator.h"
 #include "base/error.h"
 #include "base/files.h"
 #include "base/simd.h"
@@ -52,7 +58,9 @@ std::string versionText() {
 
 }  // namespace
 
-int main(int argc, char** argv) {
+namespace {
+
+int run(int argc, char** argv) {
     dejag::flushDenormalsOnThisThread();
     dejag::installTemporaryFileCleanup();
     for (int i = 0; i < argc; ++i) {
@@ -94,14 +102,35 @@ int main(int argc, char** argv) {
             message = named ? "unknown subcommand '" + std::string(argv[1]) + "'; choose one of: " + names
                             : "choose a subcommand: " + names;
         }
-        std::fprintf(stderr, "%s: %s (see --help)\n", commandPath(app).c_str(), message.c_str());
+        // (The same on every rank of a job: rank 0 says it.)
+        if (dejag::communicator().rank() == 0)
+            std::fprintf(stderr, "%s: %s (see --help)\n", commandPath(app).c_str(), message.c_str());
         return 2;
+    } catch (const dejag::ReportedElsewhere& reported) {
+        return reported.code;
     } catch (const dejag::Error& error) {
-        std::fprintf(stderr, "%s: %s\n", commandPath(app).c_str(), error.what());
+        // In a job, an error every rank meets (a bad argument, a missing file) is said by rank 0, whose
+        // end ends the others: they wait a moment before saying theirs, an error of their own.
+        if (dejag::communicator().rank() > 0) std::this_thread::sleep_for(std::chrono::milliseconds(500));
+        std::fprintf(stderr, "%s%s: %s\n", commandPath(app).c_str(),
+                     dejag::communicator().rankLabel().c_str(), error.what());
         return 2;
     } catch (const std::exception& error) {
-        std::fprintf(stderr, "%s: internal error: %s\n", commandPath(app).c_str(), error.what());
+        std::fprintf(stderr, "%s%s: internal error: %s\n", commandPath(app).c_str(),
+                     dejag::communicator().rankLabel().c_str(), error.what());
         return 3;
     }
     return 0;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+#ifdef DEJAG_WITH_MPI
+    // dejag-mpi: every rank runs the command; the stages that share work ask base/communicator.h.
+    dejag::cli::MpiSession mpi(argc, argv);
+    return mpi.finish(run(argc, argv));
+#else
+    return run(argc, argv);
+#endif
 }

@@ -20,7 +20,7 @@ const char* __ubsan_default_options() {
 }
 // Mesa's OSMesa keeps a few small context objects (480 bytes) alive past the context's destruction; the
 // window system under `dejag view` (GLFW, Xlib and XCB, Mesa's GLX and DRI drivers) keeps its own past
-// exit. Matched by library name: the fast unwinder stops at the first frame inside the uninstrumented
+// exit, and Open MPI its own past MPI_Finalize. Matched by library name: the fast unwinder stops at the first frame inside the uninstrumented
 // library.
 const char* __lsan_default_suppressions() {
     return "leak:libOSMesa.so\n"
@@ -32,7 +32,16 @@ const char* __lsan_default_suppressions() {
            "leak:libGLX.so\n"
            "leak:swrast_dri.so\n"
            "leak:libgallium\n"
-           "leak:libLLVM\n";
+           "leak:libLLVM\n"
+           // Open MPI (dejag-mpi) keeps its runtime's tables past MPI_Finalize, in itself, its plug-ins
+           // (mca_*.so) and the libraries under it.
+           "leak:libmpi.so\n"
+           "leak:libopen-pal.so\n"
+           "leak:libopen-rte.so\n"
+           "leak:mca_\n"
+           "leak:libhwloc.so\n"
+           "leak:libpmix.so\n"
+           "leak:libevent\n";
 }
 #endif
 
