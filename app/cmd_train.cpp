@@ -7,6 +7,7 @@
 
 #include "app/cli.h"
 #include "app/commands.h"
+#include "base/communicator.h"
 #include "base/error.h"
 #include "infer/filter.h"
 #include "train/trainer.h"
@@ -162,6 +163,17 @@ void registerTrainCommand(CLI::App& app) {
     trainCommand->add_flag("--quiet", config->quiet, "no progress bar");
     trainCommand->add_option("--poison-steps", *poison, "testing: put a NaN into these steps' batches")
         ->group("");
+    auto killAt = std::make_shared<std::string>();
+    trainCommand
+        ->add_option("--kill-rank-at", *killAt,
+                     "testing: RANK:STEP, the process of that rank kills itself (SIGKILL) at that step")
+        ->group("");
+    trainCommand
+        ->add_option("--micro-batches", config->microBatches,
+                     "split each batch into this many micro-batches, each run alone and their gradients "
+                     "summed in order: a run's weights then do not depend on how many processes share it "
+                     "(dejag-mpi: default one per process; docs/mpi.md)")
+        ->check(CLI::Range(0, 4096));
     trainCommand
         ->add_option(
             "--adversarial", config->adversarialFraction,
@@ -200,6 +212,8 @@ void registerTrainCommand(CLI::App& app) {
         "network, no AA and FXAA on whole images, edge pixels and texture pixels. Interrupted? Add --resume: "
         "the\n"
         "result is the same, bit for bit, with the same --threads.\n"
+        "Several processes (mpirun -np N dejag-mpi train ...): each runs its share of every batch; the\n"
+        "weights equal one process's with --micro-batches N, bit for bit. docs/mpi.md.\n"
         "Then: dejag train export RUN models/NAME.safetensors");
 
     auto exportRun = std::make_shared<std::string>();
@@ -234,6 +248,16 @@ void registerTrainCommand(CLI::App& app) {
         applyRuntimeOptions(*runtime);
         train::TrainFaults faults;
         faults.poisonSteps = parseSteps(*poison);
+        if (!killAt->empty()) {
+            const size_t colon = killAt->find(':');
+            try {
+                if (colon == std::string::npos) throw std::invalid_argument("no colon");
+                faults.killRank = std::stoi(killAt->substr(0, colon));
+                faults.killStep = std::stoll(killAt->substr(colon + 1));
+            } catch (const std::exception&) {
+                throw Error("--kill-rank-at: '" + *killAt + "' is not RANK:STEP");
+            }
+        }
         config->families = splitList(*families);
         config->commandLine = invocation();
         for (auto [flag, method, transform] :
@@ -261,7 +285,11 @@ void registerTrainCommand(CLI::App& app) {
                                                  {"noise", r.adversarialSteps[2]},
                                                  {"hdr_spikes", r.adversarialSteps[3]},
                                                  {"poisoned", r.adversarialSteps[4]}}},
-                                               {"stopped_early", r.stoppedEarly}}
+                                               {"stopped_early", r.stoppedEarly},
+                                               {"micro_batches", r.microBatches},
+                                               {"ranks", communicator().size()},
+                                               {"communication_seconds", r.communicationSeconds},
+                                               {"wait_seconds", r.waitSeconds}}
                                     .dump()
                                     .c_str());
         else

@@ -6,15 +6,18 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <csignal>
 #include <cstdio>
 #include <exception>
 #include <filesystem>
 #include <fstream>
+#include <functional>
 #include <map>
 #include <numeric>
 #include <optional>
 #include <sstream>
 
+#include "base/communicator.h"
 #include "base/error.h"
 #include "base/files.h"
 #include "base/luma.h"
@@ -138,6 +141,7 @@ json configToJson(const TrainConfig& c) {
             {"uniform_patches", c.uniformPatches},
             {"frames", c.frames},
             {"temporal_loss", c.temporalLoss},
+            {"micro_batches", c.microBatches > 0 ? c.microBatches : communicator().size()},
             {"threads", threadCount()}};
 }
 
@@ -158,7 +162,8 @@ void requireSameRun(const json& saved, const json& now) {
         {"outlier_factor", json(0.0)},
         {"uniform_patches", json(data::PatchOptions().uniformFraction)},
         {"frames", json(0)},
-        {"temporal_loss", json(0.0)}};
+        {"temporal_loss", json(0.0)},
+        {"micro_batches", json(1)}};
     for (const auto& [key, absent] : keys) {
         const json before = saved.contains(key) ? saved.at(key) : absent;
         if (before != now.at(key))
@@ -684,7 +689,10 @@ nn::Model buildModel(const TrainConfig& config, bool temporal) {
 // --data leaves no empty run behind), locked for one process, and the files written into it.
 class RunFolder {
   public:
-    explicit RunFolder(const std::string& folder) : folder_(folder), made_(!fs::exists(folder)) {
+    // A reader (the other ranks of a job) makes, locks and writes nothing: it reads what rank 0 writes.
+    RunFolder(const std::string& folder, bool writer)
+        : folder_(folder), made_(writer && !fs::exists(folder)), writer_(writer) {
+        if (!writer) return;
         std::error_code madeError;
         fs::create_directories(folder, madeError);
         if (madeError || !fs::is_directory(folder))
@@ -709,22 +717,123 @@ class RunFolder {
     }
     void saveCheckpoint(const nn::Model& model, const nn::Optimizer& optimizer, const TrainState& state,
                         const json& config) const {
-        train::saveCheckpoint(path("checkpoint.safetensors"), model, optimizer, state, config);
+        if (writer_) train::saveCheckpoint(path("checkpoint.safetensors"), model, optimizer, state, config);
     }
     void saveModel(const std::string& name, const nn::Model& model, const std::string& provenance,
                    int64_t step) const {
-        nn::saveModel(path(name), model,
-                      {{"dejag.provenance", provenance}, {"dejag.step", std::to_string(step)}});
+        if (writer_)
+            nn::saveModel(path(name), model,
+                          {{"dejag.provenance", provenance}, {"dejag.step", std::to_string(step)}});
     }
     void writeRunJson(const json& run) const {
-        writeTextFileAtomically(path("run.json"), run.dump(2) + "\n");
+        if (writer_) writeTextFileAtomically(path("run.json"), run.dump(2) + "\n");
     }
+    bool writer() const { return writer_; }
     json readRunJson() const { return readJsonFile(path("run.json")); }
 
   private:
     std::string folder_;
-    bool made_;
+    bool made_, writer_;
     std::optional<FolderLock> lock_;
+};
+
+// A micro-batch of a batch: items [from, from + count).
+nn::Tensor itemsOf(const nn::Tensor& t, int64_t from, int64_t count) {
+    if (t.numel() == 0) return {};
+    nn::Shape shape = t.shape();
+    const int64_t item = t.numel() / shape[0];
+    shape[0] = count;
+    nn::Tensor part(shape);
+    std::copy_n(t.data() + from * item, count * item, part.data());
+    return part;
+}
+data::Batch itemsOf(const data::Batch& b, int64_t from, int64_t count) {
+    data::Batch part;
+    part.input = itemsOf(b.input, from, count), part.target = itemsOf(b.target, from, count);
+    part.texture = itemsOf(b.texture, from, count);
+    if (!b.items.empty()) part.items.assign(b.items.begin() + from, b.items.begin() + from + count);
+    part.edgeFraction = b.edgeFraction;
+    return part;
+}
+data::SequenceBatch itemsOf(const data::SequenceBatch& b, int64_t from, int64_t count) {
+    data::SequenceBatch part;
+    for (const data::SequenceFrame& f : b.frames) {
+        data::SequenceFrame g;
+        g.colour = itemsOf(f.colour, from, count), g.truth = itemsOf(f.truth, from, count);
+        g.motion = itemsOf(f.motion, from, count);
+        g.depth = itemsOf(f.depth, from, count), g.previousDepth = itemsOf(f.previousDepth, from, count);
+        if (!f.jitter.empty())
+            g.jitter.assign(f.jitter.begin() + 2 * from, f.jitter.begin() + 2 * (from + count));
+        if (!f.fresh.empty()) g.fresh.assign(f.fresh.begin() + from, f.fresh.begin() + from + count);
+        part.frames.push_back(std::move(g));
+    }
+    if (!b.items.empty()) part.items.assign(b.items.begin() + from, b.items.begin() + from + count);
+    return part;
+}
+
+// The global batch as M micro-batches shared by the job's ranks (TrainConfig::microBatches): rank r runs
+// micro-batches [r k, r k + k) (k = ceil(M / ranks)), each forward and backward alone; every rank gathers
+// every micro-batch's gradient and loss and sums them in micro-batch order, so all ranks hold the same
+// bits, and the same as one process running the M micro-batches. The gradient is the mean over the batch:
+// the sum times 1 / M (each micro-batch's loss is its own mean).
+class SharedBatch {
+  public:
+    SharedBatch(int microBatches, int batch, int64_t parameters)
+        : M_(microBatches), size_(batch / microBatches), parameters_(parameters) {
+        Communicator& comm = communicator();
+        perRank_ = (M_ + comm.size() - 1) / comm.size();
+        first_ = comm.rank() * perRank_;
+        mine_.resize(size_t(perRank_ * parameters_));
+        all_.resize(size_t(perRank_ * comm.size() * parameters_));
+        losses_.resize(size_t(perRank_)), allLosses_.resize(size_t(perRank_ * comm.size()));
+    }
+    // microLoss(from, count): the loss of items [from, from + count) with its gradient in the model's
+    // (NaN: not finite, no gradient). Returns the batch's loss, its gradient in the model's.
+    double run(nn::Model& model, const std::function<double(int64_t, int64_t)>& microLoss) {
+        for (int64_t j = 0; j < perRank_; ++j) {
+            const int64_t index = first_ + j;
+            float* slot = mine_.data() + j * parameters_;
+            double value = 0;  // (a rank's slots past the last micro-batch: not summed)
+            if (index < M_) value = microLoss(index * size_, size_);
+            if (index < M_ && std::isfinite(value))
+                std::copy_n(model.gradientData(), parameters_, slot);
+            else
+                std::fill_n(slot, parameters_, 0.0f);
+            losses_[size_t(j)] = value;
+        }
+        // The wait for the slowest rank, then the gather itself (timed apart: only the second is
+        // communication).
+        Communicator& comm = communicator();
+        const auto seconds = [](auto from) {
+            return std::chrono::duration<double>(std::chrono::steady_clock::now() - from).count();
+        };
+        auto start = std::chrono::steady_clock::now();
+        if (comm.size() > 1) comm.barrier();
+        waitSeconds += seconds(start);
+        start = std::chrono::steady_clock::now();
+        comm.allGather(mine_.data(), perRank_ * parameters_, all_.data());
+        comm.allGather(losses_.data(), perRank_, allLosses_.data());
+        communicationSeconds += seconds(start);
+        double sum = 0;
+        for (int64_t i = 0; i < M_; ++i) sum += allLosses_[size_t(i)];
+        const double value = sum / double(M_);
+        if (!std::isfinite(value)) return value;
+        float* g = model.gradientData();
+        std::copy_n(all_.data(), parameters_, g);
+        for (int64_t i = 1; i < M_; ++i) {
+            const float* other = all_.data() + i * parameters_;
+            for (int64_t p = 0; p < parameters_; ++p) g[p] += other[p];
+        }
+        const float scale = 1.0f / float(M_);
+        for (int64_t p = 0; p < parameters_; ++p) g[p] *= scale;
+        return value;
+    }
+    double communicationSeconds = 0, waitSeconds = 0;
+
+  private:
+    int64_t M_, size_, parameters_, perRank_ = 1, first_ = 0;
+    std::vector<float> mine_, all_;
+    std::vector<double> losses_, allLosses_;
 };
 
 // The batches of the steps: clean batches in the seed's order, with adversarial steps inserted between
@@ -1109,7 +1218,15 @@ TrainResult trainModel(const TrainConfig& config, const std::vector<Method>& bas
         unroller.emplace(model, temporalLoss);
     }
 
-    const RunFolder folder(config.out);
+    // Rank 0 of a job makes, locks and writes the run folder; the others read it (docs/mpi.md).
+    Communicator& comm = communicator();
+    const bool writer = comm.rank() == 0;
+    std::optional<RunFolder> runFolder;
+    together([&] {
+        if (writer) runFolder.emplace(config.out, true);
+    });
+    if (!writer) runFolder.emplace(config.out, false);
+    const RunFolder& folder = *runFolder;
     json runConfig = configToJson(config);
     nn::OptimizerConfig adam;
     adam.learningRate = config.learningRate;
@@ -1122,8 +1239,10 @@ TrainResult trainModel(const TrainConfig& config, const std::vector<Method>& bas
                 "' already holds a training run; add --resume to continue it or choose another --out");
         json saved;
         state = folder.loadCheckpoint(model, optimizer, &saved);
+        // A resumed run keeps its micro-batches, whatever the number of processes now.
+        if (config.microBatches == 0) runConfig["micro_batches"] = saved.value("micro_batches", json(1));
         requireSameRun(saved, runConfig);
-        if (saved.at("threads") != runConfig.at("threads"))
+        if (saved.at("threads") != runConfig.at("threads") && writer)
             std::fprintf(
                 stderr,
                 "dejag train: resuming with %d threads (the run used %s): results will differ in rounding\n",
@@ -1131,6 +1250,15 @@ TrainResult trainModel(const TrainConfig& config, const std::vector<Method>& bas
     } else {
         model.initialize(config.seed);
     }
+    const int microBatches = runConfig.at("micro_batches").get<int>();
+    if (microBatches < 1 || config.batch % microBatches != 0)
+        throw Error("--batch " + std::to_string(config.batch) + " does not split into " +
+                    std::to_string(microBatches) + " equal micro-batches" +
+                    (config.microBatches == 0 ? " (one per process; set --micro-batches)" : ""));
+    runConfig["ranks"] = comm.size();  // (recorded; a resumed run may use another number)
+    std::optional<SharedBatch> shared;
+    if (microBatches > 1 || comm.size() > 1)
+        shared.emplace(microBatches, config.batch, model.parameterCount());
 
     const bool depthInput = temporal && temporalLayout(model).depth;
     Batches batches(config, faults, grey, state.step, temporal, depthInput, loss.needsMask());
@@ -1169,11 +1297,12 @@ TrainResult trainModel(const TrainConfig& config, const std::vector<Method>& bas
     }
 
     TrainResult result;
+    result.microBatches = microBatches;
     StepGuard guard(config, state);
     // Log rows fall on checkpoint steps too, so a resumed run logs the same rows.
     const int64_t logEvery =
         std::gcd(std::max<int64_t>(1, std::min<int64_t>(50, totalSteps / 200)), config.checkpointEvery);
-    Progress progress("train", totalSteps, config.quiet);
+    Progress progress("train", totalSteps, config.quiet || !writer);
     progress.resumeAt(state.step);
     const auto sessionStart = std::chrono::steady_clock::now();
     const double secondsBefore = state.seconds;
@@ -1189,6 +1318,7 @@ TrainResult trainModel(const TrainConfig& config, const std::vector<Method>& bas
     bool stop = config.patience > 0 && state.evaluationsSinceBest >= config.patience;  // finished early
     result.stoppedEarly = stop;
     while (state.step < totalSteps && !stop) {
+        if (comm.rank() == faults.killRank && state.step == faults.killStep) std::raise(SIGKILL);
         // 1. The next batch.
         Batches::Step step = batches.next(state.step);
         if (step.adversarial != AdversarialKind::None) ++state.adversarial[int(step.adversarial)];
@@ -1197,35 +1327,51 @@ TrainResult trainModel(const TrainConfig& config, const std::vector<Method>& bas
         double value = NAN;
         std::optional<StepGuard::Skip> skip =
             temporal ? guard.sequence(step.sequence) : guard.batch(step.batch);
-        if (!skip && temporal) {
-            // Forward over the frames and backpropagation through time: the gradient is in the model.
-            value = unroller->run(step.sequence, true);
-            skip = guard.loss(value, dout);
-        } else if (!skip) {
-            const nn::Tensor& out = model.forward(step.batch.input);
+        // The forward pass and the loss of a single-frame batch, its gradient in dout.
+        const auto frameLoss = [&](const data::Batch& batch) {
+            const nn::Tensor& out = model.forward(batch.input);
             if (dout.shape() != out.shape()) dout = nn::Tensor(out.shape());
             dout.zero();
             const nn::SsimLossDesc desc{out.dim(0), out.dim(1), out.dim(2), out.dim(3), 1.0};
             // The harm term measures against the frame (a guided input's first three channels).
-            if (loss.needsInput() && step.batch.input.dim(1) == 6 && out.dim(1) == 3) {
-                const nn::Tensor& in = step.batch.input;
+            if (loss.needsInput() && batch.input.dim(1) == 6 && out.dim(1) == 3) {
+                const nn::Tensor& in = batch.input;
                 if (frameOnly.shape() != out.shape()) frameOnly = nn::Tensor(out.shape());
                 const int64_t plane = in.dim(2) * in.dim(3);
                 for (int64_t n = 0; n < in.dim(0); ++n)
                     std::copy_n(in.data() + n * 6 * plane, 3 * plane, frameOnly.data() + n * 3 * plane);
             }
-            const nn::Tensor& given = step.batch.input.dim(1) == 6 ? frameOnly : step.batch.input;
+            const nn::Tensor& given = batch.input.dim(1) == 6 ? frameOnly : batch.input;
             if (loss.needsInput() && given.shape() != out.shape())
                 throw Error(
                     "the loss's harm term compares the output with the input, and this network's "
                     "output is not the input's shape");
-            value = loss.evaluate(dout.data(), out.data(), step.batch.target.data(), desc, 1.0,
-                                  loss.needsInput() ? given.data() : nullptr,
-                                  loss.needsMask() ? step.batch.texture.data() : nullptr);
+            return loss.evaluate(dout.data(), out.data(), batch.target.data(), desc, 1.0,
+                                 loss.needsInput() ? given.data() : nullptr,
+                                 loss.needsMask() ? batch.texture.data() : nullptr);
+        };
+        if (!skip && shared) {
+            // Micro-batches, shared by the job's ranks: each with its own forward and backward pass.
+            value = shared->run(model, [&](int64_t from, int64_t count) -> double {
+                if (temporal) return unroller->run(itemsOf(step.sequence, from, count), true);
+                // (Kept until the backward pass, which reads the input the forward pass was given.)
+                const data::Batch micro = itemsOf(step.batch, from, count);
+                const double v = frameLoss(micro);
+                if (!std::isfinite(v) || !allFinite(dout)) return NAN;
+                model.backward(dout);
+                return v;
+            });
+            skip = guard.loss(value, nn::Tensor());
+        } else if (!skip && temporal) {
+            // Forward over the frames and backpropagation through time: the gradient is in the model.
+            value = unroller->run(step.sequence, true);
+            skip = guard.loss(value, dout);
+        } else if (!skip) {
+            value = frameLoss(step.batch);
             skip = guard.loss(value, dout);
         }
         if (!skip) {
-            if (!temporal) model.backward(dout);
+            if (!temporal && !shared) model.backward(dout);
             const double norm =
                 config.clipNorm > 0
                     ? nn::clipGradientNorm(model.gradientData(), model.parameterCount(), config.clipNorm)
@@ -1274,8 +1420,10 @@ TrainResult trainModel(const TrainConfig& config, const std::vector<Method>& bas
                 }
                 state.log.push_back(row);
                 validation.print(row);
-                writeLogCsv(folder.path("log.csv"), state.log);
-                writePlots(config.out, state.log, validation.baselineScores(), model.name());
+                if (writer) {
+                    writeLogCsv(folder.path("log.csv"), state.log);
+                    writePlots(config.out, state.log, validation.baselineScores(), model.name());
+                }
             } else {
                 state.log.push_back(row);
             }
@@ -1305,15 +1453,24 @@ TrainResult trainModel(const TrainConfig& config, const std::vector<Method>& bas
     folder.saveCheckpoint(model, optimizer, state, runConfig);
     {
         json run = folder.readRunJson();
-        run["finished"] = {{"steps", state.step},         {"seconds", state.seconds},
-                           {"skipped", state.skipped},    {"best_step", state.bestStep},
-                           {"best_psnr", state.bestPsnr}, {"stopped_early", result.stoppedEarly}};
+        run["finished"] = {{"steps", state.step},
+                           {"seconds", state.seconds},
+                           {"skipped", state.skipped},
+                           {"best_step", state.bestStep},
+                           {"best_psnr", state.bestPsnr},
+                           {"stopped_early", result.stoppedEarly},
+                           {"ranks", comm.size()},
+                           {"micro_batches", microBatches},
+                           {"communication_seconds", shared ? shared->communicationSeconds : 0.0},
+                           {"wait_seconds", shared ? shared->waitSeconds : 0.0}};
         folder.writeRunJson(run);
     }
     result.steps = state.step, result.skippedSteps = state.skipped, result.seconds = state.seconds;
     result.bestPsnr = state.bestPsnr, result.bestStep = state.bestStep;
     result.largestLoss = state.largestLoss;
     result.outlierSteps = state.outliers;
+    result.communicationSeconds = shared ? shared->communicationSeconds : 0.0;
+    result.waitSeconds = shared ? shared->waitSeconds : 0.0;
     std::copy(std::begin(state.adversarial), std::end(state.adversarial), result.adversarialSteps);
     return result;
 }

@@ -65,6 +65,11 @@ struct TrainConfig {
     // length) and the weight of the temporal term of the loss.
     int frames = 0;
     double temporalLoss = 0;
+    // The global batch as this many equal micro-batches, each run forward and backward alone and their
+    // gradients summed in order: a run's numbers then depend on it and not on the processes that share
+    // the batch (dejag-mpi: rank r runs its contiguous share of them; docs/mpi.md). 0: the number of
+    // processes, or a resumed run's own.
+    int microBatches = 0;
     // A single-frame method the network runs after (its name, recorded in the model's architecture as
     // "input_method", and the method itself on sRGB RGB in place): training patches and validation images
     // reach the network through it, and the filter runs it before the network.
@@ -107,6 +112,9 @@ struct TrainResult {
     double largestLoss = 0;            // of the steps taken (not skipped), over the whole run
     int64_t outlierSteps = 0;          // skipped by the outlier guard, over the whole run
     int64_t adversarialSteps[5] = {};  // steps of each AdversarialKind, over the whole run
+    int microBatches = 1;
+    double communicationSeconds = 0;  // this session's, in the gradients' gather (several processes)
+    double waitSeconds = 0;           // this session's, waiting for the slowest rank before the gather
 };
 
 // Faults injected for tests, kept out of the configuration (a run never records them): steps whose batch
@@ -115,6 +123,9 @@ struct TrainResult {
 struct TrainFaults {
     std::vector<int64_t> poisonSteps, spikeSteps;
     int64_t stopAfterSteps = 0;
+    // The process of this rank (dejag-mpi) kills itself with SIGKILL as it reaches this step (-1: never).
+    int killRank = -1;
+    int64_t killStep = -1;
     bool stopsAfter(int64_t sessionSteps) const;
     void inject(int64_t step, nn::Tensor& input, nn::Tensor& target) const;
 };
