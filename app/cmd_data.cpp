@@ -19,6 +19,7 @@ struct GenerateArguments {
     uint64_t seed = 1;
     bool adaptive = false, listFamilies = false, json = false, quiet = false, jitterSpreadGiven = false;
     RuntimeOptions runtime;
+    std::string killAt;  // testing: RANK:ITEMS
 };
 
 void runGenerate(const GenerateArguments& args) {
@@ -59,6 +60,16 @@ void runGenerate(const GenerateArguments& args) {
     options.workers = args.workers;
     options.quiet = args.quiet || args.json;
     options.workerCommand = {"/proc/self/exe", "data", "worker"};
+    if (!args.killAt.empty()) {
+        const size_t colon = args.killAt.find(':');
+        try {
+            if (colon == std::string::npos) throw std::invalid_argument("no colon");
+            options.killRank = std::stoi(args.killAt.substr(0, colon));
+            options.killAfterItems = std::stoi(args.killAt.substr(colon + 1));
+        } catch (const std::exception&) {
+            throw Error("--kill-rank-at: '" + args.killAt + "' is not RANK:ITEMS");
+        }
+    }
     const data::GenerateResult result = data::generateDataset(spec, args.out, options);
     if (args.json) {
         std::printf("%s\n", nlohmann::json{{"folder", args.out},
@@ -115,6 +126,11 @@ void registerDataCommand(CLI::App& app) {
             "as a crop of a full-HD frame sees it")
         ->capture_default_str();
     generate->add_flag("--list-families", args->listFamilies, "print the families and exit");
+    generate
+        ->add_option("--kill-rank-at", args->killAt,
+                     "testing: RANK:ITEMS, the process of that rank kills itself (SIGKILL) once it has "
+                     "recorded that many items")
+        ->group("");
     generate->add_flag("--json", args->json, "print a JSON summary");
     generate->add_flag("--quiet", args->quiet, "no progress bar or summary");
     addRuntimeOptions(generate, args->runtime);
@@ -125,7 +141,10 @@ void registerDataCommand(CLI::App& app) {
         "out;\n"
         "validation: a tenth of the other items by seed. Interrupted? Run the same command again.\n"
         "With --sequence-length K: DIR/items/FAMILY/ID/frame_NNNN.exr (+ prevdepth), truth_NNNN.exr and\n"
-        "render.json (jitter, cuts, cameras), a folder dejag filter reads as a sequence (docs/data.md).");
+        "render.json (jitter, cuts, cameras), a folder dejag filter reads as a sequence (docs/data.md).\n"
+        "Several processes (mpirun -np N dejag-mpi data generate ...): each renders every N-th missing "
+        "item;\n"
+        "the dataset equals one process's. docs/mpi.md.");
     generate->callback([args] { runGenerate(*args); });
 
     auto folder = std::make_shared<std::string>();

@@ -14,9 +14,12 @@
 #include <filesystem>
 #include <fstream>
 #include <map>
+#include <numeric>
+#include <optional>
 #include <set>
 #include <sstream>
 
+#include "base/communicator.h"
 #include "base/error.h"
 #include "base/files.h"
 #include "base/progress.h"
@@ -667,6 +670,27 @@ void writeManifest(const std::string& folder, std::vector<json> records) {
     writeTextFileAtomically((fs::path(folder) / "manifest.jsonl").string(), text);
 }
 
+// The records the ranks of a job appended (manifest.rank-R.jsonl), read as the manifest is.
+std::vector<json> readRankManifests(const std::string& folder) {
+    std::vector<json> records;
+    for (const auto& entry : fs::directory_iterator(folder)) {
+        const std::string name = entry.path().filename().string();
+        if (name.rfind("manifest.rank-", 0) != 0 || entry.path().extension() != ".jsonl") continue;
+        std::ifstream in(entry.path());
+        std::string line;
+        while (std::getline(in, line)) {
+            const json record = json::parse(line, nullptr, false);  // (an interrupted last append: skipped)
+            if (record.is_object() && record.contains("index")) records.push_back(record);
+        }
+    }
+    return records;
+}
+void removeRankManifests(const std::string& folder) {
+    std::error_code ec;
+    for (const auto& entry : fs::directory_iterator(folder))
+        if (entry.path().filename().string().rfind("manifest.rank-", 0) == 0) fs::remove(entry.path(), ec);
+}
+
 bool filesPresent(const std::string& folder, const json& record) {
     for (const json& f : record["files"]) {
         const fs::path path = fs::path(folder) / f["path"].get<std::string>();
@@ -706,51 +730,71 @@ GenerateResult generateDataset(const DatasetSpec& spec, const std::string& folde
     spec.validate();
     if (options.workers < 1 || options.workers > 64) throw Error("--workers must be 1..64");
     const Stopwatch clock;
-    std::error_code ec;
-    fs::create_directories(folder, ec);
-    if (ec || !fs::is_directory(folder) || ::access(folder.c_str(), W_OK) != 0)
-        throw Error("cannot write to the dataset folder '" + folder + "'");
-    const FolderLock lock(folder, "a dataset generation");
-    const fs::path description = fs::path(folder) / "dataset.json";
-    if (fs::exists(description)) {
-        std::ifstream in(description);
-        json existing;
-        try {
-            existing = json::parse(in);
-        } catch (const json::exception&) {
-            throw Error("'" + description.string() +
-                        "' is corrupt; the folder is not a dataset dejag can resume");
-        }
-        if (existing != spec.toJson())
-            throw Error("'" + folder + "' holds a different dataset (" + existing.dump() +
-                        "); choose another folder or repeat its arguments");
-    } else {
-        for (const auto& entry : fs::directory_iterator(folder))
-            if (entry.path().filename() != FolderLock::kFileName)
-                throw Error("'" + folder + "' is not empty and holds no dataset.json");
-        writeTextFileAtomically(description.string(), spec.toJson().dump(2) + "\n");
-    }
-    // Temporary files of an interrupted run.
-    if (fs::exists(fs::path(folder) / "items"))
-        for (const auto& entry : fs::recursive_directory_iterator(fs::path(folder) / "items"))
-            if (entry.is_regular_file() &&
-                entry.path().filename().string().find(".tmp-") != std::string::npos)
-                fs::remove(entry.path(), ec);
-
+    // A job of several processes (dejag-mpi, docs/mpi.md): rank 0 prepares the folder and holds its lock;
+    // each rank renders every size-th pending item and appends its records to a manifest of its own,
+    // which rank 0 merges into manifest.jsonl at the end (or, after a rank died, when the job is run again).
+    Communicator& comm = communicator();
+    std::optional<FolderLock> lock;
     std::map<int, json> done;
-    for (json& r : readManifest(folder)) {
-        const int index = r.value("index", -1);
-        if (index >= 0 && index < spec.count && filesPresent(folder, r)) done[index] = std::move(r);
-    }
+    together([&] {
+        if (comm.rank() != 0) return;
+        std::error_code ec;
+        fs::create_directories(folder, ec);
+        if (ec || !fs::is_directory(folder) || ::access(folder.c_str(), W_OK) != 0)
+            throw Error("cannot write to the dataset folder '" + folder + "'");
+        lock.emplace(folder, "a dataset generation");
+        const fs::path description = fs::path(folder) / "dataset.json";
+        if (fs::exists(description)) {
+            std::ifstream in(description);
+            json existing;
+            try {
+                existing = json::parse(in);
+            } catch (const json::exception&) {
+                throw Error("'" + description.string() +
+                            "' is corrupt; the folder is not a dataset dejag can resume");
+            }
+            if (existing != spec.toJson())
+                throw Error("'" + folder + "' holds a different dataset (" + existing.dump() +
+                            "); choose another folder or repeat its arguments");
+        } else {
+            for (const auto& entry : fs::directory_iterator(folder))
+                if (entry.path().filename() != FolderLock::kFileName)
+                    throw Error("'" + folder + "' is not empty and holds no dataset.json");
+            writeTextFileAtomically(description.string(), spec.toJson().dump(2) + "\n");
+        }
+        // Temporary files of an interrupted run.
+        if (fs::exists(fs::path(folder) / "items"))
+            for (const auto& entry : fs::recursive_directory_iterator(fs::path(folder) / "items"))
+                if (entry.is_regular_file() &&
+                    entry.path().filename().string().find(".tmp-") != std::string::npos)
+                    fs::remove(entry.path(), ec);
+        // The manifest so far, with the records of the ranks of an interrupted job, cleaned of partial or
+        // stale records, before appending.
+        std::vector<json> records = readManifest(folder);
+        for (json& r : readRankManifests(folder)) records.push_back(std::move(r));
+        for (json& r : records) {
+            const int index = r.value("index", -1);
+            if (index >= 0 && index < spec.count && filesPresent(folder, r)) done[index] = std::move(r);
+        }
+        std::vector<json> kept;
+        for (auto& [index, r] : done) kept.push_back(r);
+        writeManifest(folder, kept);
+        removeRankManifests(folder);
+    });
+    if (comm.rank() != 0)  // (the manifest rank 0 has just cleaned)
+        for (json& r : readManifest(folder)) {
+            const int index = r.value("index", -1);
+            done[index] = std::move(r);
+        }
     std::vector<int> pending;
-    for (int i = 0; i < spec.count; ++i)
-        if (!done.count(i)) pending.push_back(i);
+    for (int i = 0, k = 0; i < spec.count; ++i)
+        if (!done.count(i) && k++ % comm.size() == comm.rank()) pending.push_back(i);
     GenerateResult result;
     result.skipped = int(done.size());
-    // The manifest so far, cleaned of partial or stale records, before appending.
     std::vector<json> records;
     for (auto& [index, r] : done) records.push_back(r);
-    writeManifest(folder, records);
+    const std::string manifestName =
+        comm.size() > 1 ? "manifest.rank-" + std::to_string(comm.rank()) + ".jsonl" : "manifest.jsonl";
 
     if (!pending.empty()) {
         const int workers = std::min<int>(options.workers, int(pending.size()));
@@ -796,9 +840,9 @@ GenerateResult generateDataset(const DatasetSpec& spec, const std::string& folde
             pipes.push_back(fds[0]);
         }
         const int manifest =
-            ::open((fs::path(folder) / "manifest.jsonl").c_str(), O_WRONLY | O_APPEND | O_CREAT, 0644);
+            ::open((fs::path(folder) / manifestName).c_str(), O_WRONLY | O_APPEND | O_CREAT, 0644);
         if (manifest < 0) throw Error("cannot append to the manifest in '" + folder + "'");
-        Progress progress("data generate", int64_t(pending.size()), options.quiet);
+        Progress progress("data generate", int64_t(pending.size()), options.quiet || comm.rank() != 0);
         std::vector<std::string> buffers(pipes.size());
         std::vector<bool> open(pipes.size(), true);
         std::string firstError;
@@ -830,6 +874,8 @@ GenerateResult generateDataset(const DatasetSpec& spec, const std::string& folde
                             throw Error("cannot append to the manifest in '" + folder + "'");
                         records.push_back(json::parse(line.substr(5)));
                         ++result.rendered;
+                        if (comm.rank() == options.killRank && result.rendered == options.killAfterItems)
+                            ::kill(::getpid(), SIGKILL);
                         progress.advance(1, records.back()["scene"].get<std::string>());
                     } else if (line.rfind("error ", 0) == 0 && firstError.empty()) {
                         firstError = line.substr(6);
@@ -847,7 +893,27 @@ GenerateResult generateDataset(const DatasetSpec& spec, const std::string& folde
         if (!firstError.empty()) throw Error(firstError);
         if (crashed) throw Error("a dataset worker died; run the same command again to resume");
     }
-    writeManifest(folder, records);
+    if (comm.size() == 1) {
+        writeManifest(folder, records);
+    } else {
+        // Every rank done: rank 0 merges the ranks' records; the job's count of rendered items.
+        const double mine = result.rendered;
+        std::vector<double> rendered(size_t(comm.size()));
+        comm.allGather(&mine, 1, rendered.data());
+        result.rendered = int(std::accumulate(rendered.begin(), rendered.end(), 0.0));
+        if (comm.rank() == 0) {
+            std::map<int, json> all;
+            for (std::vector<json> part : {readManifest(folder), readRankManifests(folder)})
+                for (json& r : part) {
+                    const int index = r.value("index", -1);  // (before the move: json's = takes a copy)
+                    all[index] = std::move(r);
+                }
+            std::vector<json> merged;
+            for (auto& [index, r] : all) merged.push_back(std::move(r));
+            writeManifest(folder, merged);
+            removeRankManifests(folder);
+        }
+    }
     result.seconds = clock.elapsedMs() / 1000.0;
     return result;
 }

@@ -117,6 +117,9 @@ struct GenerateOptions {
     // since a lock another thread held at the fork stays locked in the child (seen as a hang under
     // ASan, whose allocator lock a pool thread can hold).
     std::vector<std::string> workerCommand;
+    // Testing: the process of this rank (dejag-mpi) kills itself with SIGKILL once it has recorded this
+    // many items (-1: never).
+    int killRank = -1, killAfterItems = -1;
 };
 struct GenerateResult {
     int rendered = 0, skipped = 0;
