@@ -81,6 +81,8 @@ const std::map<std::string, std::string>& examples() {
         {"bench render", "dejag bench render --quick"},
         {"bench filter", "dejag bench filter --threads 2 --size 1920x1080"},
         {"bench glsl", "dejag bench glsl --size 960x540 --methods fxaa,smaa,taa-hq"},
+        {"bench collective",
+         "mpirun -np 2 dejag-mpi bench collective --model dejag-temporal --step-seconds 0.34"},
         {"bench stability", "dejag bench stability --configs 200"},
         {"bench taa", "dejag bench taa --frames 32 --no-ghosting"},
         {"bench quality", "dejag bench quality --data out/dataset --no-1080p"},

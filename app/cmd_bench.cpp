@@ -18,6 +18,7 @@
 #include "base/thread_pool.h"
 #include "bench/accuracy.h"
 #include "bench/bench.h"
+#include "bench/collective_bench.h"
 #include "bench/filter_bench.h"
 #include "bench/glsl_bench.h"
 #include "bench/quality.h"
@@ -26,6 +27,7 @@
 #include "bench/stability.h"
 #include "bench/taa_bench.h"
 #include "infer/filter.h"
+#include "nn/model.h"
 #include "render/scene.h"
 
 namespace dejag::cli {
@@ -313,6 +315,84 @@ void registerBenchCommand(CLI::App& app) {
                 glslArgs->size.c_str(), rows[0]["opengl"].get<std::string>().c_str(),
                 rows[0]["emulated"].get<bool>() ? " (emulated on the CPU: its times are CPU times)" : "",
                 threadCount());
+    });
+
+    struct CollectiveArguments {
+        int repeat = 20;
+        std::vector<int64_t> floats = bench::CollectiveBenchOptions().floats;
+        std::vector<int> ranks = bench::CollectiveBenchOptions().ranks;
+        std::string model;
+        double stepSeconds = 0, latencyUs = 0, gbPerS = 0;
+        bool json = false;
+    };
+    auto collectiveArgs = std::make_shared<CollectiveArguments>();
+    CLI::App* collective = bench->add_subcommand(
+        "collective",
+        "what sharing training between processes costs (run under mpirun with dejag-mpi): the exact "
+        "gradient gather beside MPI's all-reduce, and the scaling efficiency it implies at more ranks");
+    collective->add_option("--repeat", collectiveArgs->repeat, "timed calls per size (median reported)")
+        ->check(CLI::Range(1, 10000))
+        ->capture_default_str();
+    collective->add_option("--floats", collectiveArgs->floats, "values each rank sends, one size per value")
+        ->delimiter(',')
+        ->check(CLI::Range(int64_t(1), int64_t(1) << 28));
+    collective->add_option("--model", collectiveArgs->model,
+                           "a model file or shipped name: its gradient size for the efficiency model");
+    collective
+        ->add_option("--step-seconds", collectiveArgs->stepSeconds,
+                     "one process's time for a training step of the global batch (run.json: seconds / steps)")
+        ->check(CLI::Range(0.0, 1e6));
+    collective->add_option("--ranks", collectiveArgs->ranks, "rank counts of the efficiency model")
+        ->delimiter(',')
+        ->check(CLI::Range(2, 1 << 20));
+    collective
+        ->add_option("--network-latency-us", collectiveArgs->latencyUs,
+                     "model a cluster's network: its latency per message (with --network-gb-per-s)")
+        ->check(CLI::Range(0.0, 1e6));
+    collective
+        ->add_option("--network-gb-per-s", collectiveArgs->gbPerS, "model a cluster's network: its bandwidth")
+        ->check(CLI::Range(0.0, 1e6));
+    collective->add_flag("--json", collectiveArgs->json, "the result as one JSON object");
+    collective->callback([collectiveArgs] {
+        bench::CollectiveBenchOptions options;
+        options.repeat = collectiveArgs->repeat, options.floats = collectiveArgs->floats;
+        options.ranks = collectiveArgs->ranks, options.stepSeconds = collectiveArgs->stepSeconds;
+        options.networkLatencyUs = collectiveArgs->latencyUs, options.networkGbPerS = collectiveArgs->gbPerS;
+        if (!collectiveArgs->model.empty())
+            options.parameters = nn::loadModel(shippedModelPath(collectiveArgs->model)).parameterCount();
+        const nlohmann::json r = bench::benchCollective(options);
+        if (collectiveArgs->json) {
+            std::printf("%s\n", r.dump().c_str());
+            return;
+        }
+        if (r["ranks"].get<int>() < 2) {
+            std::printf(
+                "one process: nothing to measure; run it as mpirun -np N dejag-mpi bench collective\n");
+            return;
+        }
+        std::printf("%d ranks; medians of the slowest rank\n%12s %12s %14s\n", r["ranks"].get<int>(),
+                    "floats/rank", "gather ms", "all-reduce ms");
+        for (const nlohmann::json& row : r["sizes"])
+            std::printf("%12lld %12.4f %14.4f\n", (long long)row["floats"].get<int64_t>(),
+                        row["gather_ms"].get<double>(), row["allreduce_ms"].get<double>());
+        const nlohmann::json& fit = r["fit"];
+        std::printf(
+            "fit: gather %.2f us a step + %.2f GB/s, all-reduce %.2f us a step + %.2f GB/s (a gather takes "
+            "log2 N steps for (N-1) 4P bytes, an all-reduce 2 log2 N steps for 2 (N-1)/N 4P)\n",
+            fit["gather"]["latency_us"].get<double>(), fit["gather"]["gb_per_s"].get<double>(),
+            fit["allreduce"]["latency_us"].get<double>(), fit["allreduce"]["gb_per_s"].get<double>());
+        if (!r.contains("model")) return;
+        std::printf(
+            "model: %lld parameters, %.3f s a step on one process (strong scaling: the batch shared), %s\n",
+            (long long)r["parameters"].get<int64_t>(), r["step_seconds"].get<double>(),
+            r.contains("network") ? "the given network" : "the fit above");
+        std::printf("%6s %11s %10s %14s %11s %16s\n", "ranks", "compute ms", "gather ms", "all-reduce ms",
+                    "efficiency", "with all-reduce");
+        for (const nlohmann::json& m : r["model"])
+            std::printf("%6d %11.2f %10.3f %14.3f %10.1f%% %15.1f%%\n", m["ranks"].get<int>(),
+                        m["compute_ms"].get<double>(), m["gather_ms"].get<double>(),
+                        m["allreduce_ms"].get<double>(), 100 * m["efficiency_gather"].get<double>(),
+                        100 * m["efficiency_allreduce"].get<double>());
     });
 
     struct StabilityArguments {

@@ -1,0 +1,31 @@
+// dejag/bench: what sharing training between processes costs (`mpirun -np N dejag-mpi bench collective`):
+// the gather of every micro-batch's gradient that makes data-parallel training exact (base/communicator.h,
+// docs/mpi.md), timed at several sizes beside MPI's own all-reduce of the same values; a fit of latency
+// and bandwidth to each (log2 N steps for a gather, 2 log2 N for an all-reduce), and from it a model of
+// the scaling efficiency at more ranks for a network's gradient size and a step time measured on one
+// process.
+#pragma once
+
+#include <cstdint>
+#include <nlohmann/json.hpp>
+#include <vector>
+
+namespace dejag::bench {
+
+struct CollectiveBenchOptions {
+    std::vector<int64_t> floats = {1024, 8192, 65536, 262144, 1048576};  // values each rank sends
+    int repeat = 20;                                                     // timed calls after 3 warm-ups
+    int64_t parameters = 0;  // the model's gradient size in floats (0: no model)
+    double stepSeconds = 0;  // one process's time for a step of the global batch (0: no model)
+    std::vector<int> ranks = {2, 4, 8, 16, 32, 64};
+    // The model with a given network's latency and bandwidth per message instead of the measured ones
+    // (0: measured).
+    double networkLatencyUs = 0, networkGbPerS = 0;
+};
+
+// {"ranks", "sizes": [{floats, gather_ms, allreduce_ms} medians], "fit": {gather/allreduce: latency_us,
+// gb_per_s}, "model": [{ranks, gather_ms, allreduce_ms, efficiency_gather, efficiency_allreduce}]}.
+// Every rank must call it; one process: the sizes time nothing and the model uses no measurement.
+nlohmann::json benchCollective(const CollectiveBenchOptions& options);
+
+}  // namespace dejag::bench
