@@ -29,6 +29,10 @@ class MpiCommunicator final : public Communicator {
         MPI_Allgather(mine, checkedCount(count), MPI_DOUBLE, all, checkedCount(count), MPI_DOUBLE,
                       MPI_COMM_WORLD);
     }
+    void allToAll(const float* mine, int64_t count, float* all) override {
+        MPI_Alltoall(mine, checkedCount(count), MPI_FLOAT, all, checkedCount(count), MPI_FLOAT,
+                     MPI_COMM_WORLD);
+    }
     void allReduceSum(float* data, int64_t count) override {
         MPI_Allreduce(MPI_IN_PLACE, data, checkedCount(count), MPI_FLOAT, MPI_SUM, MPI_COMM_WORLD);
     }

@@ -35,6 +35,37 @@ void setCommunicator(std::unique_ptr<Communicator> communicator) {
     installed() = std::move(communicator);
 }
 
+void sumInOrder(const float* mine, int64_t perRank, int64_t vectors, int64_t count, float* sum,
+                std::vector<float>& scratch) {
+    Communicator& comm = communicator();
+    const int64_t N = comm.size();
+    if (vectors < 1 || perRank < 1 || perRank * N < vectors) throw Error("sumInOrder: bad shares");
+    // Slice d of every vector goes to rank d: slices of `slice` floats, the last ones padded.
+    const int64_t slice = (count + N - 1) / N;
+    const size_t block = size_t(perRank * slice);  // what one rank sends another
+    scratch.resize(3 * block * size_t(N) + size_t(slice * N));
+    float* send = scratch.data();
+    float* received = send + block * size_t(N);
+    float* mySum = received + block * size_t(N);
+    float* gathered = mySum + block * size_t(N);
+    for (int64_t d = 0; d < N; ++d)
+        for (int64_t j = 0; j < perRank; ++j) {
+            float* to = send + size_t(d) * block + size_t(j * slice);
+            const int64_t from = d * slice, n = std::max<int64_t>(0, std::min(slice, count - from));
+            std::copy_n(mine + j * count + from, n, to);
+            std::fill(to + n, to + slice, 0.0f);
+        }
+    comm.allToAll(send, int64_t(block), received);
+    // From rank s: its vectors s k + j, so received holds the vectors in order.
+    std::copy_n(received, slice, mySum);
+    for (int64_t v = 1; v < vectors; ++v) {
+        const float* other = received + size_t(v * slice);
+        for (int64_t i = 0; i < slice; ++i) mySum[i] += other[i];
+    }
+    comm.allGather(mySum, slice, gathered);
+    std::copy_n(gathered, count, sum);
+}
+
 void together(const std::function<void()>& body) {
     Communicator& comm = communicator();
     if (comm.size() == 1) return body();

@@ -27,6 +27,11 @@ class Communicator {
     virtual void allGather(const double* mine, int64_t count, double* all) {
         std::copy(mine, mine + count, all);
     }
+    // Every rank sends `count` floats to each rank (to rank d: mine[d * count ...]) and receives each
+    // rank's (from rank s: all[s * count ...]).
+    virtual void allToAll(const float* mine, int64_t count, float* all) {
+        std::copy(mine, mine + count, all);
+    }
     // The sum over the ranks, in place, in the order MPI chooses (which may differ between runs and rank
     // counts): what `dejag bench collective` compares the gather with; training sums in a fixed order.
     virtual void allReduceSum(float* /*data*/, int64_t /*count*/) {}
@@ -38,6 +43,16 @@ class Communicator {
     // "" for one process, else " (rank R of N)": for messages that must say which process speaks.
     std::string rankLabel() const;
 };
+
+// The sum of `vectors` vectors of `count` floats that the job's ranks hold between them, added in vector
+// order, v0 + v1 + ... (each element's additions in that order, whatever the number of ranks), on every
+// rank. Rank r holds vectors r k .. r k + k - 1 (k = perRank; vectors past the last are ignored, their
+// slots anything) in `mine` (k count floats, vector after vector); `sum` receives count floats. A
+// reduce-scatter by all-to-all (each rank adds up its own slice of every vector, in order), then a gather
+// of the slices: about 2 count floats through each rank, as an all-reduce, but in a fixed order. One
+// process: the sum in place of the gather. `scratch` is reused between calls.
+void sumInOrder(const float* mine, int64_t perRank, int64_t vectors, int64_t count, float* sum,
+                std::vector<float>& scratch);
 
 // The job's communicator (one process unless setCommunicator was called).
 Communicator& communicator();

@@ -1,9 +1,8 @@
 // dejag/bench: what sharing training between processes costs (`mpirun -np N dejag-mpi bench collective`):
-// the gather of every micro-batch's gradient that makes data-parallel training exact (base/communicator.h,
-// docs/mpi.md), timed at several sizes beside MPI's own all-reduce of the same values; a fit of latency
-// and bandwidth to each (log2 N steps for a gather, 2 log2 N for an all-reduce), and from it a model of
-// the scaling efficiency at more ranks for a network's gradient size and a step time measured on one
-// process.
+// the ordered sum of the micro-batches' gradients that makes data-parallel training exact (sumInOrder,
+// base/communicator.h, docs/mpi.md), timed at several sizes beside MPI's own all-reduce of the same
+// values; a fit of latency and bandwidth to each, and from it a model of the scaling efficiency at more
+// ranks for a network's gradient size and a step time measured on one process.
 #pragma once
 
 #include <cstdint>
@@ -23,8 +22,9 @@ struct CollectiveBenchOptions {
     double networkLatencyUs = 0, networkGbPerS = 0;
 };
 
-// {"ranks", "sizes": [{floats, gather_ms, allreduce_ms} medians], "fit": {gather/allreduce: latency_us,
-// gb_per_s}, "model": [{ranks, gather_ms, allreduce_ms, efficiency_gather, efficiency_allreduce}]}.
+// {"ranks", "sizes": [{floats, ordered_ms, allreduce_ms} medians], "fit": {ordered/allreduce: latency_us,
+// gb_per_s}, "model": [{ranks, compute_ms, ordered_ms, allreduce_ms, efficiency_ordered,
+// efficiency_allreduce}]}.
 // Every rank must call it; one process: the sizes time nothing and the model uses no measurement.
 nlohmann::json benchCollective(const CollectiveBenchOptions& options);
 

@@ -772,10 +772,11 @@ data::SequenceBatch itemsOf(const data::SequenceBatch& b, int64_t from, int64_t 
 }
 
 // The global batch as M micro-batches shared by the job's ranks (TrainConfig::microBatches): rank r runs
-// micro-batches [r k, r k + k) (k = ceil(M / ranks)), each forward and backward alone; every rank gathers
-// every micro-batch's gradient and loss and sums them in micro-batch order, so all ranks hold the same
-// bits, and the same as one process running the M micro-batches. The gradient is the mean over the batch:
-// the sum times 1 / M (each micro-batch's loss is its own mean).
+// micro-batches [r k, r k + k) (k = ceil(M / ranks)), each forward and backward alone; their gradients
+// are summed in micro-batch order by sumInOrder (base/communicator.h: each rank adds up its slice of
+// every gradient, then the slices are gathered), so all ranks hold the same bits, and the same as one
+// process running the M micro-batches. The gradient is the mean over the batch: the sum times 1 / M
+// (each micro-batch's loss is its own mean); the loss, the gathered losses' mean.
 class SharedBatch {
   public:
     SharedBatch(int microBatches, int batch, int64_t parameters)
@@ -784,7 +785,6 @@ class SharedBatch {
         perRank_ = (M_ + comm.size() - 1) / comm.size();
         first_ = comm.rank() * perRank_;
         mine_.resize(size_t(perRank_ * parameters_));
-        all_.resize(size_t(perRank_ * comm.size() * parameters_));
         losses_.resize(size_t(perRank_)), allLosses_.resize(size_t(perRank_ * comm.size()));
     }
     // microLoss(from, count): the loss of items [from, from + count) with its gradient in the model's
@@ -801,7 +801,7 @@ class SharedBatch {
                 std::fill_n(slot, parameters_, 0.0f);
             losses_[size_t(j)] = value;
         }
-        // The wait for the slowest rank, then the gather itself (timed apart: only the second is
+        // The wait for the slowest rank, then the sum itself (timed apart: only the second is
         // communication).
         Communicator& comm = communicator();
         const auto seconds = [](auto from) {
@@ -811,28 +811,25 @@ class SharedBatch {
         if (comm.size() > 1) comm.barrier();
         waitSeconds += seconds(start);
         start = std::chrono::steady_clock::now();
-        comm.allGather(mine_.data(), perRank_ * parameters_, all_.data());
         comm.allGather(losses_.data(), perRank_, allLosses_.data());
-        communicationSeconds += seconds(start);
         double sum = 0;
         for (int64_t i = 0; i < M_; ++i) sum += allLosses_[size_t(i)];
         const double value = sum / double(M_);
-        if (!std::isfinite(value)) return value;
-        float* g = model.gradientData();
-        std::copy_n(all_.data(), parameters_, g);
-        for (int64_t i = 1; i < M_; ++i) {
-            const float* other = all_.data() + i * parameters_;
-            for (int64_t p = 0; p < parameters_; ++p) g[p] += other[p];
+        // (The same value on every rank: all sum, or none.)
+        if (std::isfinite(value)) {
+            float* g = model.gradientData();
+            sumInOrder(mine_.data(), perRank_, M_, parameters_, g, scratch_);
+            const float scale = 1.0f / float(M_);
+            for (int64_t p = 0; p < parameters_; ++p) g[p] *= scale;
         }
-        const float scale = 1.0f / float(M_);
-        for (int64_t p = 0; p < parameters_; ++p) g[p] *= scale;
+        communicationSeconds += seconds(start);
         return value;
     }
     double communicationSeconds = 0, waitSeconds = 0;
 
   private:
     int64_t M_, size_, parameters_, perRank_ = 1, first_ = 0;
-    std::vector<float> mine_, all_;
+    std::vector<float> mine_, scratch_;
     std::vector<double> losses_, allLosses_;
 };
 
