@@ -1,10 +1,12 @@
 // dejag: one binary, a subcommand per stage. Every error is one line on stderr and exit code 2.
+#include <algorithm>
 #include <chrono>
 #include <cstdio>
 #include <exception>
 #include <iostream>
 #include <string>
 #include <thread>
+#include <vector>
 
 #include "app/cli.h"
 #include "app/commands.h"
@@ -87,6 +89,33 @@ int run(int argc, char** argv) {
     dejag::cli::registerCompletionCommand(app);
     dejag::cli::guardNumericOptions(app);
     dejag::cli::finishHelp(app);
+
+    // A job of several processes runs only the commands that share their work between them; any other
+    // would run whole on every rank, each writing the same files.
+    if (dejag::communicator().size() > 1) {
+        std::vector<std::string> words;
+        for (int i = 1; i < argc; ++i)
+            if (argv[i][0] != '-') words.push_back(argv[i]);
+        const bool help = std::any_of(argv + 1, argv + argc, [](const char* a) {
+            return std::string(a) == "--help" || std::string(a) == "-h" || std::string(a) == "--version";
+        });
+        const std::string command = words.empty() ? std::string() : words[0];
+        const std::string sub = words.size() > 1 ? words[1] : std::string();
+        const bool shared = (command == "train" && sub != "export") ||
+                            (command == "data" && sub == "generate") ||
+                            (command == "bench" && sub == "collective");
+        if (!help && !shared) {
+            if (dejag::communicator().rank() == 0)
+                std::fprintf(
+                    stderr,
+                    "dejag-mpi: '%s' would run whole on every rank; in a job of several processes only "
+                    "'train', 'data generate' and 'bench collective' share their work (run it with "
+                    "dejag)\n",
+                    (command + (command == "data" || command == "bench" || sub == "export" ? " " + sub : ""))
+                        .c_str());
+            return 2;
+        }
+    }
 
     try {
         app.parse(argc, argv);

@@ -129,6 +129,20 @@ TEST(Mpi, TemporalTrainingOnTwoRanksEqualsOneProcess) {
     expectSameWeights(dir.file("one/final.safetensors"), dir.file("two/final.safetensors"));
 }
 
+// Any other command would run whole on every rank, each writing the same files: refused, in one line.
+TEST(Mpi, CommandsThatDoNotShareTheirWorkAreRefused) {
+    testing::TempDir dir;
+    for (const char* command : {"render --scene sphere --out x", "filter a.png b.png",
+                                "train export run m.safetensors", "data verify d"}) {
+        SCOPED_TRACE(command);
+        const RunResult r = mpirun(2, command, dir);
+        EXPECT_NE(r.exitCode, 0);
+        EXPECT_EQ(linesStartingWith(r.err, "dejag-mpi: '"), 1u) << r.err;
+        EXPECT_NE(r.err.find("share their work"), std::string::npos) << r.err;
+    }
+    EXPECT_EQ(filesIn(dir.path()), 0u);
+}
+
 TEST(Mpi, GenerationOnTwoRanksEqualsOneProcessAndResumesAfterARankDies) {
     testing::TempDir dir;
     const std::string spec = " --count 8 --size 48x48 --truth 8 --workers 1 --quiet";
