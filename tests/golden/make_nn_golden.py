@@ -9,34 +9,22 @@ with the configuration as JSON in the metadata key "config". The C++ tests (test
 run dejag's float32 kernels and require forward relative error <= 1e-5 and backward <= 1e-4 (max abs
 difference over max abs reference value).
 """
-import json
 import os
-import struct
+import sys
 
 import torch
 import torch.nn.functional as F
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+import golden_io  # noqa: E402
 
 HERE = os.path.join(os.path.dirname(os.path.abspath(__file__)), "nn")
 torch.manual_seed(20261121)
 
 
 def write_safetensors(path, tensors, config):
-    header = {"__metadata__": {"config": json.dumps(config, sort_keys=True)}}
-    blobs, offset = [], 0
-    for name, t in tensors.items():
-        t = t.detach().contiguous()
-        dtype = {torch.float32: "F32", torch.float64: "F64"}[t.dtype]
-        data = t.numpy().astype("<f4" if dtype == "F32" else "<f8").tobytes()
-        header[name] = {"dtype": dtype, "shape": list(t.shape), "data_offsets": [offset, offset + len(data)]}
-        blobs.append(data)
-        offset += len(data)
-    text = json.dumps(header).encode()
-    text += b" " * ((8 - (8 + len(text)) % 8) % 8)
-    with open(path, "wb") as f:
-        f.write(struct.pack("<Q", len(text)))
-        f.write(text)
-        for b in blobs:
-            f.write(b)
+    golden_io.write_safetensors(path, {name: t.detach().contiguous().numpy() for name, t in tensors.items()},
+                                config)
 
 
 def f32(*shape, low=-1.0, high=1.0):

@@ -27,6 +27,7 @@ import onnx
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 from check_onnx import evaluate  # noqa: E402
+from golden_io import write_safetensors  # noqa: E402
 
 HERE = os.path.join(os.path.dirname(os.path.abspath(__file__)), "onnx")
 ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
@@ -127,28 +128,9 @@ def main():
                 tensors[f"output{i}"] = y.astype(np.float64)
             config = {"model": model_name if case != "recurrent_ops" else "tests/golden/onnx/recurrent_ops.safetensors",
                       "width": w, "height": h, "graph_fnv1a": fnv1a(data), "nodes": len(model.graph.node)}
-            write_numpy_safetensors(os.path.join(HERE, case + ".golden.safetensors"), tensors, config)
+            write_safetensors(os.path.join(HERE, case + ".golden.safetensors"), tensors, config)
             print(f"{case}: {len(model.graph.node)} nodes, checker and strict shape inference pass, "
                   f"outputs {[tuple(y.shape) for y in outputs]}")
-
-
-def write_numpy_safetensors(path, tensors, config):
-    """F32 and F64 tensors, with the config as JSON in the metadata key "config" (as tests/golden/nn)."""
-    header = {"__metadata__": {"config": json.dumps(config, sort_keys=True)}}
-    blobs, offset = [], 0
-    for name, t in tensors.items():
-        dtype = {np.dtype(np.float32): "F32", np.dtype(np.float64): "F64"}[t.dtype]
-        data = np.ascontiguousarray(t).astype("<f4" if dtype == "F32" else "<f8").tobytes()
-        header[name] = {"dtype": dtype, "shape": list(t.shape), "data_offsets": [offset, offset + len(data)]}
-        blobs.append(data)
-        offset += len(data)
-    text = json.dumps(header).encode()
-    text += b" " * ((8 - (8 + len(text)) % 8) % 8)
-    with open(path, "wb") as f:
-        f.write(len(text).to_bytes(8, "little"))
-        f.write(text)
-        for b in blobs:
-            f.write(b)
 
 
 if __name__ == "__main__":
