@@ -13,6 +13,7 @@
 #include "base/error.h"
 #include "data/image.h"
 #include "data/metrics.h"
+#include "data/spectrum.h"
 #include "data/video.h"
 
 namespace dejag::cli {
@@ -22,7 +23,7 @@ struct MetricsArguments {
     std::string reference, test, mask, ssimMap, space = "auto";
     std::string shownReference, shownTest;  // as the user named them ("-" for standard input)
     double dataRange = 0.0;
-    bool json = false;
+    bool json = false, aliasing = false;
     RuntimeOptions runtime;
 };
 
@@ -183,6 +184,7 @@ void runMetrics(const MetricsArguments& args) {
                 "' one image: give two sequences (videos, folders or patterns such as f_%04d.png) or two "
                 "images");
         if (!args.ssimMap.empty()) throw Error("--ssim-map takes one image pair, not a sequence");
+        if (args.aliasing) throw Error("--aliasing takes one image pair, not a sequence");
         runSequenceMetrics(args, mask ? &*mask : nullptr);
         return;
     }
@@ -195,6 +197,8 @@ void runMetrics(const MetricsArguments& args) {
                       &matchedNote = scored.matchedNote;
     if (!args.ssimMap.empty())
         writeSsimMapPng(args.ssimMap, metrics.ssimMap, reference.width, reference.height);
+    std::optional<AliasingScore> aliasing;
+    if (args.aliasing) aliasing = aliasingScore(scored.test, scored.reference);
 
     if (args.json) {
         nlohmann::json out;
@@ -224,6 +228,12 @@ void runMetrics(const MetricsArguments& args) {
         out["ssim_pixels"] = metrics.ssimScoredPixels;
         out["mask"] = args.mask.empty() ? nlohmann::json(nullptr) : nlohmann::json(args.mask);
         out["ssim_map"] = args.ssimMap.empty() ? nlohmann::json(nullptr) : nlohmann::json(args.ssimMap);
+        if (aliasing) {
+            out["aliasing"] = aliasing->aliasing;
+            out["aliasing_db"] = std::isinf(aliasing->aliasingDb()) ? nlohmann::json(nullptr)
+                                                                    : nlohmann::json(aliasing->aliasingDb());
+            out["detail_kept"] = aliasing->detailKept;
+        }
         std::printf("%s\n", out.dump().c_str());
         return;
     }
@@ -244,6 +254,9 @@ void runMetrics(const MetricsArguments& args) {
         std::printf("%s%s %.6f", c ? ", " : "", reference.channelNames[c].c_str(), metrics.ssimPerChannel[c]);
     std::printf(")\n");
     if (!args.ssimMap.empty()) std::printf("SSIM map   %s\n", args.ssimMap.c_str());
+    if (aliasing)
+        std::printf("aliasing   %.6f (%s of the reference's spectral energy), detail kept %.4f\n",
+                    aliasing->aliasing, formatDecibels(aliasing->aliasingDb()).c_str(), aliasing->detailKept);
 }
 
 // Two sequences, frame by frame (paired by frame number when both are numbered, else in order): each
@@ -415,6 +428,10 @@ void registerMetricsCommand(CLI::App& app) {
         ->required();
     command->add_flag("--json", args->json, "print one JSON object (keys mse, rmse, psnr, snr, ssim, ...)");
     command->add_option("--ssim-map", args->ssimMap, "write the per-pixel SSIM map as a colour-mapped PNG");
+    command->add_flag(
+        "--aliasing", args->aliasing,
+        "also the aliasing: the energy of TEST's spectrum that no smooth filtering of REF explains, "
+        "and the detail kept (docs/metrics.md)");
     command->add_option("--mask", args->mask,
                         "score only pixels whose mask value is above 0.5 (first channel)");
     command

@@ -6,6 +6,7 @@
 #include <cstdio>
 
 #include "base/timer.h"
+#include "data/spectrum.h"
 #include "render/renderer.h"
 
 namespace dejag::bench {
@@ -62,6 +63,45 @@ std::vector<nlohmann::json> benchRender(const RenderBenchOptions& options) {
                         {"aliased_psnr_adaptive_truth", adaptivePsnr},
                         {"psnr_difference_db", adaptivePsnr - fullPsnr},
                         {"adaptive_vs_full_truth_psnr", floatPsnr(fullTruth.pixels, adaptiveTruth.pixels)}});
+    }
+    for (const std::string& texture : options.samplerTextures) {
+        const auto [width, height] = options.samplerSize;
+        const auto toImage = [](const render::Frame& f) {
+            Image image(f.width, f.height, f.channelNames);
+            image.pixels = f.pixels;
+            return image;
+        };
+        render::SceneOptions sceneOptions;
+        sceneOptions.texture = texture, sceneOptions.sampler = render::Sampler::Point;
+        const render::Scene truthScene = render::buildScene("planes", sceneOptions);
+        render::Renderer truthRenderer(*context, truthScene, width, height);
+        render::TruthOptions truthOptions;
+        truthOptions.samples = options.samplerTruthSamples;
+        const Image truth = toImage(truthRenderer.renderTruth(0, truthOptions));
+        for (const render::Sampler sampler : {render::Sampler::Point, render::Sampler::Bilinear,
+                                              render::Sampler::Trilinear, render::Sampler::Anisotropic16}) {
+            sceneOptions.sampler = sampler;
+            const render::Scene scene = render::buildScene("planes", sceneOptions);
+            render::Renderer renderer(*context, scene, width, height);
+            const render::Frame frame = renderer.render({});  // (also the warm-up)
+            std::vector<double> times;
+            for (int i = 0; i < options.repeat; ++i) {
+                const Stopwatch clock;
+                renderer.render({});
+                times.push_back(clock.elapsedMs());
+            }
+            const AliasingScore score = aliasingScore(toImage(frame), truth);
+            rows.push_back({{"name", std::string("sampler ") + render::samplerName(sampler)},
+                            {"scene", "planes"},
+                            {"texture", texture},
+                            {"width", width},
+                            {"height", height},
+                            {"ms", median(times)},
+                            {"aliasing", score.aliasing},
+                            {"aliasing_db", score.aliasingDb()},
+                            {"detail_kept", score.detailKept},
+                            {"truth_samples", options.samplerTruthSamples}});
+        }
     }
     return rows;
 }

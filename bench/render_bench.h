@@ -1,5 +1,6 @@
 // dejag/bench: the renderer's cost (dejag bench render): ms per frame for colour only and for every
-// buffer, and the ground truth's cost with and without adaptive accumulation (with its accuracy).
+// buffer, the ground truth's cost with and without adaptive accumulation (with its accuracy), and each
+// texture sampler's cost beside its aliasing and the detail it keeps.
 #pragma once
 
 #include <nlohmann/json.hpp>
@@ -15,6 +16,11 @@ struct RenderBenchOptions {
     int truthSamples = 128;
     std::pair<int, int> truthSize = {800, 800};
     std::vector<std::string> truthScenes = {"pipe", "atrium", "hard-edges"};
+    // The texture samplers on the receding planes, each textures': ms per frame, and the aliasing and
+    // detail kept (data/spectrum.h) against a truth of point samples (the texels averaged over the pixel).
+    std::vector<std::string> samplerTextures = {"checker", "stripes", "text"};
+    std::pair<int, int> samplerSize = {512, 512};
+    int samplerTruthSamples = 256;
 };
 
 // One JSON object per case; progress lines go to stderr.
