@@ -6,6 +6,7 @@
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <map>
 #include <nlohmann/json.hpp>
 #include <set>
 #include <sstream>
@@ -740,17 +741,23 @@ TEST(Cli, BenchRenderQuickPrintsFramesAndTruth) {
     const RunResult r = run("bench render --quick --repeat 1 --json", dir);
     ASSERT_EQ(r.exitCode, 0) << r.err;
     int frames = 0, truths = 0;
+    std::map<std::string, double> aliasing;  // the samplers' (their order: Cli.MetricsAliasing...)
     for (const nlohmann::json& j : jsonLines(r.out)) {
         EXPECT_GT(j["ms"].get<double>(), 0.0);
         if (j.contains("tile_samples_saving")) {
             ++truths;
             EXPECT_GE(j["tile_samples_saving"].get<double>(), 1.0);
+        } else if (j.contains("aliasing")) {
+            aliasing[j["name"].get<std::string>()] = j["aliasing"].get<double>();
+            EXPECT_GT(j["detail_kept"].get<double>(), 0.0);
         } else {
             ++frames;
         }
     }
     EXPECT_EQ(frames, 2);
     EXPECT_EQ(truths, 1);
+    ASSERT_EQ(aliasing.size(), 4u) << r.out;
+    EXPECT_GT(aliasing["sampler point"], 10 * aliasing["sampler trilinear"]);
 }
 
 TEST(Cli, FilterFxaaKeepsBitDepthAndAlphaAndRefusesWhatItCannotDo) {
