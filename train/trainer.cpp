@@ -1403,7 +1403,7 @@ TrainResult trainModel(const TrainConfig& config, const std::vector<Method>& bas
             lossSum = 0, lossCount = 0;
             if (evaluationStep) {
                 const int nonFinite = validation.evaluate(model, row);
-                if (nonFinite > 0)
+                if (nonFinite > 0 && writer)
                     printLine(stderr,
                               "dejag train: step " + std::to_string(state.step) +
                                   ": the network's output is not finite on " + std::to_string(nonFinite) +
