@@ -43,11 +43,12 @@ void sumInOrder(const float* mine, int64_t perRank, int64_t vectors, int64_t cou
     // Slice d of every vector goes to rank d: slices of `slice` floats, the last ones padded.
     const int64_t slice = (count + N - 1) / N;
     const size_t block = size_t(perRank * slice);  // what one rank sends another
-    scratch.resize(3 * block * size_t(N) + size_t(slice * N));
+    // send and received: a block for each rank; then this rank's summed slice, and every rank's.
+    scratch.resize(2 * block * size_t(N) + size_t(slice) + size_t(slice * N));
     float* send = scratch.data();
     float* received = send + block * size_t(N);
     float* mySum = received + block * size_t(N);
-    float* gathered = mySum + block * size_t(N);
+    float* gathered = mySum + slice;
     for (int64_t d = 0; d < N; ++d)
         for (int64_t j = 0; j < perRank; ++j) {
             float* to = send + size_t(d) * block + size_t(j * slice);
