@@ -31,6 +31,7 @@ struct RenderArguments {
     uint64_t seed = 1;
     double spread = 1.7, tolerance = 1e-3, pixelTolerance = 2e-3;
     int tile = 8;
+    render::FourierOptions fourier;
     bool adaptive = false, list = false, json = false, quiet = false, force = false;
     RuntimeOptions runtime;
 };
@@ -136,6 +137,7 @@ void runRender(const RenderArguments& args) {
     sceneOptions.tiltedCamera = args.camera == "tilted";
     sceneOptions.sampler = render::parseSampler(args.sampler);
     sceneOptions.texture = args.texture;
+    sceneOptions.fourier = args.fourier;
     const render::Scene scene = render::buildScene(args.scene, sceneOptions);
 
     claimOutputFolder(args);
@@ -161,6 +163,11 @@ void runRender(const RenderArguments& args) {
     sidecar["seed"] = args.seed;
     sidecar["camera"] = args.camera;
     sidecar["sampler"] = args.sampler;
+    if (sceneOptions.sampler == render::Sampler::Fourier)
+        sidecar["fourier"] = {{"frequencies", args.fourier.frequencies},
+                              {"cutoff", args.fourier.cutoff},
+                              {"sigma", args.fourier.sigma},
+                              {"min_captured", args.fourier.minCaptured}};
     if (args.scene == "planes") sidecar["texture"] = args.texture;
     sidecar["anisotropy_supported"] = renderer.anisotropySupported();
     sidecar["jitter"] = {{"mode", args.jitter},
@@ -286,7 +293,28 @@ void registerRenderCommand(CLI::App& app) {
         ->capture_default_str();
     command->add_option("--camera", args->camera, "regular | tilted")->capture_default_str();
     command
-        ->add_option("--sampler", args->sampler, "point | bilinear | trilinear | aniso16 (textured scenes)")
+        ->add_option("--sampler", args->sampler,
+                     "point | bilinear | trilinear | aniso16 | fourier (textured scenes)")
+        ->capture_default_str();
+    command
+        ->add_option("--fourier-frequencies", args->fourier.frequencies,
+                     "fourier sampler: sinusoids added back per pixel")
+        ->check(CLI::Range(1, 1024))
+        ->capture_default_str();
+    command
+        ->add_option("--fourier-cutoff", args->fourier.cutoff,
+                     "fourier sampler: the MIP levels keep this fraction of their Nyquist limit")
+        ->check(CLI::Range(0.01, 1.0))
+        ->capture_default_str();
+    command
+        ->add_option("--fourier-sigma", args->fourier.sigma,
+                     "fourier sampler: the Gaussian pixel filter's standard deviation in pixels")
+        ->check(CLI::Range(0.0, 4.0))
+        ->capture_default_str();
+    command
+        ->add_option("--fourier-min-captured", args->fourier.minCaptured,
+                     "fourier sampler: a set holding less of its energy than this reads trilinearly")
+        ->check(CLI::Range(0.0, 1.0))
         ->capture_default_str();
     command->add_option("--texture", args->texture, "planes: checker | bricks | stripes | text | noise")
         ->capture_default_str();

@@ -78,8 +78,9 @@ std::vector<nlohmann::json> benchRender(const RenderBenchOptions& options) {
         render::TruthOptions truthOptions;
         truthOptions.samples = options.samplerTruthSamples;
         const Image truth = toImage(truthRenderer.renderTruth(0, truthOptions));
-        for (const render::Sampler sampler : {render::Sampler::Point, render::Sampler::Bilinear,
-                                              render::Sampler::Trilinear, render::Sampler::Anisotropic16}) {
+        for (const render::Sampler sampler :
+             {render::Sampler::Point, render::Sampler::Bilinear, render::Sampler::Trilinear,
+              render::Sampler::Anisotropic16, render::Sampler::Fourier}) {
             sceneOptions.sampler = sampler;
             const render::Scene scene = render::buildScene("planes", sceneOptions);
             render::Renderer renderer(*context, scene, width, height);

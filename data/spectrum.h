@@ -5,17 +5,12 @@
 // patterns are not, so they are aliasing.
 #pragma once
 
-#include <complex>
 #include <vector>
 
+#include "base/fft.h"
 #include "data/image.h"
 
 namespace dejag {
-
-// The in-place discrete Fourier transform of n = 2^k values (forward: e^{-2 pi i k n / N}, unscaled).
-void fft(std::complex<double>* values, int n);
-// Of an h x w array (row-major), both sides powers of two: rows, then columns, on the thread pool.
-void fft2d(std::vector<std::complex<double>>& values, int h, int w);
 
 struct AliasingScore {
     double aliasing = 0;    // the residual's energy over the truth's (0: none; 1: as much as the truth)

@@ -7,6 +7,7 @@
 
 #include "base/error.h"
 #include "base/timer.h"
+#include "render/fourier_texture.h"
 #include "render/halton.h"
 
 namespace dejag::render {
@@ -67,13 +68,61 @@ uniform vec3 uAmbient;
 uniform vec3 uEye;
 uniform float uId;
 uniform vec2 uViewport;
+uniform int uFourier;                // the texture is read by the Fourier sampler
+uniform sampler2D uOriginal;         // its level 0, linear RGBA (decoded as FourierTexture does)
+uniform sampler2D uBands;            // its band-limited MIP levels, linear RGBA
+uniform sampler2D uDetail;           // its sets of removed sinusoids, a row each
+uniform float uFourierSize;          // texels across level 0
+uniform int uFourierLevels;
+uniform int uFourierFrequencies;
+uniform float uFourierSigma;
+uniform float uFourierCutoff;
+uniform float uFourierMinCaptured;
 const float kTau = 6.28318530718;
+const float kPi = 3.14159265359;
+// FourierTexture::sample (render/fourier_texture.cpp) in float; its comments say why.
+vec4 fourierSample(vec2 uv) {
+    vec2 dx = dFdx(uv), dy = dFdy(uv);
+    vec2 a = dx * uFourierSize, b = dy * uFourierSize;
+    float c00 = a.x * a.x + b.x * b.x, c01 = a.x * a.y + b.x * b.y, c11 = a.y * a.y + b.y * b.y;
+    float middle = 0.5 * (c00 + c11), spread = sqrt(0.25 * (c00 - c11) * (c00 - c11) + c01 * c01);
+    float majorLod = 0.5 * log2(max(middle + spread, 1e-30));
+    float minorLod = 0.5 * log2(max(middle - spread, 1e-30));
+    float angle = 0.5 * atan(2.0 * c01, c00 - c11);
+    if (angle < 0.0) angle += kPi;
+    float lod = clamp(majorLod, 0.0, float(uFourierLevels - 1));
+    int m = min(int(floor(lod)), uFourierLevels - 2);
+    float f = lod - float(m);
+    int s = clamp(int(floor(minorLod)), 0, m);
+    int orientation = int(floor(angle / (kPi / 4.0) + 0.5)) % 4;
+    // Band m + 1 is OpenGL level m of uBands; band 0 is the texture itself.
+    vec4 lower = m == 0 ? textureLod(uOriginal, uv, 0.0) : textureLod(uBands, uv, float(m - 1));
+    vec4 colour = mix(lower, textureLod(uBands, uv, float(m)), f);
+    int row = (m * (m + 1) / 2 + s) * 4 + orientation;
+    if (m > 0 && texelFetch(uDetail, ivec2(2 * uFourierFrequencies, row), 0).x < uFourierMinCaptured)
+        return textureGrad(uTexture, uv, dx, dy);  // trilinear: the sum would ring
+    float cut = m == 0 ? 1e30 : uFourierCutoff * 0.5 * uFourierSize / exp2(float(m));
+    float unit = kTau / uFourierSize, spread2 = 0.5 * uFourierSigma * uFourierSigma;
+    vec2 at = fract(uv);
+    vec3 detail = vec3(0.0);
+    for (int j = 0; j < uFourierFrequencies; ++j) {
+        vec4 e0 = texelFetch(uDetail, ivec2(2 * j, row), 0);
+        vec4 e1 = texelFetch(uDetail, ivec2(2 * j + 1, row), 0);
+        vec2 k = e0.xy;
+        vec2 q = unit * vec2(dot(k, a), dot(k, b));
+        float response = exp(-spread2 * dot(q, q));
+        float attenuation = m == 0 ? response - (1.0 - f) : max(abs(k.x), abs(k.y)) < cut ? f * response : response;
+        float phase = kTau * fract(dot(k, at) - (k.x + k.y) * 0.5 / uFourierSize);
+        detail += attenuation * (vec3(e0.z, e1.x, e1.z) * cos(phase) - vec3(e0.w, e1.y, e1.w) * sin(phase));
+    }
+    return vec4(clamp(colour.rgb + detail, 0.0, 1.0), colour.a);
+}
 void main() {
     vec3 albedo = uColour;
     vec3 n = normalize(vNormal);
     if (!gl_FrontFacing) n = -n;
     if (uPattern == 1) {
-        vec4 t = texture(uTexture, vUv);  // sRGB texture: filtered in linear
+        vec4 t = uFourier == 1 ? fourierSample(vUv) : texture(uTexture, vUv);  // sRGB: filtered in linear
         if (uAlphaCutout == 1 && t.a < 0.5) discard;
         albedo *= t.rgb;
     } else if (uPattern == 2) {
@@ -208,6 +257,12 @@ struct Renderer::Impl {
     };
     std::vector<GpuMesh> meshes;
     std::vector<GLuint> textures;
+    // Sampler::Fourier: per texture, its band-limited levels and its sets of sinusoids (units 1 and 2).
+    struct FourierGpu {
+        GLuint original = 0, bands = 0, detail = 0;
+        int size = 0, levels = 0;
+    };
+    std::vector<FourierGpu> fourier;
     GLuint sceneProgram = 0, accumulateProgram = 0, emptyVao = 0;
     GLuint gbuffer = 0, accumulation = 0;
     std::array<GLuint, kSlotCount> targets{};
@@ -303,6 +358,16 @@ struct Renderer::Impl {
         setVec3(p, "uEye", pose.eye);
         gl.Uniform2f(uniform(p, "uViewport"), float(width), float(height));
         gl.Uniform1i(uniform(p, "uTexture"), 0);
+        gl.Uniform1i(uniform(p, "uBands"), 1);
+        gl.Uniform1i(uniform(p, "uDetail"), 2);
+        gl.Uniform1i(uniform(p, "uOriginal"), 3);
+        gl.Uniform1i(uniform(p, "uFourier"), fourier.empty() ? 0 : 1);
+        if (!fourier.empty()) {
+            gl.Uniform1i(uniform(p, "uFourierFrequencies"), scene.fourier.frequencies);
+            gl.Uniform1f(uniform(p, "uFourierSigma"), float(scene.fourier.sigma));
+            gl.Uniform1f(uniform(p, "uFourierCutoff"), float(scene.fourier.cutoff));
+            gl.Uniform1f(uniform(p, "uFourierMinCaptured"), float(scene.fourier.minCaptured));
+        }
         gl.ActiveTexture(GL_TEXTURE0);
         for (const SceneObject& object : scene.objects) {
             const Material& m = object.material;
@@ -318,6 +383,18 @@ struct Renderer::Impl {
             gl.Uniform1f(uniform(p, "uFrequency"), float(m.frequency));
             gl.Uniform1f(uniform(p, "uId"), float(object.id));
             if (m.texture >= 0) gl.BindTexture(GL_TEXTURE_2D, textures.at(size_t(m.texture)));
+            if (m.texture >= 0 && !fourier.empty()) {
+                const FourierGpu& f = fourier.at(size_t(m.texture));
+                gl.Uniform1f(uniform(p, "uFourierSize"), float(f.size));
+                gl.Uniform1i(uniform(p, "uFourierLevels"), f.levels);
+                gl.ActiveTexture(GL_TEXTURE1);
+                gl.BindTexture(GL_TEXTURE_2D, f.bands);
+                gl.ActiveTexture(GL_TEXTURE2);
+                gl.BindTexture(GL_TEXTURE_2D, f.detail);
+                gl.ActiveTexture(GL_TEXTURE3);
+                gl.BindTexture(GL_TEXTURE_2D, f.original);
+                gl.ActiveTexture(GL_TEXTURE0);
+            }
             const GpuMesh& mesh = meshes[size_t(object.mesh)];
             gl.BindVertexArray(mesh.vao);
             gl.DrawElements(GL_TRIANGLES, mesh.indexCount, GL_UNSIGNED_INT, nullptr);
@@ -405,6 +482,40 @@ Renderer::Renderer(const GlContext& context, const Scene& scene, int width, int 
             anisotropy_ = gl.GetError() == GL_NO_ERROR;
         }
         m.textures.push_back(id);
+        if (s == Sampler::Fourier) {
+            const FourierTexture f(t, scene.fourier);
+            Impl::FourierGpu g;
+            g.size = f.size(), g.levels = f.levels();
+            gl.GenTextures(1, &g.original);
+            gl.BindTexture(GL_TEXTURE_2D, g.original);
+            gl.TexImage2D(GL_TEXTURE_2D, 0, GL_RGBA32F, f.size(), f.size(), 0, GL_RGBA, GL_FLOAT,
+                          f.level(0).data());
+            gl.TexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MAX_LEVEL, 0);
+            gl.TexParameteri(GL_TEXTURE_2D, GL_TEXTURE_WRAP_S, GL_REPEAT);
+            gl.TexParameteri(GL_TEXTURE_2D, GL_TEXTURE_WRAP_T, GL_REPEAT);
+            gl.TexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MAG_FILTER, GL_LINEAR);
+            gl.TexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MIN_FILTER, GL_LINEAR);
+            // OpenGL's level j holds band j + 1 (stored at twice its MIP size); band 0 is the texture.
+            gl.GenTextures(1, &g.bands);
+            gl.BindTexture(GL_TEXTURE_2D, g.bands);
+            for (int level = 1; level < f.levels(); ++level)
+                gl.TexImage2D(GL_TEXTURE_2D, level - 1, GL_RGBA32F, f.levelSize(level), f.levelSize(level), 0,
+                              GL_RGBA, GL_FLOAT, f.level(level).data());
+            gl.TexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MAX_LEVEL, f.levels() - 2);
+            gl.TexParameteri(GL_TEXTURE_2D, GL_TEXTURE_WRAP_S, GL_REPEAT);
+            gl.TexParameteri(GL_TEXTURE_2D, GL_TEXTURE_WRAP_T, GL_REPEAT);
+            gl.TexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MAG_FILTER, GL_LINEAR);
+            gl.TexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MIN_FILTER, GL_LINEAR_MIPMAP_NEAREST);
+            gl.GenTextures(1, &g.detail);
+            gl.BindTexture(GL_TEXTURE_2D, g.detail);
+            const std::vector<float> texels = f.detailTexels();
+            gl.TexImage2D(GL_TEXTURE_2D, 0, GL_RGBA32F, 2 * f.frequencies() + 1, f.setCount(), 0, GL_RGBA,
+                          GL_FLOAT, texels.data());
+            gl.TexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MAX_LEVEL, 0);
+            gl.TexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MAG_FILTER, GL_NEAREST);
+            gl.TexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MIN_FILTER, GL_NEAREST);
+            m.fourier.push_back(g);
+        }
     }
 
     // The G-buffer: one float texture per buffer and a depth-stencil renderbuffer, which the
@@ -450,6 +561,11 @@ Renderer::~Renderer() {
     }
     gl.DeleteVertexArrays(1, &m.emptyVao);
     if (!m.textures.empty()) gl.DeleteTextures(GLsizei(m.textures.size()), m.textures.data());
+    for (const Impl::FourierGpu& f : m.fourier) {
+        gl.DeleteTextures(1, &f.original);
+        gl.DeleteTextures(1, &f.bands);
+        gl.DeleteTextures(1, &f.detail);
+    }
     gl.DeleteTextures(kSlotCount, m.targets.data());
     gl.DeleteTextures(1, &m.previousDepthTarget);
     gl.DeleteTextures(1, &m.accumulationTarget);

@@ -482,14 +482,17 @@ const char* samplerName(Sampler sampler) {
             return "trilinear";
         case Sampler::Anisotropic16:
             return "aniso16";
+        case Sampler::Fourier:
+            return "fourier";
     }
     return "?";
 }
 
 Sampler parseSampler(const std::string& name) {
-    for (Sampler s : {Sampler::Point, Sampler::Bilinear, Sampler::Trilinear, Sampler::Anisotropic16})
+    for (Sampler s :
+         {Sampler::Point, Sampler::Bilinear, Sampler::Trilinear, Sampler::Anisotropic16, Sampler::Fourier})
         if (name == samplerName(s)) return s;
-    throw Error("unknown sampler '" + name + "' (point, bilinear, trilinear, aniso16)");
+    throw Error("unknown sampler '" + name + "' (point, bilinear, trilinear, aniso16, fourier)");
 }
 
 SceneObject& Scene::addObject(const std::string& objectName, int mesh, const Material& material,
@@ -522,6 +525,7 @@ Scene buildScene(const std::string& name, const SceneOptions& options) {
         if (e.info.name != name) continue;
         Scene scene;
         scene.name = name;
+        scene.fourier = options.fourier;
         e.build(scene, options);
         if (options.tiltedCamera) scene.camera = tilt(scene.camera);
         return scene;

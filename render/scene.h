@@ -39,9 +39,21 @@ struct TextureImage {
     std::vector<uint8_t> rgba;
 };
 
-enum class Sampler { Point, Bilinear, Trilinear, Anisotropic16 };
+// Fourier: band-limited MIP levels plus the removed frequencies added back per pixel, each attenuated by
+// the pixel's footprint (render/fourier_texture.h, docs/texture-aa.md).
+enum class Sampler { Point, Bilinear, Trilinear, Anisotropic16, Fourier };
 const char* samplerName(Sampler sampler);
 Sampler parseSampler(const std::string& name);  // throws dejag::Error listing the choices
+
+// The Fourier sampler's parameters (docs/texture-aa.md).
+struct FourierOptions {
+    int frequencies = 64;  // sinusoids kept per set (a level, a sub-level and an orientation)
+    double cutoff = 0.5;   // MIP level m keeps the frequencies below cutoff x its Nyquist limit (0, 1]
+    double sigma = 0.35;   // the Gaussian pixel filter's standard deviation, in pixels
+    // A set whose sinusoids hold less than this share of the energy it should add back (a broadband
+    // texture, where a truncated sum rings) gives way to the trilinear sample.
+    double minCaptured = 0.8;
+};
 
 struct SceneObject {
     std::string name;
@@ -63,6 +75,7 @@ struct Scene {
     std::vector<SceneObject> objects;
     std::vector<TextureImage> textures;
     Sampler sampler = Sampler::Trilinear;
+    FourierOptions fourier = {};               // Sampler::Fourier
     std::function<CameraPose(double)> camera;  // frame time -> pose
     Vec3 lightDirection{-0.4, 0.8, 0.45};      // towards the light
     Vec3 lightColour{1.0, 0.97, 0.92};
@@ -85,6 +98,7 @@ struct SceneOptions {
     uint64_t seed = 1;
     bool tiltedCamera = false;  // --camera tilted: rolled and turned so no edge is axis-aligned
     Sampler sampler = Sampler::Trilinear;
+    FourierOptions fourier = {};
     std::string texture = "checker";  // receding planes: checker, bricks, stripes, text, noise
 };
 
