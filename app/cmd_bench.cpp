@@ -147,6 +147,8 @@ void registerBenchCommand(CLI::App& app) {
 
     struct RenderBenchArguments {
         int repeat = 5;
+        std::string cases = "frames,truth,samplers", textures = "checker,stripes,text",
+                    samplerSize = "512x512";
         bool json = false, quick = false;
     };
     auto renderArgs = std::make_shared<RenderBenchArguments>();
@@ -157,17 +159,40 @@ void registerBenchCommand(CLI::App& app) {
     renderBench->add_option("--repeat", renderArgs->repeat, "timed frames per case (median reported)")
         ->check(CLI::Range(1, 1000))
         ->capture_default_str();
+    renderBench->add_option("--cases", renderArgs->cases, "which cases: frames, truth, samplers (a list)")
+        ->capture_default_str();
+    renderBench
+        ->add_option("--textures", renderArgs->textures,
+                     "the samplers' textures: checker, bricks, stripes, text, noise (a list)")
+        ->capture_default_str();
+    renderBench->add_option("--sampler-size", renderArgs->samplerSize, "the samplers' frame size, WxH")
+        ->capture_default_str();
     renderBench->add_flag("--quick", renderArgs->quick, "small sizes and one scene (a smoke test)");
     renderBench->add_flag("--json", renderArgs->json, "one JSON object per case");
     renderBench->callback([renderArgs] {
         bench::RenderBenchOptions options;
         options.repeat = renderArgs->repeat;
+        options.samplerTextures = splitList(renderArgs->textures);
+        for (const std::string& texture : options.samplerTextures)
+            render::makeTexture(texture, 64, 1);  // checks the name
+        const Size samplerSize = parseSize(renderArgs->samplerSize, "--sampler-size");
+        options.samplerSize = {samplerSize.width, samplerSize.height};
+        const std::vector<std::string> cases = splitList(renderArgs->cases);
+        for (const std::string& c : cases)
+            if (c != "frames" && c != "truth" && c != "samplers")
+                throw Error("--cases takes frames, truth and samplers, not '" + c + "'");
+        const auto wanted = [&](const char* name) {
+            return std::find(cases.begin(), cases.end(), name) != cases.end();
+        };
         if (renderArgs->quick) {
             options.scenes = {"pipe"}, options.sizes = {{96, 64}}, options.truthScenes = {"pipe"};
             options.truthSize = {96, 64}, options.truthSamples = 16;
             options.samplerTextures = {"checker"}, options.samplerSize = {128, 128},
             options.samplerTruthSamples = 16;
         }
+        if (!wanted("frames")) options.scenes.clear();
+        if (!wanted("truth")) options.truthScenes.clear();
+        if (!wanted("samplers")) options.samplerTextures.clear();
         const std::vector<nlohmann::json> rows = bench::benchRender(options);
         if (renderArgs->json) {
             for (const nlohmann::json& row : rows) std::printf("%s\n", row.dump().c_str());
@@ -186,9 +211,10 @@ void registerBenchCommand(CLI::App& app) {
                     row["aliased_psnr_adaptive_truth"].get<double>(),
                     row["aliased_psnr_full_truth"].get<double>(), row["psnr_difference_db"].get<double>());
             if (row.contains("aliasing"))
-                std::printf("  %s: aliasing %.4f (%.1f dB), detail kept %.3f",
+                std::printf("  %s: aliasing %.4f (%.1f dB), detail kept %.3f, PSNR %.2f dB, setup %.0f ms",
                             row["texture"].get<std::string>().c_str(), row["aliasing"].get<double>(),
-                            row["aliasing_db"].get<double>(), row["detail_kept"].get<double>());
+                            row["aliasing_db"].get<double>(), row["detail_kept"].get<double>(),
+                            row["psnr"].get<double>(), row["setup_ms"].get<double>());
             std::printf("\n");
         }
         std::printf("OSMesa llvmpipe renders with its own threads (LP_NUM_THREADS, default: all cores).\n");

@@ -83,7 +83,9 @@ std::vector<nlohmann::json> benchRender(const RenderBenchOptions& options) {
               render::Sampler::Anisotropic16, render::Sampler::Fourier}) {
             sceneOptions.sampler = sampler;
             const render::Scene scene = render::buildScene("planes", sceneOptions);
+            const Stopwatch setup;
             render::Renderer renderer(*context, scene, width, height);
+            const double setupMs = setup.elapsedMs();
             const render::Frame frame = renderer.render({});  // (also the warm-up)
             std::vector<double> times;
             for (int i = 0; i < options.repeat; ++i) {
@@ -101,6 +103,8 @@ std::vector<nlohmann::json> benchRender(const RenderBenchOptions& options) {
                             {"aliasing", score.aliasing},
                             {"aliasing_db", score.aliasingDb()},
                             {"detail_kept", score.detailKept},
+                            {"psnr", floatPsnr(frame.pixels, truth.pixels)},
+                            {"setup_ms", setupMs},
                             {"truth_samples", options.samplerTruthSamples}});
         }
     }
