@@ -32,6 +32,8 @@ struct RenderArguments {
     double spread = 1.7, tolerance = 1e-3, pixelTolerance = 2e-3;
     int tile = 8;
     render::FourierOptions fourier;
+    std::string bump = "procedural";
+    int bumpLobes = 4;
     bool adaptive = false, list = false, json = false, quiet = false, force = false;
     RuntimeOptions runtime;
 };
@@ -138,6 +140,8 @@ void runRender(const RenderArguments& args) {
     sceneOptions.sampler = render::parseSampler(args.sampler);
     sceneOptions.texture = args.texture;
     sceneOptions.fourier = args.fourier;
+    sceneOptions.bump = render::parseBump(args.bump);
+    sceneOptions.bumpLobes = args.bumpLobes;
     const render::Scene scene = render::buildScene(args.scene, sceneOptions);
 
     claimOutputFolder(args);
@@ -163,6 +167,10 @@ void runRender(const RenderArguments& args) {
     sidecar["seed"] = args.seed;
     sidecar["camera"] = args.camera;
     sidecar["sampler"] = args.sampler;
+    if (!scene.normalMaps.empty()) {
+        sidecar["bump"] = args.bump;
+        if (sceneOptions.bump == render::Bump::Super) sidecar["bump_lobes"] = args.bumpLobes;
+    }
     if (sceneOptions.sampler == render::Sampler::Fourier)
         sidecar["fourier"] = {{"frequencies", args.fourier.frequencies},
                               {"cutoff", args.fourier.cutoff},
@@ -295,6 +303,15 @@ void registerRenderCommand(CLI::App& app) {
     command
         ->add_option("--sampler", args->sampler,
                      "point | bilinear | trilinear | aniso16 | fourier (textured scenes)")
+        ->capture_default_str();
+    command
+        ->add_option("--bump", args->bump,
+                     "normal-map scene: procedural (per fragment, unfiltered) | standard (a normal map's MIP "
+                     "chain, read with --sampler) | super (super bump mapping)")
+        ->capture_default_str();
+    command
+        ->add_option("--bump-lobes", args->bumpLobes, "super bump mapping: lit normals a MIP texel, 1 to 4")
+        ->check(CLI::Range(1, 4))
         ->capture_default_str();
     command
         ->add_option("--fourier-frequencies", args->fourier.frequencies,

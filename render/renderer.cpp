@@ -78,6 +78,15 @@ uniform int uFourierFrequencies;
 uniform float uFourierSigma;
 uniform float uFourierCutoff;
 uniform float uFourierMinCaptured;
+uniform int uBump;                   // Pattern::Bumps: 0 procedural, 1 standard normal map, 2 super bump map
+uniform sampler2D uNormalMap;        // the standard chain: averaged normals (x, y, z), tangent space
+uniform sampler2D uLobe0;            // the super chain, a texture a lobe: (x, y, weight, mean length)
+uniform sampler2D uLobe1;
+uniform sampler2D uLobe2;
+uniform sampler2D uLobe3;
+uniform int uBumpLobes;
+uniform float uBumpSize;
+uniform int uBumpLevels;
 const float kTau = 6.28318530718;
 const float kPi = 3.14159265359;
 // FourierTexture::sample (render/fourier_texture.cpp) in float; its comments say why.
@@ -117,8 +126,74 @@ vec4 fourierSample(vec2 uv) {
     }
     return vec4(clamp(colour.rgb + detail, 0.0, 1.0), colour.a);
 }
+// Blinn-Phong (docs/render.md): the ambient and diffuse part, and the specular factor for an exponent.
+vec3 diffuseLighting(vec3 albedo, vec3 n) {
+    return albedo * (uAmbient + uLightColour * max(dot(n, normalize(uLightDirection)), 0.0));
+}
+float specularFactor(vec3 n, float shininess) {
+    vec3 l = normalize(uLightDirection);
+    vec3 h = normalize(l + normalize(uEye - vWorldPosition));
+    return dot(n, l) > 0.0 ? pow(max(dot(n, h), 0.0), shininess) : 0.0;
+}
+vec4 lobeTexel(int j, ivec2 p, int level) {
+    if (j == 0) return texelFetch(uLobe0, p, level);
+    if (j == 1) return texelFetch(uLobe1, p, level);
+    if (j == 2) return texelFetch(uLobe2, p, level);
+    return texelFetch(uLobe3, p, level);
+}
+// Super Bump Mapping (render/normal_map.h) at one place: each lobe of the 4 texels around uv at the two
+// levels around `lod`, lit with the exponent its spread gives (Toksvig) and its peak lowered by
+// (1 + s') / (1 + s) so that the widened lobe reflects what the spread normals do, weighted by its share,
+// the texel's bilinear weight and the level's linear one. The lighting is filtered, not the normals.
+// Level 0 is the surface itself: its bilinear normal, lit as standard normal mapping lights it.
+vec3 superBumpProbe(vec2 uv, float lod, vec3 albedo, vec3 T, vec3 B, vec3 N) {
+    int level0 = int(floor(lod));
+    int level1 = min(level0 + 1, uBumpLevels - 1);
+    float f = lod - float(level0);
+    vec3 sum = vec3(0.0);
+    for (int k = 0; k < 2; ++k) {
+        int level = k == 0 ? level0 : level1;
+        float levelWeight = k == 0 ? 1.0 - f : f;
+        if (levelWeight == 0.0) continue;
+        if (level == 0) {
+            vec3 m = normalize(textureLod(uNormalMap, uv, 0.0).xyz);
+            vec3 n = normalize(T * m.x + B * m.y + N * m.z);
+            sum += levelWeight * (diffuseLighting(albedo, n) + uSpecular * uLightColour * specularFactor(n, uShininess));
+            continue;
+        }
+        int texels = int(uBumpSize) >> level;
+        vec2 t = uv * float(texels) - 0.5;
+        vec2 base = floor(t), fraction = t - base;
+        for (int corner = 0; corner < 4; ++corner) {
+            ivec2 offset = ivec2(corner & 1, corner >> 1);
+            float weight = levelWeight * (offset.x == 1 ? fraction.x : 1.0 - fraction.x) *
+                           (offset.y == 1 ? fraction.y : 1.0 - fraction.y);
+            ivec2 p = ivec2(mod(base + vec2(offset), float(texels)));
+            for (int j = 0; j < uBumpLobes; ++j) {
+                vec4 e = lobeTexel(j, p, level);
+                if (e.z <= 0.0) continue;
+                vec3 m = vec3(e.x, e.y, sqrt(max(1.0 - e.x * e.x - e.y * e.y, 0.0)));
+                float r = clamp(e.w, 1e-6, 1.0);
+                float s = uShininess * r / (r + uShininess * (1.0 - r));
+                float peak = (1.0 + s) / (1.0 + uShininess);
+                vec3 n = normalize(T * m.x + B * m.y + N * m.z);
+                sum += weight * e.z * (diffuseLighting(albedo, n) + peak * uSpecular * uLightColour * specularFactor(n, s));
+            }
+        }
+    }
+    return sum;
+}
+// The footprint's level of detail as trilinear filtering takes it (its longer side). Probing along an
+// anisotropic footprint's major axis at a finer level was tried and aliased more on the receding plate
+// (docs/texture-aa.md).
+vec3 superBumpLighting(vec3 albedo, vec3 T, vec3 B, vec3 N) {
+    vec2 dx = dFdx(vUv) * uBumpSize, dy = dFdy(vUv) * uBumpSize;
+    float lod = clamp(0.5 * log2(max(max(dot(dx, dx), dot(dy, dy)), 1e-30)), 0.0, float(uBumpLevels - 1));
+    return superBumpProbe(vUv, lod, albedo, T, B, N);
+}
 void main() {
     vec3 albedo = uColour;
+    vec3 superBump = vec3(0.0);
     vec3 n = normalize(vNormal);
     if (!gl_FrontFacing) n = -n;
     if (uPattern == 1) {
@@ -140,16 +215,25 @@ void main() {
         vec3 T = dp2perp * duv1.x + dp1perp * duv2.x;
         vec3 B = dp2perp * duv1.y + dp1perp * duv2.y;
         float scale = inversesqrt(max(max(dot(T, T), dot(B, B)), 1e-20));
-        vec2 g = vec2(sin(kTau * uFrequency * vUv.x), sin(kTau * uFrequency * 1.37 * vUv.y)) * 0.35;
-        n = normalize(n - g.x * T * scale - g.y * B * scale);
+        if (uBump == 0) {
+            vec2 g = vec2(sin(kTau * uFrequency * vUv.x), sin(kTau * uFrequency * 1.37 * vUv.y)) * 0.35;
+            n = normalize(n - g.x * T * scale - g.y * B * scale);
+        } else {
+            // The normal map's tangent frame: unit T and B (square texels), the surface normal.
+            T = normalize(T * scale), B = normalize(B * scale);
+            if (uBump == 2) {
+                superBump = superBumpLighting(albedo, T, B, n);
+            } else {
+                vec3 m = normalize(texture(uNormalMap, vUv).xyz);
+                n = normalize(T * m.x + B * m.y + n * m.z);
+            }
+        }
     }
     vec3 lit = albedo;
-    if (uLit == 1) {
-        vec3 l = normalize(uLightDirection);
-        vec3 h = normalize(l + normalize(uEye - vWorldPosition));
-        float diffuse = max(dot(n, l), 0.0);
-        float specular = diffuse > 0.0 ? pow(max(dot(n, h), 0.0), uShininess) : 0.0;
-        lit = albedo * (uAmbient + uLightColour * diffuse) + uSpecular * uLightColour * specular;
+    if (uPattern == 4 && uBump == 2) {
+        lit = superBump;
+    } else if (uLit == 1) {
+        lit = diffuseLighting(albedo, n) + uSpecular * uLightColour * specularFactor(n, uShininess);
     }
     outColour = vec4(lit, 1.0);
     outAlbedo = vec4(albedo, 1.0);
@@ -263,6 +347,13 @@ struct Renderer::Impl {
         int size = 0, levels = 0;
     };
     std::vector<FourierGpu> fourier;
+    // Normal maps (Bump::Standard: the averaged chain on unit 4; Bump::Super: a texture a lobe, units 5-8).
+    struct BumpGpu {
+        GLuint standard = 0;
+        std::array<GLuint, 4> lobes{};
+        int size = 0, levels = 0, lobeCount = 0;
+    };
+    std::vector<BumpGpu> bumps;
     GLuint sceneProgram = 0, accumulateProgram = 0, emptyVao = 0;
     GLuint gbuffer = 0, accumulation = 0;
     std::array<GLuint, kSlotCount> targets{};
@@ -362,6 +453,9 @@ struct Renderer::Impl {
         gl.Uniform1i(uniform(p, "uDetail"), 2);
         gl.Uniform1i(uniform(p, "uOriginal"), 3);
         gl.Uniform1i(uniform(p, "uFourier"), fourier.empty() ? 0 : 1);
+        gl.Uniform1i(uniform(p, "uBump"), int(scene.bump));
+        gl.Uniform1i(uniform(p, "uNormalMap"), 4);
+        for (int j = 0; j < 4; ++j) gl.Uniform1i(uniform(p, ("uLobe" + std::to_string(j)).c_str()), 5 + j);
         if (!fourier.empty()) {
             gl.Uniform1i(uniform(p, "uFourierFrequencies"), scene.fourier.frequencies);
             gl.Uniform1f(uniform(p, "uFourierSigma"), float(scene.fourier.sigma));
@@ -393,6 +487,20 @@ struct Renderer::Impl {
                 gl.BindTexture(GL_TEXTURE_2D, f.detail);
                 gl.ActiveTexture(GL_TEXTURE3);
                 gl.BindTexture(GL_TEXTURE_2D, f.original);
+                gl.ActiveTexture(GL_TEXTURE0);
+            }
+            if (m.pattern == Pattern::Bumps && scene.bump != Bump::Procedural) {
+                if (m.normalMap < 0) throw Error("material of '" + object.name + "' has no normal map");
+                const BumpGpu& b = bumps.at(size_t(m.normalMap));
+                gl.Uniform1f(uniform(p, "uBumpSize"), float(b.size));
+                gl.Uniform1i(uniform(p, "uBumpLevels"), b.levels);
+                gl.Uniform1i(uniform(p, "uBumpLobes"), b.lobeCount);
+                gl.ActiveTexture(GL_TEXTURE4);
+                gl.BindTexture(GL_TEXTURE_2D, b.standard);
+                for (int j = 0; j < 4; ++j) {
+                    gl.ActiveTexture(GLenum(GL_TEXTURE5 + j));
+                    gl.BindTexture(GL_TEXTURE_2D, b.lobes[size_t(j)]);
+                }
                 gl.ActiveTexture(GL_TEXTURE0);
             }
             const GpuMesh& mesh = meshes[size_t(object.mesh)];
@@ -518,6 +626,36 @@ Renderer::Renderer(const GlContext& context, const Scene& scene, int width, int 
         }
     }
 
+    if (scene.bump != Bump::Procedural)
+        for (const NormalMapImage& map : scene.normalMaps) {
+            const SuperBumpChain chain = buildSuperBumpChain(map, scene.bumpLobes);
+            Impl::BumpGpu b;
+            b.size = chain.size, b.levels = chain.levels, b.lobeCount = chain.lobes;
+            const auto upload = [&](GLuint& id, const std::vector<std::vector<float>>& levels,
+                                    bool filtered) {
+                gl.GenTextures(1, &id);
+                gl.BindTexture(GL_TEXTURE_2D, id);
+                for (int level = 0; level < chain.levels; ++level)
+                    gl.TexImage2D(GL_TEXTURE_2D, level, GL_RGBA32F, chain.size >> level, chain.size >> level,
+                                  0, GL_RGBA, GL_FLOAT, levels[size_t(level)].data());
+                gl.TexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MAX_LEVEL, chain.levels - 1);
+                gl.TexParameteri(GL_TEXTURE_2D, GL_TEXTURE_WRAP_S, GL_REPEAT);
+                gl.TexParameteri(GL_TEXTURE_2D, GL_TEXTURE_WRAP_T, GL_REPEAT);
+                const Sampler s = scene.sampler;
+                gl.TexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MAG_FILTER,
+                                 filtered && s != Sampler::Point ? GL_LINEAR : GL_NEAREST);
+                gl.TexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MIN_FILTER,
+                                 !filtered || s == Sampler::Point ? GL_NEAREST_MIPMAP_NEAREST
+                                 : s == Sampler::Bilinear         ? GL_LINEAR
+                                                                  : GL_LINEAR_MIPMAP_LINEAR);
+                if (filtered && s == Sampler::Anisotropic16)
+                    gl.TexParameterf(GL_TEXTURE_2D, kMaxAnisotropy, 16.0f);
+            };
+            upload(b.standard, chain.standard, true);
+            for (int j = 0; j < chain.lobes; ++j) upload(b.lobes[size_t(j)], chain.lobe[size_t(j)], false);
+            m.bumps.push_back(b);
+        }
+
     // The G-buffer: one float texture per buffer and a depth-stencil renderbuffer, which the
     // accumulation framebuffer shares (the adaptive truth marks unconverged tiles in its stencil).
     m.targets[kColourSlot] = m.makeTarget(GL_RGBA32F, GL_RGBA);
@@ -561,6 +699,11 @@ Renderer::~Renderer() {
     }
     gl.DeleteVertexArrays(1, &m.emptyVao);
     if (!m.textures.empty()) gl.DeleteTextures(GLsizei(m.textures.size()), m.textures.data());
+    for (const Impl::BumpGpu& b : m.bumps) {
+        gl.DeleteTextures(1, &b.standard);
+        for (GLuint lobe : b.lobes)
+            if (lobe) gl.DeleteTextures(1, &lobe);
+    }
     for (const Impl::FourierGpu& f : m.fourier) {
         gl.DeleteTextures(1, &f.original);
         gl.DeleteTextures(1, &f.bands);

@@ -340,9 +340,13 @@ void lineFanScene(Scene& s, const SceneOptions&) {
     s.camera = fixedCamera({0, 0, 4.5}, {0, 0, 0}, 50);
 }
 
-void normalMapScene(Scene& s, const SceneOptions&) {
+void normalMapScene(Scene& s, const SceneOptions& o) {
     Material shiny = solid({0.55, 0.57, 0.6}, true, 1.0);
     shiny.pattern = Pattern::Bumps, shiny.shininess = 200, shiny.frequency = 12;
+    if (o.bump != Bump::Procedural) {
+        s.normalMaps.push_back(makeNormalMap("dimples", 256, o.seed));
+        shiny.normalMap = 0;
+    }
     Mesh floor;
     floor.append(makeQuad(12, 12, 6, 6), Mat4::rotation({1, 0, 0}, -kPi / 2));
     s.addObject("plate", s.addMesh(std::move(floor)), shiny);
@@ -495,6 +499,24 @@ Sampler parseSampler(const std::string& name) {
     throw Error("unknown sampler '" + name + "' (point, bilinear, trilinear, aniso16, fourier)");
 }
 
+const char* bumpName(Bump bump) {
+    switch (bump) {
+        case Bump::Procedural:
+            return "procedural";
+        case Bump::Standard:
+            return "standard";
+        case Bump::Super:
+            return "super";
+    }
+    return "?";
+}
+
+Bump parseBump(const std::string& name) {
+    for (Bump b : {Bump::Procedural, Bump::Standard, Bump::Super})
+        if (name == bumpName(b)) return b;
+    throw Error("unknown bump mode '" + name + "' (procedural, standard, super)");
+}
+
 SceneObject& Scene::addObject(const std::string& objectName, int mesh, const Material& material,
                               std::function<Mat4(double)> transform) {
     SceneObject object;
@@ -526,6 +548,11 @@ Scene buildScene(const std::string& name, const SceneOptions& options) {
         Scene scene;
         scene.name = name;
         scene.fourier = options.fourier;
+        scene.bump = options.bump;
+        if (options.bumpLobes < 1 || options.bumpLobes > 4)
+            throw Error("super bump mapping keeps 1 to 4 lobes a texel, not " +
+                        std::to_string(options.bumpLobes));
+        scene.bumpLobes = options.bumpLobes;
         e.build(scene, options);
         if (options.tiltedCamera) scene.camera = tilt(scene.camera);
         return scene;

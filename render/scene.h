@@ -9,6 +9,7 @@
 
 #include "render/math.h"
 #include "render/mesh.h"
+#include "render/normal_map.h"
 
 namespace dejag::render {
 
@@ -30,6 +31,7 @@ struct Material {
     int texture = -1;          // index into Scene::textures (Pattern::Texture)
     bool alphaCutout = false;  // discard where the texture's alpha < 0.5 (foliage)
     double frequency = 1.0;    // Sweep / ZonePlate / Bumps scale
+    int normalMap = -1;  // Bumps: index into Scene::normalMaps, read when the scene's bump is not procedural
 };
 
 // 8-bit RGBA texture made on the CPU; mipmapped by the renderer.
@@ -44,6 +46,13 @@ struct TextureImage {
 enum class Sampler { Point, Bilinear, Trilinear, Anisotropic16, Fourier };
 const char* samplerName(Sampler sampler);
 Sampler parseSampler(const std::string& name);  // throws dejag::Error listing the choices
+
+// How Pattern::Bumps shades (docs/texture-aa.md): the procedural perturbation evaluated per fragment
+// (unfiltered), a normal map read through its standard MIP chain of averaged normals with the scene's
+// sampler, or Super Bump Mapping (several lit normals per MIP texel).
+enum class Bump { Procedural, Standard, Super };
+const char* bumpName(Bump bump);
+Bump parseBump(const std::string& name);  // throws dejag::Error listing the choices
 
 // The Fourier sampler's parameters (docs/texture-aa.md).
 struct FourierOptions {
@@ -75,7 +84,10 @@ struct Scene {
     std::vector<SceneObject> objects;
     std::vector<TextureImage> textures;
     Sampler sampler = Sampler::Trilinear;
-    FourierOptions fourier = {};               // Sampler::Fourier
+    FourierOptions fourier = {};             // Sampler::Fourier
+    std::vector<NormalMapImage> normalMaps;  // Bump::Standard and Bump::Super
+    Bump bump = Bump::Procedural;
+    int bumpLobes = 4;                         // Bump::Super: lobes a texel, 1 to 4
     std::function<CameraPose(double)> camera;  // frame time -> pose
     Vec3 lightDirection{-0.4, 0.8, 0.45};      // towards the light
     Vec3 lightColour{1.0, 0.97, 0.92};
@@ -99,6 +111,8 @@ struct SceneOptions {
     bool tiltedCamera = false;  // --camera tilted: rolled and turned so no edge is axis-aligned
     Sampler sampler = Sampler::Trilinear;
     FourierOptions fourier = {};
+    Bump bump = Bump::Procedural;  // the normal-map scene
+    int bumpLobes = 4;
     std::string texture = "checker";  // receding planes: checker, bricks, stripes, text, noise
 };
 

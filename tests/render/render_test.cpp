@@ -473,6 +473,68 @@ TEST(Render, EverySamplerKeepsAConstantTexture) {
     }
 }
 
+// Super bump mapping of a flat normal map is standard normal mapping: one lobe of weight 1 and no spread
+// at every level, lit as the standard chain's normal is.
+TEST(Render, SuperBumpMappingOfAFlatMapIsStandardNormalMapping) {
+    std::vector<Frame> frames;
+    for (const Bump bump : {Bump::Standard, Bump::Super}) {
+        Scene scene = buildScene("normal-map", {.bump = bump});
+        ASSERT_EQ(scene.normalMaps.size(), 1u);
+        scene.normalMaps[0] = makeNormalMap("flat", 64, 1);
+        Renderer renderer(context(), scene, 128, 96);
+        frames.push_back(renderer.render({}));
+    }
+    double worst = 0;
+    for (size_t i = 0; i < frames[0].pixels.size(); ++i)
+        worst = std::max(worst, double(std::abs(frames[0].pixels[i] - frames[1].pixels[i])));
+    EXPECT_LT(worst, 1e-5);
+}
+
+// On a bumpy map seen from afar (a front-facing quad at 4 and 12 texels a pixel, the light towards the
+// viewer), standard normal mapping lights the averaged normal and turns too glossy; super bump mapping
+// lights the lobes and stays near the supersampled truth (the surface read at level 0).
+TEST(Render, SuperBumpMappingKeepsTheGlossOfADistantBumpySurface) {
+    for (const double repeats : {1.0, 3.0}) {
+        SCOPED_TRACE(repeats);
+        std::vector<Frame> frames;
+        for (const Bump bump : {Bump::Standard, Bump::Standard, Bump::Super}) {
+            Scene scene;
+            scene.name = "bumpy quad";
+            scene.bump = bump;
+            scene.sampler = frames.empty() ? Sampler::Bilinear : Sampler::Trilinear;  // the truth: level 0
+            scene.normalMaps = {makeNormalMap("dimples", 256, 1)};
+            Mesh quad;
+            quad.append(makeQuad(2, 2, repeats, repeats));
+            Material m;
+            m.colour = {0.55, 0.57, 0.6}, m.specular = 1, m.shininess = 200;
+            m.pattern = Pattern::Bumps, m.normalMap = 0;
+            scene.addObject("quad", scene.addMesh(std::move(quad)), m);
+            scene.lightDirection = {0.1, 0.3, 1.0};
+            scene.camera = [](double) {
+                CameraPose pose;
+                pose.eye = {0, 0, 2}, pose.target = {0, 0, 0}, pose.fovY = 2 * std::atan(0.5);
+                return pose;
+            };
+            Renderer renderer(context(), scene, 64, 64);
+            TruthOptions truth;
+            truth.samples = 256;
+            frames.push_back(frames.empty() ? renderer.renderTruth(0, truth) : renderer.render({}));
+        }
+        double error[2] = {0, 0}, bias[2] = {0, 0};
+        for (size_t i = 0; i < frames[0].pixels.size(); ++i)
+            for (int k = 0; k < 2; ++k) {
+                const double d = frames[size_t(k) + 1].pixels[i] - frames[0].pixels[i];
+                error[k] += std::abs(d), bias[k] += d;
+            }
+        const double n = double(frames[0].pixels.size());
+        std::printf("standard: error %.4f, bias %+.4f; super: error %.4f, bias %+.4f\n", error[0] / n,
+                    bias[0] / n, error[1] / n, bias[1] / n);
+        EXPECT_GT(bias[0] / n, 0.005);                 // standard: too glossy
+        EXPECT_LT(std::abs(bias[1]), 0.25 * bias[0]);  // super: far less
+        EXPECT_LT(error[1], 0.5 * error[0]);
+    }
+}
+
 TEST(Render, RefusesImpossibleSizes) {
     const Scene scene = buildScene("sphere");
     EXPECT_THROW(Renderer(context(), scene, 0, 10), Error);
