@@ -85,6 +85,7 @@ const std::map<std::string, std::string>& examples() {
          "mpirun -np 2 dejag-mpi bench collective --model dejag-temporal --step-seconds 0.34"},
         {"bench stability", "dejag bench stability --configs 200"},
         {"bench taa", "dejag bench taa --frames 32 --no-ghosting"},
+        {"bench texture", "dejag bench texture --cases checker,normal-map --out out/texture"},
         {"bench quality", "dejag bench quality --data out/dataset --no-1080p"},
         {"bench reach", "dejag bench reach --size 1280x720 --scenes atrium pipe"},
         {"bench metrics", "dejag bench metrics --thread-counts 1,2"},

@@ -15,6 +15,7 @@
 #include "app/cli.h"
 #include "app/commands.h"
 #include "base/error.h"
+#include "base/files.h"
 #include "base/thread_pool.h"
 #include "bench/accuracy.h"
 #include "bench/bench.h"
@@ -26,6 +27,8 @@
 #include "bench/render_bench.h"
 #include "bench/stability.h"
 #include "bench/taa_bench.h"
+#include "bench/texture_bench.h"
+#include "data/plot.h"
 #include "infer/filter.h"
 #include "nn/model.h"
 #include "render/scene.h"
@@ -605,6 +608,119 @@ void registerBenchCommand(CLI::App& app) {
             throw Error("the same seed and thread count gave different results");
         if (!(a.normwise <= kAccumulationLimit))
             throw Error("accumulation error " + std::to_string(a.normwise) + " exceeds 1e-5");
+    });
+
+    struct TextureBenchArguments {
+        std::string size = "384x384", cases = "checker,stripes,text,normal-map", out;
+        std::string models = "models/dejag-fast.safetensors,models/dejag-guided.safetensors",
+                    temporalModel = "models/dejag-temporal.safetensors";
+        int truth = 256, frames = 16;
+        double jitterSpread = 1.0;
+        bool json = false, quick = false;
+    };
+    auto textureArgs = std::make_shared<TextureBenchArguments>();
+    CLI::App* textureBench = bench->add_subcommand(
+        "texture",
+        "which tool fixes which aliasing: the texture samplers, super bump mapping, the post-process and the "
+        "temporal methods on texture and shading scenes, cost against error, with the Pareto front");
+    textureBench->add_option("--size", textureArgs->size, "frame size, WxH")->capture_default_str();
+    textureBench
+        ->add_option("--cases", textureArgs->cases,
+                     "planes textures (checker, bricks, stripes, text, noise) and "
+                     "normal-map, a list")
+        ->capture_default_str();
+    textureBench->add_option("--truth", textureArgs->truth, "the truth's samples a pixel")
+        ->check(CLI::Range(1, 4096))
+        ->capture_default_str();
+    textureBench->add_option("--frames", textureArgs->frames, "the temporal methods' still history (frames)")
+        ->check(CLI::Range(1, 256))
+        ->capture_default_str();
+    textureBench
+        ->add_option("--jitter-spread", textureArgs->jitterSpread, "the frames' Halton jitter spread, pixels")
+        ->check(CLI::Range(0.0, 4.0))
+        ->capture_default_str();
+    textureBench
+        ->add_option("--models", textureArgs->models,
+                     "single-frame networks, a list (the shipped ones are compared when present)")
+        ->capture_default_str();
+    textureBench->add_option("--temporal-model", textureArgs->temporalModel, "the temporal network")
+        ->capture_default_str();
+    textureBench->add_option("--out", textureArgs->out, "folder for pareto-CASE.png plots and results.json");
+    textureBench->add_flag("--json", textureArgs->json, "one JSON object per row");
+    textureBench->add_flag(
+        "--quick", textureArgs->quick,
+        "a small smoke test: 96x96, 16 samples, 4 frames, checker and normal-map, no networks");
+    textureBench->callback([textureBench, textureArgs] {
+        bench::TextureBenchOptions options;
+        const Size size = parseSize(textureArgs->size, "--size");
+        options.width = size.width, options.height = size.height;
+        options.truthSamples = textureArgs->truth, options.frames = textureArgs->frames;
+        options.jitterSpread = textureArgs->jitterSpread;
+        options.cases = splitList(textureArgs->cases);
+        for (const std::string& c : options.cases)
+            if (c != "normal-map") render::makeTexture(c, 64, 1);  // an unknown one: one line
+        // A model named on the command line must be there; the shipped ones are compared when present.
+        const auto present = [&](const std::string& given, const char* flag) {
+            const std::string path = shippedModelPath(given);
+            if (path.empty() || std::filesystem::exists(path)) return path;
+            if (textureBench->count(flag) > 0) throw Error(std::string(flag) + ": no model file " + path);
+            return std::string();
+        };
+        for (const std::string& model : splitList(textureArgs->models))
+            if (const std::string path = present(model, "--models"); !path.empty())
+                options.models.push_back(path);
+        options.temporalModel = present(textureArgs->temporalModel, "--temporal-model");
+        if (textureArgs->quick) {
+            options.width = options.height = 96, options.truthSamples = 16, options.frames = 4;
+            options.cases = {"checker", "normal-map"}, options.models.clear(), options.temporalModel.clear();
+        }
+        if (!textureArgs->out.empty()) std::filesystem::create_directories(textureArgs->out);
+        options.quiet = textureArgs->json;
+        const std::vector<nlohmann::json> rows = bench::benchTexture(options);
+        if (!textureArgs->out.empty()) {
+            for (const std::string& c : options.cases) {
+                Plot plot;
+                plot.title = "bench texture, " + c + ": cost against error";
+                plot.xLabel = "ms a frame (render + method)", plot.yLabel = "PSNR dB against the truth";
+                plot.logX = true, plot.legendOutside = true;
+                for (const nlohmann::json& row : rows) {
+                    if (row["case"] != c) continue;
+                    PlotSeries point;
+                    point.name = row["method"].get<std::string>() + (row["pareto"].get<bool>() ? " *" : "");
+                    point.lines = false, point.markers = true, point.labels = true;
+                    point.x.push_back(std::max(row["ms"].get<double>(), 0.01));
+                    point.y.push_back(row["psnr"].get<double>());
+                    point.pointLabels.push_back(row["method"].get<std::string>());
+                    plot.series.push_back(point);
+                }
+                writePlotPng((std::filesystem::path(textureArgs->out) / ("pareto-" + c + ".png")).string(),
+                             plot);
+            }
+            nlohmann::json all = rows;
+            writeTextFileAtomically((std::filesystem::path(textureArgs->out) / "results.json").string(),
+                                    all.dump(1) + "\n");
+        }
+        if (textureArgs->json) {
+            for (const nlohmann::json& row : rows) std::printf("%s\n", row.dump().c_str());
+            return;
+        }
+        std::printf(
+            "%dx%d, truth %d samples a pixel; temporal methods after %d still jittered frames. * = on the "
+            "Pareto front of its case (no row both cheaper and closer)\n",
+            options.width, options.height, options.truthSamples, options.frames);
+        std::string current;
+        for (const nlohmann::json& row : rows) {
+            if (row["case"] != current) {
+                current = row["case"].get<std::string>();
+                std::printf("\n%s\n  %-32s %-13s %9s %12s %7s %9s\n", current.c_str(), "method", "family",
+                            "ms", "aliasing dB", "detail", "PSNR dB");
+            }
+            std::printf("%s %-32s %-13s %9.1f %12.1f %7.3f %9.2f\n", row["pareto"].get<bool>() ? " *" : "  ",
+                        row["method"].get<std::string>().c_str(), row["family"].get<std::string>().c_str(),
+                        row["ms"].get<double>(), row["aliasing_db"].get<double>(),
+                        row["detail_kept"].get<double>(), row["psnr"].get<double>());
+        }
+        std::printf("\nOSMesa llvmpipe renders in software: render times are a CPU's, not a GPU's.\n");
     });
 
     struct TaaBenchArguments {

@@ -121,9 +121,10 @@ std::vector<nlohmann::json> benchRender(const RenderBenchOptions& options) {
         const render::Frame truthFrame = truthRenderer.renderTruth(0, truthOptions);
         Image truth(truthFrame.width, truthFrame.height, truthFrame.channelNames);
         truth.pixels = truthFrame.pixels;
-        sceneOptions.sampler = render::Sampler::Trilinear;
-        for (const render::Bump bump : {render::Bump::Standard, render::Bump::Super}) {
-            sceneOptions.bump = bump;
+        for (const auto& [bump, sampler] : {std::pair{render::Bump::Standard, render::Sampler::Trilinear},
+                                            std::pair{render::Bump::Standard, render::Sampler::Anisotropic16},
+                                            std::pair{render::Bump::Super, render::Sampler::Trilinear}}) {
+            sceneOptions.bump = bump, sceneOptions.sampler = sampler;
             const render::Scene scene = render::buildScene("normal-map", sceneOptions);
             const Stopwatch setup;
             render::Renderer renderer(*context, scene, width, height);
@@ -138,7 +139,8 @@ std::vector<nlohmann::json> benchRender(const RenderBenchOptions& options) {
             Image image(frame.width, frame.height, frame.channelNames);
             image.pixels = frame.pixels;
             const AliasingScore score = aliasingScore(image, truth);
-            rows.push_back({{"name", std::string("bump ") + render::bumpName(bump)},
+            rows.push_back({{"name", std::string("bump ") + render::bumpName(bump) +
+                                         (sampler == render::Sampler::Anisotropic16 ? " aniso16" : "")},
                             {"scene", "normal-map"},
                             {"texture", "dimples"},
                             {"width", width},

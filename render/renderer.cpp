@@ -183,13 +183,21 @@ vec3 superBumpProbe(vec2 uv, float lod, vec3 albedo, vec3 T, vec3 B, vec3 N) {
     }
     return sum;
 }
-// The footprint's level of detail as trilinear filtering takes it (its longer side). Probing along an
-// anisotropic footprint's major axis at a finer level was tried and aliased more on the receding plate
-// (docs/texture-aa.md).
+// An anisotropic footprint is covered by up to 4 probes along its longer side, each at the level of
+// detail of its share of that side (or of the shorter side, if longer), as anisotropic texture filtering
+// does; a square footprint by one (docs/texture-aa.md).
 vec3 superBumpLighting(vec3 albedo, vec3 T, vec3 B, vec3 N) {
     vec2 dx = dFdx(vUv) * uBumpSize, dy = dFdy(vUv) * uBumpSize;
-    float lod = clamp(0.5 * log2(max(max(dot(dx, dx), dot(dy, dy)), 1e-30)), 0.0, float(uBumpLevels - 1));
-    return superBumpProbe(vUv, lod, albedo, T, B, N);
+    vec2 major = dot(dx, dx) >= dot(dy, dy) ? dx : dy;
+    float majorLength = length(major), minorLength = min(length(dx), length(dy));
+    int probes = int(clamp(ceil(majorLength / max(minorLength, 1e-6)), 1.0, 4.0));
+    float lod = clamp(log2(max(max(majorLength / float(probes), minorLength), 1e-15)), 0.0, float(uBumpLevels - 1));
+    vec3 sum = vec3(0.0);
+    for (int i = 0; i < probes; ++i) {
+        vec2 uv = vUv + ((float(i) + 0.5) / float(probes) - 0.5) * major / uBumpSize;
+        sum += superBumpProbe(uv, lod, albedo, T, B, N);
+    }
+    return sum / float(probes);
 }
 void main() {
     vec3 albedo = uColour;

@@ -345,6 +345,7 @@ void normalMapScene(Scene& s, const SceneOptions& o) {
     shiny.pattern = Pattern::Bumps, shiny.shininess = 200, shiny.frequency = 12;
     if (o.bump != Bump::Procedural) {
         s.normalMaps.push_back(makeNormalMap("dimples", 256, o.seed));
+        s.sampler = o.sampler;  // how the standard chain is read
         shiny.normalMap = 0;
     }
     Mesh floor;
