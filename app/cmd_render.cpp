@@ -34,6 +34,7 @@ struct RenderArguments {
     render::FourierOptions fourier;
     std::string bump = "procedural";
     int bumpLobes = 4;
+    bool bumpLobesGiven = false, fourierGiven = false;
     bool adaptive = false, list = false, json = false, quiet = false, force = false;
     RuntimeOptions runtime;
 };
@@ -143,6 +144,13 @@ void runRender(const RenderArguments& args) {
     sceneOptions.bump = render::parseBump(args.bump);
     sceneOptions.bumpLobes = args.bumpLobes;
     const render::Scene scene = render::buildScene(args.scene, sceneOptions);
+    if (sceneOptions.bump != render::Bump::Procedural && scene.normalMaps.empty())
+        throw Error("--bump " + args.bump + ": scene '" + args.scene +
+                    "' has no normal map (normal-map has)");
+    if (args.bumpLobesGiven && sceneOptions.bump != render::Bump::Super)
+        throw Error("--bump-lobes is for --bump super");
+    if (args.fourierGiven && sceneOptions.sampler != render::Sampler::Fourier)
+        throw Error("the --fourier-* options are for --sampler fourier");
 
     claimOutputFolder(args);
     std::error_code error;
@@ -345,7 +353,14 @@ void registerRenderCommand(CLI::App& app) {
         "Writes per frame frame_NNNN.exr (float; channels R G B, albedo.R/G/B, depth.Z, motion.X/Y, id.ID,\n"
         "prevdepth.Z as requested), frame_NNNN.png (sRGB preview), truth_NNNN.exr/.png with --truth, and\n"
         "render.json (camera, seed, jitter, sample counts). Channel meanings: docs/render.md.");
-    command->callback([args] { runRender(*args); });
+    command->callback([args, command] {
+        args->bumpLobesGiven = command->count("--bump-lobes") > 0;
+        args->fourierGiven = command->count("--fourier-frequencies") + command->count("--fourier-cutoff") +
+                                 command->count("--fourier-sigma") +
+                                 command->count("--fourier-min-captured") >
+                             0;
+        runRender(*args);
+    });
 }
 
 }  // namespace dejag::cli

@@ -768,6 +768,44 @@ TEST(Cli, BenchRenderQuickPrintsFramesAndTruth) {
     EXPECT_GT(aliasing["sampler point"], 10 * aliasing["sampler trilinear"]);
 }
 
+// bench texture on a small frame: every family of tools on both kinds of scene, the Pareto front marked
+// (the cheapest row is always on it), PNG plots and the JSON; an unknown case or bump mode is one line.
+TEST(Cli, BenchTextureComparesEveryToolWithItsParetoFront) {
+    testing::TempDir dir;
+    const RunResult r = run("bench texture --quick --json --out '" + dir.file("texture") + "'", dir);
+    ASSERT_EQ(r.exitCode, 0) << r.err;
+    std::map<std::string, int> families;
+    std::map<std::string, std::pair<double, bool>> cheapest;  // per case: ms, on the front
+    int rows = 0;
+    for (const nlohmann::json& j : jsonLines(r.out)) {
+        ++rows;
+        ++families[j["case"].get<std::string>() + " " + j["family"].get<std::string>()];
+        EXPECT_GT(j["ms"].get<double>(), 0.0);
+        EXPECT_TRUE(std::isfinite(j["psnr"].get<double>()));
+        auto& c = cheapest.try_emplace(j["case"].get<std::string>(), INFINITY, false).first->second;
+        if (j["ms"].get<double>() < c.first) c = {j["ms"].get<double>(), j["pareto"].get<bool>()};
+    }
+    EXPECT_EQ(rows, 13 + 11);
+    EXPECT_EQ(families["checker source"], 5);  // the five samplers
+    EXPECT_EQ(families["normal-map source"], 3);
+    EXPECT_EQ(families["checker post-process"], 2);
+    EXPECT_EQ(families["checker temporal"], 6);  // three TAAs on default and on point-sampled frames
+    for (const auto& [name, c] : cheapest) EXPECT_TRUE(c.second) << name;
+    EXPECT_TRUE(std::filesystem::exists(dir.file("texture/pareto-checker.png")));
+    EXPECT_TRUE(std::filesystem::exists(dir.file("texture/pareto-normal-map.png")));
+    EXPECT_EQ(nlohmann::json::parse(slurp(dir.file("texture/results.json"))).size(), size_t(rows));
+    expectOneLineError(run("bench texture --quick --cases marble", dir), "marble");
+    expectOneLineError(run("render --scene normal-map --bump shiny --out '" + dir.file("r") + "'", dir),
+                       "shiny");
+    expectOneLineError(run("render --scene planes --bump super --out '" + dir.file("r") + "'", dir),
+                       "no normal map");
+    expectOneLineError(
+        run("render --scene normal-map --bump standard --bump-lobes 2 --out '" + dir.file("r") + "'", dir),
+        "--bump super");
+    expectOneLineError(run("render --scene planes --fourier-sigma 0.5 --out '" + dir.file("r") + "'", dir),
+                       "--sampler fourier");
+}
+
 TEST(Cli, FilterFxaaKeepsBitDepthAndAlphaAndRefusesWhatItCannotDo) {
     testing::TempDir dir;
     // An aliased diagonal edge with an alpha channel, 8-bit PNG.
