@@ -645,7 +645,9 @@ void registerBenchCommand(CLI::App& app) {
         ->capture_default_str();
     textureBench->add_option("--temporal-model", textureArgs->temporalModel, "the temporal network")
         ->capture_default_str();
-    textureBench->add_option("--out", textureArgs->out, "folder for pareto-CASE.png plots and results.json");
+    textureBench->add_option("--out", textureArgs->out,
+                             "folder for pareto-CASE.png, frequency-test.png (aliasing against detail) and "
+                             "results.json");
     textureBench->add_flag("--json", textureArgs->json, "one JSON object per row");
     textureBench->add_flag(
         "--quick", textureArgs->quick,
@@ -696,6 +698,29 @@ void registerBenchCommand(CLI::App& app) {
                 writePlotPng((std::filesystem::path(textureArgs->out) / ("pareto-" + c + ".png")).string(),
                              plot);
             }
+            // The thesis' frequency-test shape: aliasing against detail kept, a series per tool that
+            // works at the source, a point per case.
+            Plot shape;
+            shape.title = "bench texture: aliasing against detail kept (the tools at the source)";
+            shape.xLabel = "detail kept (share of the truth's spectral energy)";
+            shape.yLabel = "aliasing dB (lower is better)";
+            shape.legendOutside = true;
+            for (const nlohmann::json& row : rows) {
+                if (row["family"] != "source") continue;
+                const std::string method = row["method"].get<std::string>();
+                auto series = std::find_if(shape.series.begin(), shape.series.end(),
+                                           [&](const PlotSeries& p) { return p.name == method; });
+                if (series == shape.series.end()) {
+                    shape.series.push_back({});
+                    series = shape.series.end() - 1;
+                    series->name = method, series->lines = false, series->markers = true,
+                    series->labels = true;
+                }
+                series->x.push_back(row["detail_kept"].get<double>());
+                series->y.push_back(row["aliasing_db"].get<double>());
+                series->pointLabels.push_back(row["case"].get<std::string>());
+            }
+            writePlotPng((std::filesystem::path(textureArgs->out) / "frequency-test.png").string(), shape);
             nlohmann::json all = rows;
             writeTextFileAtomically((std::filesystem::path(textureArgs->out) / "results.json").string(),
                                     all.dump(1) + "\n");

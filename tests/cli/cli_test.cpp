@@ -793,6 +793,7 @@ TEST(Cli, BenchTextureComparesEveryToolWithItsParetoFront) {
     for (const auto& [name, c] : cheapest) EXPECT_TRUE(c.second) << name;
     EXPECT_TRUE(std::filesystem::exists(dir.file("texture/pareto-checker.png")));
     EXPECT_TRUE(std::filesystem::exists(dir.file("texture/pareto-normal-map.png")));
+    EXPECT_TRUE(std::filesystem::exists(dir.file("texture/frequency-test.png")));
     EXPECT_EQ(nlohmann::json::parse(slurp(dir.file("texture/results.json"))).size(), size_t(rows));
     expectOneLineError(run("bench texture --quick --cases marble", dir), "marble");
     expectOneLineError(run("render --scene normal-map --bump shiny --out '" + dir.file("r") + "'", dir),
