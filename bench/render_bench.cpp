@@ -11,6 +11,34 @@
 
 namespace dejag::bench {
 
+namespace {
+
+// A row of a sampler or a normal-map mode: its frame's time, aliasing and detail against the truth.
+nlohmann::json qualityRow(const std::string& name, const char* scene, const std::string& texture,
+                          const render::Frame& frame, const render::Frame& truth,
+                          const std::vector<double>& times, double setupMs, int truthSamples) {
+    const auto toImage = [](const render::Frame& f) {
+        Image image(f.width, f.height, f.channelNames);
+        image.pixels = f.pixels;
+        return image;
+    };
+    const AliasingScore score = aliasingScore(toImage(frame), toImage(truth));
+    return {{"name", name},
+            {"scene", scene},
+            {"texture", texture},
+            {"width", frame.width},
+            {"height", frame.height},
+            {"ms", median(times)},
+            {"aliasing", score.aliasing},
+            {"aliasing_db", score.aliasingDb()},
+            {"detail_kept", score.detailKept},
+            {"psnr", floatPsnr(frame.pixels, truth.pixels)},
+            {"setup_ms", setupMs},
+            {"truth_samples", truthSamples}};
+}
+
+}  // namespace
+
 std::vector<nlohmann::json> benchRender(const RenderBenchOptions& options) {
     std::vector<nlohmann::json> rows;
     const auto context = render::createOsMesaContext();
@@ -64,94 +92,55 @@ std::vector<nlohmann::json> benchRender(const RenderBenchOptions& options) {
                         {"psnr_difference_db", adaptivePsnr - fullPsnr},
                         {"adaptive_vs_full_truth_psnr", floatPsnr(fullTruth.pixels, adaptiveTruth.pixels)}});
     }
-    for (const std::string& texture : options.samplerTextures) {
-        const auto [width, height] = options.samplerSize;
-        const auto toImage = [](const render::Frame& f) {
-            Image image(f.width, f.height, f.channelNames);
-            image.pixels = f.pixels;
-            return image;
-        };
-        render::SceneOptions sceneOptions;
-        sceneOptions.texture = texture, sceneOptions.sampler = render::Sampler::Point;
-        const render::Scene truthScene = render::buildScene("planes", sceneOptions);
-        render::Renderer truthRenderer(*context, truthScene, width, height);
+    // A scene's renderer set up (timed), its first frame and the times of `repeat` more.
+    const auto timed = [&](const render::Scene& scene, int width, int height, const render::Frame& truth,
+                           const std::string& name, const char* sceneName, const std::string& texture) {
+        const Stopwatch setup;
+        render::Renderer renderer(*context, scene, width, height);
+        const double setupMs = setup.elapsedMs();
+        const render::Frame frame = renderer.render({});  // (also the warm-up)
+        std::vector<double> times;
+        for (int i = 0; i < options.repeat; ++i) {
+            const Stopwatch clock;
+            renderer.render({});
+            times.push_back(clock.elapsedMs());
+        }
+        rows.push_back(
+            qualityRow(name, sceneName, texture, frame, truth, times, setupMs, options.samplerTruthSamples));
+    };
+    const auto truthOf = [&](const render::Scene& scene, int width, int height) {
+        render::Renderer renderer(*context, scene, width, height);
         render::TruthOptions truthOptions;
         truthOptions.samples = options.samplerTruthSamples;
-        const Image truth = toImage(truthRenderer.renderTruth(0, truthOptions));
+        return renderer.renderTruth(0, truthOptions);
+    };
+    const auto [width, height] = options.samplerSize;
+    for (const std::string& texture : options.samplerTextures) {
+        render::SceneOptions sceneOptions;
+        sceneOptions.texture = texture, sceneOptions.sampler = render::Sampler::Point;
+        const render::Frame truth = truthOf(render::buildScene("planes", sceneOptions), width, height);
         for (const render::Sampler sampler :
              {render::Sampler::Point, render::Sampler::Bilinear, render::Sampler::Trilinear,
               render::Sampler::Anisotropic16, render::Sampler::Fourier}) {
             sceneOptions.sampler = sampler;
-            const render::Scene scene = render::buildScene("planes", sceneOptions);
-            const Stopwatch setup;
-            render::Renderer renderer(*context, scene, width, height);
-            const double setupMs = setup.elapsedMs();
-            const render::Frame frame = renderer.render({});  // (also the warm-up)
-            std::vector<double> times;
-            for (int i = 0; i < options.repeat; ++i) {
-                const Stopwatch clock;
-                renderer.render({});
-                times.push_back(clock.elapsedMs());
-            }
-            const AliasingScore score = aliasingScore(toImage(frame), truth);
-            rows.push_back({{"name", std::string("sampler ") + render::samplerName(sampler)},
-                            {"scene", "planes"},
-                            {"texture", texture},
-                            {"width", width},
-                            {"height", height},
-                            {"ms", median(times)},
-                            {"aliasing", score.aliasing},
-                            {"aliasing_db", score.aliasingDb()},
-                            {"detail_kept", score.detailKept},
-                            {"psnr", floatPsnr(frame.pixels, truth.pixels)},
-                            {"setup_ms", setupMs},
-                            {"truth_samples", options.samplerTruthSamples}});
+            timed(render::buildScene("planes", sceneOptions), width, height, truth,
+                  std::string("sampler ") + render::samplerName(sampler), "planes", texture);
         }
     }
     // The normal-map scene: standard normal mapping and super bump mapping against the surface read at
     // level 0 and averaged over the pixel.
     if (!options.samplerTextures.empty()) {
-        const auto [width, height] = options.samplerSize;
         render::SceneOptions sceneOptions;
         sceneOptions.bump = render::Bump::Standard, sceneOptions.sampler = render::Sampler::Bilinear;
-        const render::Scene truthScene = render::buildScene("normal-map", sceneOptions);
-        render::Renderer truthRenderer(*context, truthScene, width, height);
-        render::TruthOptions truthOptions;
-        truthOptions.samples = options.samplerTruthSamples;
-        const render::Frame truthFrame = truthRenderer.renderTruth(0, truthOptions);
-        Image truth(truthFrame.width, truthFrame.height, truthFrame.channelNames);
-        truth.pixels = truthFrame.pixels;
+        const render::Frame truth = truthOf(render::buildScene("normal-map", sceneOptions), width, height);
         for (const auto& [bump, sampler] : {std::pair{render::Bump::Standard, render::Sampler::Trilinear},
                                             std::pair{render::Bump::Standard, render::Sampler::Anisotropic16},
                                             std::pair{render::Bump::Super, render::Sampler::Trilinear}}) {
             sceneOptions.bump = bump, sceneOptions.sampler = sampler;
-            const render::Scene scene = render::buildScene("normal-map", sceneOptions);
-            const Stopwatch setup;
-            render::Renderer renderer(*context, scene, width, height);
-            const double setupMs = setup.elapsedMs();
-            const render::Frame frame = renderer.render({});
-            std::vector<double> times;
-            for (int i = 0; i < options.repeat; ++i) {
-                const Stopwatch clock;
-                renderer.render({});
-                times.push_back(clock.elapsedMs());
-            }
-            Image image(frame.width, frame.height, frame.channelNames);
-            image.pixels = frame.pixels;
-            const AliasingScore score = aliasingScore(image, truth);
-            rows.push_back({{"name", std::string("bump ") + render::bumpName(bump) +
-                                         (sampler == render::Sampler::Anisotropic16 ? " aniso16" : "")},
-                            {"scene", "normal-map"},
-                            {"texture", "dimples"},
-                            {"width", width},
-                            {"height", height},
-                            {"ms", median(times)},
-                            {"aliasing", score.aliasing},
-                            {"aliasing_db", score.aliasingDb()},
-                            {"detail_kept", score.detailKept},
-                            {"psnr", floatPsnr(frame.pixels, truthFrame.pixels)},
-                            {"setup_ms", setupMs},
-                            {"truth_samples", options.samplerTruthSamples}});
+            timed(render::buildScene("normal-map", sceneOptions), width, height, truth,
+                  std::string("bump ") + render::bumpName(bump) +
+                      (sampler == render::Sampler::Anisotropic16 ? " aniso16" : ""),
+                  "normal-map", "dimples");
         }
     }
     return rows;

@@ -77,8 +77,8 @@ SuperBumpChain buildSuperBumpChain(const NormalMapImage& map, int lobes) {
     const int n = map.size;
     if (n < 4 || (n & (n - 1)) != 0 || map.normals.size() != size_t(n) * size_t(n) * 3)
         throw Error("normal map '" + map.name + "': not a square power-of-two map of normals");
-    if (lobes < 1 || lobes > 8)
-        throw Error("super bump mapping keeps 1 to 8 lobes a texel, not " + std::to_string(lobes));
+    if (lobes < 0 || lobes > 8)
+        throw Error("super bump mapping keeps 1 to 8 lobes a texel (0: the standard chain alone), not " + std::to_string(lobes));
     SuperBumpChain chain;
     chain.size = n, chain.lobes = lobes;
     chain.levels = 1;
@@ -140,6 +140,7 @@ SuperBumpChain buildSuperBumpChain(const NormalMapImage& map, int lobes) {
                 float* standard = &chain.standard[size_t(level)][size_t(t) * 4];
                 standard[0] = float(mean.x), standard[1] = float(mean.y), standard[2] = float(mean.z);
                 standard[3] = float(std::sqrt(dot(mean, mean)));
+                if (lobes == 0) continue;
                 // Farthest-first start: the normal nearest the mean, then each time the one farthest
                 // from every centre so far (ties: the first).
                 const int k = int(std::min<size_t>(size_t(lobes), normals.size()));

@@ -413,6 +413,24 @@ struct Renderer::Impl {
         gl.Uniform3f(uniform(program, name), float(v.x), float(v.y), float(v.z));
     }
 
+    // A repeating RGBA32F texture of square levels (level j: sizes[j]^2 texels from data[j]) with the
+    // given filters; the bound texture afterwards.
+    GLuint makeFloatTexture(const std::vector<int>& sizes, const std::vector<const float*>& data,
+                            GLenum magFilter, GLenum minFilter) {
+        GLuint id = 0;
+        gl.GenTextures(1, &id);
+        gl.BindTexture(GL_TEXTURE_2D, id);
+        for (size_t level = 0; level < sizes.size(); ++level)
+            gl.TexImage2D(GL_TEXTURE_2D, GLint(level), GL_RGBA32F, sizes[level], sizes[level], 0, GL_RGBA,
+                          GL_FLOAT, data[level]);
+        gl.TexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MAX_LEVEL, GLint(sizes.size()) - 1);
+        gl.TexParameteri(GL_TEXTURE_2D, GL_TEXTURE_WRAP_S, GL_REPEAT);
+        gl.TexParameteri(GL_TEXTURE_2D, GL_TEXTURE_WRAP_T, GL_REPEAT);
+        gl.TexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MAG_FILTER, GLint(magFilter));
+        gl.TexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MIN_FILTER, GLint(minFilter));
+        return id;
+    }
+
     GLuint makeTarget(GLenum internalFormat, GLenum format) {
         GLuint t = 0;
         gl.GenTextures(1, &t);
@@ -602,26 +620,13 @@ Renderer::Renderer(const GlContext& context, const Scene& scene, int width, int 
             const FourierTexture f(t, scene.fourier);
             Impl::FourierGpu g;
             g.size = f.size(), g.levels = f.levels();
-            gl.GenTextures(1, &g.original);
-            gl.BindTexture(GL_TEXTURE_2D, g.original);
-            gl.TexImage2D(GL_TEXTURE_2D, 0, GL_RGBA32F, f.size(), f.size(), 0, GL_RGBA, GL_FLOAT,
-                          f.level(0).data());
-            gl.TexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MAX_LEVEL, 0);
-            gl.TexParameteri(GL_TEXTURE_2D, GL_TEXTURE_WRAP_S, GL_REPEAT);
-            gl.TexParameteri(GL_TEXTURE_2D, GL_TEXTURE_WRAP_T, GL_REPEAT);
-            gl.TexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MAG_FILTER, GL_LINEAR);
-            gl.TexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MIN_FILTER, GL_LINEAR);
+            g.original = m.makeFloatTexture({f.size()}, {f.level(0).data()}, GL_LINEAR, GL_LINEAR);
             // OpenGL's level j holds band j + 1 (stored at twice its MIP size); band 0 is the texture.
-            gl.GenTextures(1, &g.bands);
-            gl.BindTexture(GL_TEXTURE_2D, g.bands);
+            std::vector<int> sizes;
+            std::vector<const float*> bands;
             for (int level = 1; level < f.levels(); ++level)
-                gl.TexImage2D(GL_TEXTURE_2D, level - 1, GL_RGBA32F, f.levelSize(level), f.levelSize(level), 0,
-                              GL_RGBA, GL_FLOAT, f.level(level).data());
-            gl.TexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MAX_LEVEL, f.levels() - 2);
-            gl.TexParameteri(GL_TEXTURE_2D, GL_TEXTURE_WRAP_S, GL_REPEAT);
-            gl.TexParameteri(GL_TEXTURE_2D, GL_TEXTURE_WRAP_T, GL_REPEAT);
-            gl.TexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MAG_FILTER, GL_LINEAR);
-            gl.TexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MIN_FILTER, GL_LINEAR_MIPMAP_NEAREST);
+                sizes.push_back(f.levelSize(level)), bands.push_back(f.level(level).data());
+            g.bands = m.makeFloatTexture(sizes, bands, GL_LINEAR, GL_LINEAR_MIPMAP_NEAREST);
             gl.GenTextures(1, &g.detail);
             gl.BindTexture(GL_TEXTURE_2D, g.detail);
             const std::vector<float> texels = f.detailTexels();
@@ -636,31 +641,27 @@ Renderer::Renderer(const GlContext& context, const Scene& scene, int width, int 
 
     if (scene.bump != Bump::Procedural)
         for (const NormalMapImage& map : scene.normalMaps) {
-            const SuperBumpChain chain = buildSuperBumpChain(map, scene.bumpLobes);
+            const SuperBumpChain chain = buildSuperBumpChain(map, scene.bump == Bump::Super ? scene.bumpLobes : 0);
             Impl::BumpGpu b;
             b.size = chain.size, b.levels = chain.levels, b.lobeCount = chain.lobes;
-            const auto upload = [&](GLuint& id, const std::vector<std::vector<float>>& levels,
-                                    bool filtered) {
-                gl.GenTextures(1, &id);
-                gl.BindTexture(GL_TEXTURE_2D, id);
-                for (int level = 0; level < chain.levels; ++level)
-                    gl.TexImage2D(GL_TEXTURE_2D, level, GL_RGBA32F, chain.size >> level, chain.size >> level,
-                                  0, GL_RGBA, GL_FLOAT, levels[size_t(level)].data());
-                gl.TexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MAX_LEVEL, chain.levels - 1);
-                gl.TexParameteri(GL_TEXTURE_2D, GL_TEXTURE_WRAP_S, GL_REPEAT);
-                gl.TexParameteri(GL_TEXTURE_2D, GL_TEXTURE_WRAP_T, GL_REPEAT);
-                const Sampler s = scene.sampler;
-                gl.TexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MAG_FILTER,
-                                 filtered && s != Sampler::Point ? GL_LINEAR : GL_NEAREST);
-                gl.TexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MIN_FILTER,
-                                 !filtered || s == Sampler::Point ? GL_NEAREST_MIPMAP_NEAREST
-                                 : s == Sampler::Bilinear         ? GL_LINEAR
-                                                                  : GL_LINEAR_MIPMAP_LINEAR);
-                if (filtered && s == Sampler::Anisotropic16)
-                    gl.TexParameterf(GL_TEXTURE_2D, kMaxAnisotropy, 16.0f);
+            std::vector<int> sizes;
+            for (int level = 0; level < chain.levels; ++level) sizes.push_back(chain.size >> level);
+            const auto pointers = [](const std::vector<std::vector<float>>& levels) {
+                std::vector<const float*> out;
+                for (const std::vector<float>& level : levels) out.push_back(level.data());
+                return out;
             };
-            upload(b.standard, chain.standard, true);
-            for (int j = 0; j < chain.lobes; ++j) upload(b.lobes[size_t(j)], chain.lobe[size_t(j)], false);
+            // The standard chain is read with the scene's sampler; the lobes by texel.
+            const Sampler s = scene.sampler;
+            b.standard = m.makeFloatTexture(sizes, pointers(chain.standard),
+                                            s == Sampler::Point ? GL_NEAREST : GL_LINEAR,
+                                            s == Sampler::Point      ? GL_NEAREST_MIPMAP_NEAREST
+                                            : s == Sampler::Bilinear ? GL_LINEAR
+                                                                     : GL_LINEAR_MIPMAP_LINEAR);
+            if (s == Sampler::Anisotropic16) gl.TexParameterf(GL_TEXTURE_2D, kMaxAnisotropy, 16.0f);
+            for (int j = 0; j < chain.lobes; ++j)
+                b.lobes[size_t(j)] = m.makeFloatTexture(sizes, pointers(chain.lobe[size_t(j)]), GL_NEAREST,
+                                                        GL_NEAREST_MIPMAP_NEAREST);
             m.bumps.push_back(b);
         }
 

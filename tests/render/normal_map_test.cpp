@@ -91,7 +91,10 @@ TEST(SuperBump, ToksvigAndBadInput) {
     EXPECT_LT(toksvigExponent(200, 0.9), 10);
     EXPECT_THROW(makeNormalMap("dimples", 12, 1), Error);
     EXPECT_THROW(makeNormalMap("waves", 16, 1), Error);
-    EXPECT_THROW(buildSuperBumpChain(makeNormalMap("flat", 16, 1), 0), Error);
+    EXPECT_THROW(buildSuperBumpChain(makeNormalMap("flat", 16, 1), 9), Error);
+    const SuperBumpChain standardOnly = buildSuperBumpChain(makeNormalMap("dimples", 16, 1), 0);
+    EXPECT_EQ(standardOnly.lobes, 0);
+    EXPECT_EQ(standardOnly.standard.size(), 5u);
 }
 
 }  // namespace
