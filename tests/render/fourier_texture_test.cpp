@@ -76,6 +76,20 @@ std::vector<Complex> spectrum(const TextureImage& t, int channel) {
     return out;
 }
 
+// The plain inverse DFT of the frequencies of `spectrum` (n x n) with max(|kx|, |ky|) < cut, at texel
+// coordinate (x, y) (texel centres at whole numbers); none at the Nyquist frequency n / 2.
+double bandBelow(const std::vector<Complex>& spectrum, int n, double cut, double x, double y) {
+    double value = 0;
+    for (int ky = -n / 2 + 1; ky < n / 2; ++ky)
+        for (int kx = -n / 2 + 1; kx < n / 2; ++kx)
+            if (std::max(std::abs(kx), std::abs(ky)) < cut)
+                value += (spectrum[size_t((ky + n) % n) * n + size_t((kx + n) % n)] *
+                          std::polar(1.0, kTau * (kx * x + ky * y) / n))
+                             .real() /
+                         (n * n);
+    return value;
+}
+
 // A footprint of `texels` texels a pixel along x and `texels / anisotropy` along y, turned by `angle`.
 struct Derivatives {
     Vec2 dx, dy;
@@ -101,14 +115,7 @@ TEST(FourierTexture, LevelsHoldTheBandBelowTheirCutoffAtTheirTexelCentres) {
         for (int j = 0; j < nm; ++j)
             for (int i = 0; i < nm; ++i) {
                 const double x = (1 << (m - 1)) * i + centre, y = (1 << (m - 1)) * j + centre;
-                double expected = 0;
-                for (int ky = -n / 2 + 1; ky < n / 2; ++ky)
-                    for (int kx = -n / 2 + 1; kx < n / 2; ++kx)
-                        if (std::max(std::abs(kx), std::abs(ky)) < cut)
-                            expected += (red[size_t((ky + n) % n) * n + size_t((kx + n) % n)] *
-                                         std::polar(1.0, kTau * (kx * x + ky * y) / n))
-                                            .real() /
-                                        (n * n);
+                const double expected = bandBelow(red, n, cut, x, y);
                 worst = std::max(worst, std::abs(f.level(m)[(size_t(j) * nm + size_t(i)) * 4] - expected));
             }
     }
@@ -131,14 +138,7 @@ TEST(FourierTexture, TheRemovedSinusoidsRebuildTheTexture) {
         int waves = 0;
         for (int y = 0; y < n; ++y)
             for (int x = 0; x < n; ++x) {
-                double value = 0;
-                for (int ky = -n / 2 + 1; ky < n / 2; ++ky)
-                    for (int kx = -n / 2 + 1; kx < n / 2; ++kx)
-                        if (std::max(std::abs(kx), std::abs(ky)) < cut)
-                            value += (s[size_t((ky + n) % n) * n + size_t((kx + n) % n)] *
-                                      std::polar(1.0, kTau * (kx * x + ky * y) / n))
-                                         .real() /
-                                     (n * n);
+                double value = bandBelow(s, n, cut, x, y);
                 waves = 0;
                 for (int j = 0; j < 256; ++j) {
                     const float* e = row + j * 8;
