@@ -16,6 +16,7 @@ struct GenerateArguments {
     int count = 0, truth = 128, workers = 2, sequenceLength = 1;
     double jitterSpread = 1.0;
     double closeUps = 0.0;
+    std::string samplers = "point,bilinear,trilinear";
     uint64_t seed = 1;
     bool adaptive = false, listFamilies = false, json = false, quiet = false, jitterSpreadGiven = false;
     RuntimeOptions runtime;
@@ -54,6 +55,7 @@ void runGenerate(const GenerateArguments& args) {
     spec.sequenceLength = args.sequenceLength;
     spec.jitterSpread = args.jitterSpread;
     spec.closeUps = args.closeUps;
+    spec.samplers = splitList(args.samplers);
     if (args.jitterSpreadGiven && !spec.sequences())
         throw Error("--jitter-spread jitters sequences only (give --sequence-length 2 or more)");
     data::GenerateOptions options;
@@ -124,6 +126,11 @@ void registerDataCommand(CLI::App& app) {
             "--close-ups", args->closeUps,
             "share of items framed as close-ups: the view narrowed 1.5-4.5x at a random point of it, "
             "as a crop of a full-HD frame sees it")
+        ->capture_default_str();
+    generate
+        ->add_option("--samplers", args->samplers,
+                     "texture samplers drawn per item for textured scenes: point, bilinear, trilinear, "
+                     "fourier, aniso16 (a minute per truth)")
         ->capture_default_str();
     generate->add_flag("--list-families", args->listFamilies, "print the families and exit");
     generate

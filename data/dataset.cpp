@@ -107,6 +107,13 @@ void DatasetSpec::validate() const {
         throw Error("--jitter-spread must be 0..4 pixels, not " + std::to_string(jitterSpread));
     if (!(closeUps >= 0 && closeUps <= 1))
         throw Error("--close-ups must be a share in [0, 1], not " + std::to_string(closeUps));
+    if (samplers.empty()) throw Error("--samplers needs at least one sampler");
+    for (size_t i = 0; i < samplers.size(); ++i) {
+        render::parseSampler(samplers[i]);  // throws, naming the choices
+        if (std::find(samplers.begin(), samplers.begin() + ptrdiff_t(i), samplers[i]) !=
+            samplers.begin() + ptrdiff_t(i))
+            throw Error("--samplers names '" + samplers[i] + "' twice");
+    }
 }
 
 json DatasetSpec::toJson() const {
@@ -122,6 +129,7 @@ json DatasetSpec::toJson() const {
     if (sequences())
         j["sequence"] = {{"length", sequenceLength}, {"jitter", "halton16"}, {"jitter_spread", jitterSpread}};
     if (closeUps > 0) j["close_ups"] = closeUps;
+    if (samplers != defaultSamplers()) j["samplers"] = samplers;
     return j;
 }
 
@@ -139,6 +147,7 @@ DatasetSpec DatasetSpec::fromJson(const json& j) {
         s.seed = j.at("seed").get<uint64_t>();
         s.validationFraction = j.at("validation_fraction").get<double>();
         if (j.contains("close_ups")) s.closeUps = j.at("close_ups").get<double>();
+        if (j.contains("samplers")) s.samplers = j.at("samplers").get<std::vector<std::string>>();
         if (j.contains("sequence")) {
             const json& q = j.at("sequence");
             s.sequenceLength = q.at("length").get<int>();
@@ -538,9 +547,12 @@ json ItemRenderer::render(const DatasetSpec& spec, const ItemPlan& plan, const s
     render::SceneOptions options;
     options.seed = plan.seed;
     options.tiltedCamera = uniform(state, 0, 1) < 0.4;
-    // Point, bilinear or trilinear: llvmpipe's anisotropic filtering costs minutes per truth on grazing,
-    // tilted planes, so datasets leave it out (dejag render --sampler aniso16 still offers it).
-    options.sampler = render::Sampler(int(uniform(state, 0, 3)));
+    // One of the spec's samplers (by default point, bilinear or trilinear: llvmpipe's anisotropic
+    // filtering costs a minute per truth on grazing, tilted planes). One draw whatever the list, so the
+    // items' other choices do not depend on it.
+    const double samplerDraw = uniform(state, 0, double(spec.samplers.size()));
+    options.sampler =
+        render::parseSampler(spec.samplers[std::min(size_t(samplerDraw), spec.samplers.size() - 1)]);
     const char* textures[] = {"checker", "bricks", "stripes", "text", "noise"};
     options.texture = textures[int(uniform(state, 0, 5))];
     render::Scene scene = render::buildScene(plan.scene, options);

@@ -48,6 +48,10 @@ struct DatasetSpec {
     // narrowed 1.5-4.5x (log-uniform) and aimed at a random point of it, as a 256-pixel crop of a
     // full-HD frame sees the scene, with its long edges. 0 (the default, and what older datasets hold).
     double closeUps = 0.0;
+    // The texture samplers drawn (uniformly, per item) for textured scenes, by render name (docs/data.md,
+    // "Samplers"). The default is what older datasets hold; a dataset with it writes no "samplers" key.
+    std::vector<std::string> samplers = defaultSamplers();
+    static std::vector<std::string> defaultSamplers() { return {"point", "bilinear", "trilinear"}; }
     bool sequences() const { return sequenceLength > 1; }
 
     // Throws dejag::Error for an unknown family, count < 1, a bad size or sample count.

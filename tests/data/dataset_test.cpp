@@ -163,6 +163,51 @@ TEST(DatasetGenerate, CloseUpsNarrowTheViewOfTheSameItems) {
     }
 }
 
+// Samplers: textured items draw theirs from the dataset's list, recorded per item; the default list is
+// what older datasets hold and writes no "samplers" key; the other choices of an item do not depend on it.
+TEST(DatasetGenerate, TexturedItemsDrawTheirSamplerFromTheList) {
+    DatasetSpec spec = allFamilies(5);
+    EXPECT_FALSE(spec.toJson().contains("samplers"));
+    spec.samplers = {"fourier", "trilinear"};
+    EXPECT_EQ(DatasetSpec::fromJson(spec.toJson()).samplers, spec.samplers);
+    for (const std::vector<std::string>& bad :
+         {std::vector<std::string>{}, {"trilinear", "trilinear"}, {"gaussian"}}) {
+        spec.samplers = bad;
+        EXPECT_THROW(spec.validate(), Error);
+    }
+    testing::TempDir dir;
+    const std::string recipe =
+        "data generate --families textures,shapes --test-families none --count 6 "
+        "--size 48x48 --truth 8 --quiet --out '";
+    ASSERT_EQ(run(recipe + dir.file("default") + "'"), 0);
+    ASSERT_EQ(run(recipe + dir.file("fourier") + "' --samplers fourier"), 0);
+    std::string err;
+    EXPECT_EQ(run(recipe + dir.file("bad") + "' --samplers point,gaussian", &err), 2);
+    EXPECT_NE(err.find("gaussian"), std::string::npos) << err;
+    EXPECT_EQ(err.find('\n'), err.size() - 1) << err;  // one line
+    EXPECT_FALSE(std::filesystem::exists(dir.file("bad")));
+    const std::vector<nlohmann::json> before = readManifest(dir.file("default")),
+                                      after = readManifest(dir.file("fourier"));
+    ASSERT_EQ(before.size(), 6u);
+    ASSERT_EQ(after.size(), 6u);
+    std::set<std::string> drawn;
+    for (size_t i = 0; i < 6; ++i) {
+        drawn.insert(before[i]["sampler"].get<std::string>());
+        EXPECT_EQ(after[i]["sampler"], "fourier");
+        EXPECT_EQ(after[i]["camera"], before[i]["camera"]);
+        EXPECT_EQ(after[i]["light"], before[i]["light"]);
+        if (after[i]["family"] == "shapes") {  // no texture: the same frames
+            EXPECT_EQ(slurp(dir.file("fourier") + "/items/shapes/" + after[i]["id"].get<std::string>() +
+                            "_truth.exr"),
+                      slurp(dir.file("default") + "/items/shapes/" + before[i]["id"].get<std::string>() +
+                            "_truth.exr"));
+        }
+    }
+    EXPECT_FALSE(drawn.count("fourier"));
+    // A dataset is resumed only with the list it was made with.
+    EXPECT_NE(run(recipe + dir.file("fourier") + "' --samplers trilinear", &err), 0);
+}
+
 TEST(DatasetGenerate, KillNineThenTheSameCommandEqualsAnUninterruptedRun) {
     testing::TempDir dir;
     const std::string whole = dir.file("whole"), broken = dir.file("broken");
