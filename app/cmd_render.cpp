@@ -183,7 +183,8 @@ void runRender(const RenderArguments& args) {
         sidecar["fourier"] = {{"frequencies", args.fourier.frequencies},
                               {"cutoff", args.fourier.cutoff},
                               {"sigma", args.fourier.sigma},
-                              {"min_captured", args.fourier.minCaptured}};
+                              {"min_captured", args.fourier.minCaptured},
+                              {"probes", args.fourier.probes}};
     if (args.scene == "planes") sidecar["texture"] = args.texture;
     sidecar["anisotropy_supported"] = renderer.anisotropySupported();
     sidecar["jitter"] = {{"mode", args.jitter},
@@ -341,6 +342,12 @@ void registerRenderCommand(CLI::App& app) {
                      "fourier sampler: a set holding less of its energy than this reads trilinearly")
         ->check(CLI::Range(0.0, 1.0))
         ->capture_default_str();
+    command
+        ->add_option("--fourier-probes", args->fourier.probes,
+                     "fourier sampler: band reads along an anisotropic footprint's major axis (1: one "
+                     "isotropic read, as the thesis does)")
+        ->check(CLI::Range(1, 16))
+        ->capture_default_str();
     command->add_option("--texture", args->texture, "planes: checker | bricks | stripes | text | noise")
         ->capture_default_str();
     command->add_flag("--json", args->json, "print the JSON sidecar on stdout");
@@ -357,7 +364,8 @@ void registerRenderCommand(CLI::App& app) {
         args->bumpLobesGiven = command->count("--bump-lobes") > 0;
         args->fourierGiven = command->count("--fourier-frequencies") + command->count("--fourier-cutoff") +
                                  command->count("--fourier-sigma") +
-                                 command->count("--fourier-min-captured") >
+                                 command->count("--fourier-min-captured") +
+                                 command->count("--fourier-probes") >
                              0;
         runRender(*args);
     });

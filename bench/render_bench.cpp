@@ -126,6 +126,10 @@ std::vector<nlohmann::json> benchRender(const RenderBenchOptions& options) {
             timed(render::buildScene("planes", sceneOptions), width, height, truth,
                   std::string("sampler ") + render::samplerName(sampler), "planes", texture);
         }
+        // The Fourier sampler as the thesis reads its bands: one isotropic probe.
+        render::Scene isotropic = render::buildScene("planes", sceneOptions);
+        isotropic.fourier.probes = 1;
+        timed(std::move(isotropic), width, height, truth, "sampler fourier 1-probe", "planes", texture);
     }
     // The normal-map scene: standard normal mapping and super bump mapping against the surface read at
     // level 0 and averaged over the pixel.

@@ -32,6 +32,15 @@ struct Sinusoid {
     double magnitude = 0;
 };
 
+// The response of the mean of n probes spaced one unit apart (a Dirichlet kernel) at x cycles a unit;
+// at whole cycles, its limit.
+double probeResponse(double x, int n) {
+    if (n == 1) return 1;
+    const double d = std::sin(std::numbers::pi * x);
+    return std::abs(d) < 1e-4 ? std::cos(n * std::numbers::pi * x) / std::cos(std::numbers::pi * x)
+                              : std::sin(n * std::numbers::pi * x) / (n * d);
+}
+
 }  // namespace
 
 Footprint footprintOf(Vec2 a, Vec2 b) {
@@ -62,6 +71,9 @@ FourierTexture::FourierTexture(const TextureImage& image, const FourierOptions& 
     if (!(options.cutoff > 0 && options.cutoff <= 1))
         throw Error("the Fourier sampler's cut-off is a fraction of the Nyquist limit in (0, 1], not " +
                     std::to_string(options.cutoff));
+    if (options.probes < 1 || options.probes > 16 || (options.probes & (options.probes - 1)) != 0)
+        throw Error("the Fourier sampler reads its bands at 1, 2, 4, 8 or 16 probes, not " +
+                    std::to_string(options.probes));
     if (!(options.sigma >= 0 && options.sigma <= 4))
         throw Error("the Fourier sampler's pixel filter sigma is 0 to 4 pixels, not " +
                     std::to_string(options.sigma));
@@ -81,6 +93,23 @@ FourierTexture::FourierTexture(const TextureImage& image, const FourierOptions& 
             bands_[0][i * 4 + size_t(c)] = float(linear);
             spectra[size_t(c)][i] = linear;
         }
+    // The box MIP chain the fallback reads: each level the mean of 2 x 2 texels of the one before.
+    mipmaps_.assign(size_t(levels_), {});
+    for (int j = 1; j < levels_; ++j) {
+        const std::vector<float>& finer = mipmap(j - 1);
+        const int nj = n >> j, nf = n >> (j - 1);
+        std::vector<float>& level = mipmaps_[size_t(j)];
+        level.resize(size_t(nj) * size_t(nj) * 4);
+        for (int y = 0; y < nj; ++y)
+            for (int x = 0; x < nj; ++x)
+                for (size_t c = 0; c < 4; ++c) {
+                    const auto texel = [&](int dx, int dy) {
+                        return finer[(size_t(2 * y + dy) * size_t(nf) + size_t(2 * x + dx)) * 4 + c];
+                    };
+                    level[(size_t(y) * size_t(nj) + size_t(x)) * 4 + c] =
+                        0.25f * (texel(0, 0) + texel(1, 0) + texel(0, 1) + texel(1, 1));
+                }
+    }
     for (auto& s : spectra) fft2d(s, n, n);
     const auto at = [&](int c, int kx, int ky) -> Complex {
         return spectra[size_t(c)][size_t(wrap(ky, n)) * size_t(n) + size_t(wrap(kx, n))];
@@ -145,7 +174,7 @@ FourierTexture::FourierTexture(const TextureImage& image, const FourierOptions& 
             const int orientation = int(set % kOrientations);
             int m = 0, s = int(set / kOrientations);
             while (s > m) s -= ++m;
-            const double cut = cutoffOf(m + 1), angle = orientation * std::numbers::pi / 4;
+            const double cut = cutoffOf(bandLevel(m, s) + 1), angle = orientation * std::numbers::pi / 4;
             const double major = std::ldexp(1.0, m), minor = std::ldexp(1.0, s);
             const double dx = std::cos(angle), dy = std::sin(angle), unit = kTau / n;
             best.clear();
@@ -169,7 +198,10 @@ FourierTexture::FourierTexture(const TextureImage& image, const FourierOptions& 
             }
             double kept = 0;
             for (const auto& [score, wave] : best) kept += score * score;
-            captured_[size_t(set)] = total > 0 ? kept / total : 1.0;
+            // What the set misses counts only above half an 8-bit step of RMS amplitude (a real wave of
+            // amplitude |c| has RMS |c| / sqrt 2): a set of rounding noise is summed, not replaced.
+            const double negligible = 2 * (0.5 / 255) * (0.5 / 255);
+            captured_[size_t(set)] = total - kept > negligible ? kept / total : 1.0;
             // Stored by frequency, so a set's order does not depend on the heap's.
             std::sort(best.begin(), best.end(),
                       [](const auto& a, const auto& b) { return a.second < b.second; });
@@ -209,45 +241,85 @@ double FourierTexture::cutoffOf(int m) const {
     return m == 0 ? INFINITY : options_.cutoff * 0.5 * double(size_ >> m);
 }
 
-std::array<double, 4> FourierTexture::bilinear(int m, Vec2 uv) const {
-    const int nm = levelSize(m);
-    const double x = uv.x * nm - 0.5, y = uv.y * nm - 0.5;
+std::array<double, 4> FourierTexture::bilinearOf(const std::vector<float>& texels, int size, Vec2 uv) {
+    const double x = uv.x * size - 0.5, y = uv.y * size - 0.5;
     const double fx = std::floor(x), fy = std::floor(y), tx = x - fx, ty = y - fy;
-    const std::vector<float>& band = bands_[size_t(m)];
     std::array<double, 4> out{};
     for (int j = 0; j < 2; ++j)
         for (int i = 0; i < 2; ++i) {
             const double weight = (i ? tx : 1 - tx) * (j ? ty : 1 - ty);
-            const size_t texel = size_t(wrap(int(fy) + j, nm)) * size_t(nm) + size_t(wrap(int(fx) + i, nm));
-            for (int c = 0; c < 4; ++c) out[size_t(c)] += weight * band[texel * 4 + size_t(c)];
+            const size_t texel =
+                size_t(wrap(int(fy) + j, size)) * size_t(size) + size_t(wrap(int(fx) + i, size));
+            for (int c = 0; c < 4; ++c) out[size_t(c)] += weight * texels[texel * 4 + size_t(c)];
         }
     return out;
 }
 
-bool FourierTexture::usesTrilinear(Vec2 dUvdx, Vec2 dUvdy) const {
-    const double n = size_;
-    const Footprint footprint = footprintOf({dUvdx.x * n, dUvdx.y * n}, {dUvdy.x * n, dUvdy.y * n});
+std::array<double, 4> FourierTexture::bilinear(int m, Vec2 uv) const {
+    return bilinearOf(bands_[size_t(m)], levelSize(m), uv);
+}
+
+// The fallback: at each probe, the box MIP chain read trilinearly at the probe's level.
+std::array<double, 4> FourierTexture::mipmapped(const Reading& r, Vec2 uv) const {
+    const double lod = r.m + r.f;
+    const int j = std::min(int(std::floor(lod)), levels_ - 2);
+    const double t = lod - j;
+    std::array<double, 4> out{};
+    for (int i = 0; i < r.probes; ++i) {
+        const double offset = (i + 0.5) - 0.5 * r.probes;
+        const Vec2 at{uv.x + offset * r.step.x, uv.y + offset * r.step.y};
+        const std::array<double, 4> lower = bilinearOf(mipmap(j), size_ >> j, at),
+                                    upper = bilinearOf(mipmap(j + 1), size_ >> (j + 1), at);
+        for (size_t c = 0; c < 4; ++c) out[c] += ((1 - t) * lower[c] + t * upper[c]) / r.probes;
+    }
+    return out;
+}
+
+FourierTexture::Reading FourierTexture::readingOf(Vec2 a, Vec2 b) const {
+    const Footprint footprint = footprintOf(a, b);
+    Reading r;
     const double lod = std::clamp(footprint.majorLod, 0.0, double(levels_ - 1));
-    const int m = std::min(int(std::floor(lod)), levels_ - 2);
-    if (m == 0) return false;  // level 0 holds everything: no sum to ring
-    const int s = std::clamp(int(std::floor(footprint.minorLod)), 0, m);
-    const int orientation = int(std::floor(footprint.angle / (std::numbers::pi / 4) + 0.5)) % kOrientations;
-    return captured(setIndex(m, s, orientation)) < options_.minCaptured;
+    r.level = std::min(int(std::floor(lod)), levels_ - 2);
+    r.f = lod - r.level;
+    r.s = std::clamp(int(std::floor(footprint.minorLod)), 0, r.level);
+    r.orientation = int(std::floor(footprint.angle / (std::numbers::pi / 4) + 0.5)) % kOrientations;
+    r.m = bandLevel(r.level, r.s);
+    r.probes = 1 << (r.level - r.m);
+    const double length = std::exp2(lod) / size_ / r.probes;
+    r.step = {std::cos(footprint.angle) * length, std::sin(footprint.angle) * length};
+    return r;
+}
+
+int FourierTexture::bandLevel(int level, int subLevel) const {
+    int most = 0;
+    while ((2 << most) <= options_.probes) ++most;
+    return level - std::min(level - subLevel, most);
+}
+
+bool FourierTexture::fallsBack(Vec2 dUvdx, Vec2 dUvdy) const {
+    const double n = size_;
+    const Reading r = readingOf({dUvdx.x * n, dUvdx.y * n}, {dUvdy.x * n, dUvdy.y * n});
+    if (r.m == 0) return false;  // level 0 holds everything: no sum to ring
+    return captured(setIndex(r.level, r.s, r.orientation)) < options_.minCaptured;
 }
 
 std::array<double, 4> FourierTexture::sample(Vec2 uv, Vec2 dUvdx, Vec2 dUvdy) const {
     const double n = size_;
     const Vec2 a{dUvdx.x * n, dUvdx.y * n}, b{dUvdy.x * n, dUvdy.y * n};
-    const Footprint footprint = footprintOf(a, b);
-    const double lod = std::clamp(footprint.majorLod, 0.0, double(levels_ - 1));
-    const int m = std::min(int(std::floor(lod)), levels_ - 2);
-    const double f = lod - m;
-    const int s = std::clamp(int(std::floor(footprint.minorLod)), 0, m);
-    const int orientation = int(std::floor(footprint.angle / (std::numbers::pi / 4) + 0.5)) % kOrientations;
-    const std::array<double, 4> lower = bilinear(m, uv), upper = bilinear(m + 1, uv);
-    std::array<double, 4> out;
-    for (size_t c = 0; c < 4; ++c) out[c] = (1 - f) * lower[c] + f * upper[c];
-    const float* row = detail_.data() + size_t(setIndex(m, s, orientation)) * size_t(frequencies()) * 8;
+    const Reading r = readingOf(a, b);
+    const int m = r.m;
+    const double f = r.f;
+    if (m > 0 && captured(setIndex(r.level, r.s, r.orientation)) < options_.minCaptured)
+        return mipmapped(r, uv);
+    std::array<double, 4> out{};
+    for (int i = 0; i < r.probes; ++i) {
+        const double t = (i + 0.5) - 0.5 * r.probes;
+        const Vec2 at{uv.x + t * r.step.x, uv.y + t * r.step.y};
+        const std::array<double, 4> lower = bilinear(m, at), upper = bilinear(m + 1, at);
+        for (size_t c = 0; c < 4; ++c) out[c] += ((1 - f) * lower[c] + f * upper[c]) / r.probes;
+    }
+    const float* row =
+        detail_.data() + size_t(setIndex(r.level, r.s, r.orientation)) * size_t(frequencies()) * 8;
     const double cut = cutoffOf(m), sigma2 = options_.sigma * options_.sigma, unit = kTau / n;
     const Vec2 at{uv.x - std::floor(uv.x), uv.y - std::floor(uv.y)};
     for (int j = 0; j < frequencies(); ++j) {
@@ -256,9 +328,10 @@ std::array<double, 4> FourierTexture::sample(Vec2 uv, Vec2 dUvdx, Vec2 dUvdy) co
         const double qx = unit * (kx * a.x + ky * a.y), qy = unit * (kx * b.x + ky * b.y);
         const double response = std::exp(-0.5 * sigma2 * (qx * qx + qy * qy));
         // Level 0 holds every sinusoid whole: what its share (1 - f) should lose is taken away.
-        const double attenuation = m == 0                                       ? response - (1 - f)
-                                   : std::max(std::abs(kx), std::abs(ky)) < cut ? f * response
-                                                                                : response;
+        const double attenuation =
+            m == 0 ? response - (1 - f) * probeResponse(kx * r.step.x + ky * r.step.y, r.probes)
+            : std::max(std::abs(kx), std::abs(ky)) < cut ? f * response
+                                                         : response;
         const double turns = kx * at.x + ky * at.y - (kx + ky) * 0.5 / n;
         const double phase = kTau * (turns - std::floor(turns));
         const double cosine = std::cos(phase), sine = std::sin(phase);

@@ -78,7 +78,8 @@ SuperBumpChain buildSuperBumpChain(const NormalMapImage& map, int lobes) {
     if (n < 4 || (n & (n - 1)) != 0 || map.normals.size() != size_t(n) * size_t(n) * 3)
         throw Error("normal map '" + map.name + "': not a square power-of-two map of normals");
     if (lobes < 0 || lobes > 8)
-        throw Error("super bump mapping keeps 1 to 8 lobes a texel (0: the standard chain alone), not " + std::to_string(lobes));
+        throw Error("super bump mapping keeps 1 to 8 lobes a texel (0: the standard chain alone), not " +
+                    std::to_string(lobes));
     SuperBumpChain chain;
     chain.size = n, chain.lobes = lobes;
     chain.levels = 1;

@@ -34,9 +34,10 @@ struct SuperBumpChain {
 };
 
 // The standard chain (the texels' normals averaged) and the super chain with `lobes` clusters a texel
-// (1 to 8; 0: the standard chain alone): spherical k-means from a farthest-first start, to a stable assignment (at most 16 rounds), on
-// the surface the renderer draws at level 0 — the bilinearly interpolated normals, sampled twice a texel
-// each way — under each texel of level 1 and up (level 0: the texel's own normal). Deterministic.
+// (1 to 8; 0: the standard chain alone): spherical k-means from a farthest-first start, to a stable
+// assignment (at most 16 rounds), on the surface the renderer draws at level 0 — the bilinearly interpolated
+// normals, sampled twice a texel each way — under each texel of level 1 and up (level 0: the texel's own
+// normal). Deterministic.
 SuperBumpChain buildSuperBumpChain(const NormalMapImage& map, int lobes);
 
 // The Blinn-Phong exponent that lights a lobe of mean length R as a spread of normals does (Toksvig):

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <array>
+#include <bit>
 #include <cmath>
 #include <sstream>
 
@@ -69,7 +70,7 @@ uniform vec3 uEye;
 uniform float uId;
 uniform vec2 uViewport;
 uniform int uFourier;                // the texture is read by the Fourier sampler
-uniform sampler2D uOriginal;         // its level 0, linear RGBA (decoded as FourierTexture does)
+uniform sampler2D uOriginal;         // its box MIP chain, linear RGBA (decoded as FourierTexture does)
 uniform sampler2D uBands;            // its band-limited MIP levels, linear RGBA
 uniform sampler2D uDetail;           // its sets of removed sinusoids, a row each
 uniform float uFourierSize;          // texels across level 0
@@ -78,6 +79,7 @@ uniform int uFourierFrequencies;
 uniform float uFourierSigma;
 uniform float uFourierCutoff;
 uniform float uFourierMinCaptured;
+uniform int uFourierProbeLevels;  // log2 of the most probes
 uniform int uBump;                   // Pattern::Bumps: 0 procedural, 1 standard normal map, 2 super bump map
 uniform sampler2D uNormalMap;        // the standard chain: averaged normals (x, y, z), tangent space
 uniform sampler2D uLobe0;            // the super chain, a texture a lobe: (x, y, weight, mean length)
@@ -89,6 +91,13 @@ uniform float uBumpSize;
 uniform int uBumpLevels;
 const float kTau = 6.28318530718;
 const float kPi = 3.14159265359;
+// The response of the mean of n probes spaced one unit apart (a Dirichlet kernel) at x cycles a unit;
+// at whole cycles, its limit.
+float probeResponse(float x, int n) {
+    if (n == 1) return 1.0;
+    float d = sin(kPi * x);
+    return abs(d) < 1e-4 ? cos(float(n) * kPi * x) / cos(kPi * x) : sin(float(n) * kPi * x) / (float(n) * d);
+}
 // FourierTexture::sample (render/fourier_texture.cpp) in float; its comments say why.
 vec4 fourierSample(vec2 uv) {
     vec2 dx = dFdx(uv), dy = dFdy(uv);
@@ -100,16 +109,34 @@ vec4 fourierSample(vec2 uv) {
     float angle = 0.5 * atan(2.0 * c01, c00 - c11);
     if (angle < 0.0) angle += kPi;
     float lod = clamp(majorLod, 0.0, float(uFourierLevels - 1));
-    int m = min(int(floor(lod)), uFourierLevels - 2);
-    float f = lod - float(m);
-    int s = clamp(int(floor(minorLod)), 0, m);
+    int level = min(int(floor(lod)), uFourierLevels - 2);
+    float f = lod - float(level);
+    int s = clamp(int(floor(minorLod)), 0, level);
     int orientation = int(floor(angle / (kPi / 4.0) + 0.5)) % 4;
+    // The band level read: finer by p, with 2^p probes along the major axis (p = 0 with one probe).
+    int m = level - min(level - s, uFourierProbeLevels);
+    int probes = 1 << (level - m);
+    vec2 probeStep = vec2(cos(angle), sin(angle)) * (exp2(lod) / uFourierSize / float(probes));
     // Band m + 1 is OpenGL level m of uBands; band 0 is the texture itself.
-    vec4 lower = m == 0 ? textureLod(uOriginal, uv, 0.0) : textureLod(uBands, uv, float(m - 1));
-    vec4 colour = mix(lower, textureLod(uBands, uv, float(m)), f);
-    int row = (m * (m + 1) / 2 + s) * 4 + orientation;
-    if (m > 0 && texelFetch(uDetail, ivec2(2 * uFourierFrequencies, row), 0).x < uFourierMinCaptured)
-        return textureGrad(uTexture, uv, dx, dy);  // trilinear: the sum would ring
+    vec4 colour = vec4(0.0);
+    for (int i = 0; i < probes; ++i) {
+        vec2 p = uv + (float(i) + 0.5 - 0.5 * float(probes)) * probeStep;
+        vec4 lower = m == 0 ? textureLod(uOriginal, p, 0.0) : textureLod(uBands, p, float(m - 1));
+        colour += mix(lower, textureLod(uBands, p, float(m)), f);
+    }
+    colour /= float(probes);
+    int row = (level * (level + 1) / 2 + s) * 4 + orientation;
+    if (m > 0 && texelFetch(uDetail, ivec2(2 * uFourierFrequencies, row), 0).x < uFourierMinCaptured) {
+        // The sum would ring: the texture's box MIP chain instead, trilinear at each probe.
+        int j = min(m, uFourierLevels - 2);
+        float t = float(m) + f - float(j);
+        vec4 mipmapped = vec4(0.0);
+        for (int i = 0; i < probes; ++i) {
+            vec2 p = uv + (float(i) + 0.5 - 0.5 * float(probes)) * probeStep;
+            mipmapped += mix(textureLod(uOriginal, p, float(j)), textureLod(uOriginal, p, float(j + 1)), t);
+        }
+        return mipmapped / float(probes);
+    }
     float cut = m == 0 ? 1e30 : uFourierCutoff * 0.5 * uFourierSize / exp2(float(m));
     float unit = kTau / uFourierSize, spread2 = 0.5 * uFourierSigma * uFourierSigma;
     vec2 at = fract(uv);
@@ -120,7 +147,8 @@ vec4 fourierSample(vec2 uv) {
         vec2 k = e0.xy;
         vec2 q = unit * vec2(dot(k, a), dot(k, b));
         float response = exp(-spread2 * dot(q, q));
-        float attenuation = m == 0 ? response - (1.0 - f) : max(abs(k.x), abs(k.y)) < cut ? f * response : response;
+        float attenuation = m == 0 ? response - (1.0 - f) * probeResponse(dot(k, probeStep), probes)
+                            : max(abs(k.x), abs(k.y)) < cut ? f * response : response;
         float phase = kTau * fract(dot(k, at) - (k.x + k.y) * 0.5 / uFourierSize);
         detail += attenuation * (vec3(e0.z, e1.x, e1.z) * cos(phase) - vec3(e0.w, e1.y, e1.w) * sin(phase));
     }
@@ -487,6 +515,7 @@ struct Renderer::Impl {
             gl.Uniform1f(uniform(p, "uFourierSigma"), float(scene.fourier.sigma));
             gl.Uniform1f(uniform(p, "uFourierCutoff"), float(scene.fourier.cutoff));
             gl.Uniform1f(uniform(p, "uFourierMinCaptured"), float(scene.fourier.minCaptured));
+            gl.Uniform1i(uniform(p, "uFourierProbeLevels"), std::countr_zero(unsigned(scene.fourier.probes)));
         }
         gl.ActiveTexture(GL_TEXTURE0);
         for (const SceneObject& object : scene.objects) {
@@ -620,7 +649,12 @@ Renderer::Renderer(const GlContext& context, const Scene& scene, int width, int 
             const FourierTexture f(t, scene.fourier);
             Impl::FourierGpu g;
             g.size = f.size(), g.levels = f.levels();
-            g.original = m.makeFloatTexture({f.size()}, {f.level(0).data()}, GL_LINEAR, GL_LINEAR);
+            // The texture's box MIP chain (level 0 the texture itself, the fallback reads the others).
+            std::vector<int> mipSizes;
+            std::vector<const float*> mipmaps;
+            for (int level = 0; level < f.levels(); ++level)
+                mipSizes.push_back(f.size() >> level), mipmaps.push_back(f.mipmap(level).data());
+            g.original = m.makeFloatTexture(mipSizes, mipmaps, GL_LINEAR, GL_LINEAR_MIPMAP_NEAREST);
             // OpenGL's level j holds band j + 1 (stored at twice its MIP size); band 0 is the texture.
             std::vector<int> sizes;
             std::vector<const float*> bands;
@@ -641,7 +675,8 @@ Renderer::Renderer(const GlContext& context, const Scene& scene, int width, int 
 
     if (scene.bump != Bump::Procedural)
         for (const NormalMapImage& map : scene.normalMaps) {
-            const SuperBumpChain chain = buildSuperBumpChain(map, scene.bump == Bump::Super ? scene.bumpLobes : 0);
+            const SuperBumpChain chain =
+                buildSuperBumpChain(map, scene.bump == Bump::Super ? scene.bumpLobes : 0);
             Impl::BumpGpu b;
             b.size = chain.size, b.levels = chain.levels, b.lobeCount = chain.lobes;
             std::vector<int> sizes;

@@ -62,6 +62,10 @@ struct FourierOptions {
     // A set whose sinusoids hold less than this share of the energy it should add back (a broadband
     // texture, where a truncated sum rings) gives way to the trilinear sample.
     double minCaptured = 0.8;
+    // The band levels read along the footprint's major axis: up to this many probes, each at the level
+    // of the major axis over their count (1: one isotropic read at the major axis' level, as the thesis
+    // does; docs/texture-aa.md, "Anisotropic band reads").
+    int probes = 8;
 };
 
 struct SceneObject {

@@ -763,7 +763,7 @@ TEST(Cli, BenchRenderQuickPrintsFramesAndTruth) {
     }
     EXPECT_EQ(frames, 2);
     EXPECT_EQ(truths, 1);
-    ASSERT_EQ(aliasing.size(), 8u) << r.out;  // five samplers, and the normal map read three ways
+    ASSERT_EQ(aliasing.size(), 9u) << r.out;  // five samplers, Fourier with one probe, three normal maps
     EXPECT_EQ(aliasing.count("bump super"), 1u);
     EXPECT_GT(aliasing["sampler point"], 10 * aliasing["sampler trilinear"]);
 }
