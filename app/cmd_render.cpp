@@ -346,7 +346,7 @@ void registerRenderCommand(CLI::App& app) {
         ->add_option("--fourier-probes", args->fourier.probes,
                      "fourier sampler: band reads along an anisotropic footprint's major axis (1: one "
                      "isotropic read, as the thesis does)")
-        ->check(CLI::Range(1, 16))
+        ->check(CLI::IsMember({1, 2, 4, 8, 16}))
         ->capture_default_str();
     command->add_option("--texture", args->texture, "planes: checker | bricks | stripes | text | noise")
         ->capture_default_str();

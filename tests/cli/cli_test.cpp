@@ -805,6 +805,10 @@ TEST(Cli, BenchTextureComparesEveryToolWithItsParetoFront) {
         "--bump super");
     expectOneLineError(run("render --scene planes --fourier-sigma 0.5 --out '" + dir.file("r") + "'", dir),
                        "--sampler fourier");
+    expectOneLineError(
+        run("render --scene planes --sampler fourier --fourier-probes 3 --out '" + dir.file("r") + "'", dir),
+        "--fourier-probes");
+    EXPECT_FALSE(std::filesystem::exists(dir.file("r")));
 }
 
 TEST(Cli, FilterFxaaKeepsBitDepthAndAlphaAndRefusesWhatItCannotDo) {
