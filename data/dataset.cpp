@@ -401,8 +401,8 @@ render::CameraPose movedCamera(const std::function<render::CameraPose(double)>& 
     return pose;
 }
 
-// The fields of a manifest record every item has: what it is, its camera (at `pose`), sampler, light and
-// sample counts.
+// The fields of a manifest record every item has: what it is, its camera (at `pose`), texture sampler,
+// light and sample counts.
 json itemRecord(const DatasetSpec& spec, const ItemPlan& plan, const render::Scene& scene,
                 const render::SceneOptions& options, const render::CameraPose& pose, int truthSamples,
                 int64_t truthTileSamples) {
@@ -421,7 +421,8 @@ json itemRecord(const DatasetSpec& spec, const ItemPlan& plan, const render::Sce
               {"up", vec(pose.up)},
               {"fov_y", pose.fovY},
               {"tilted", options.tiltedCamera}}},
-            {"sampler", render::samplerName(options.sampler)},
+            // What the scene reads its textures with (a scene may keep its own), "none" without any.
+            {"sampler", scene.textures.empty() ? json("none") : json(render::samplerName(scene.sampler))},
             {"light", vec(scene.lightDirection)},
             {"samples",
              {{"input", 1},

@@ -163,8 +163,9 @@ TEST(DatasetGenerate, CloseUpsNarrowTheViewOfTheSameItems) {
     }
 }
 
-// Samplers: textured items draw theirs from the dataset's list, recorded per item; the default list is
-// what older datasets hold and writes no "samplers" key; the other choices of an item do not depend on it.
+// Samplers: items of the textured planes draw theirs from the dataset's list, and every record names
+// the sampler its scene read textures with ("none" without textures); the default list is what older
+// datasets hold and writes no "samplers" key; the other choices of an item do not depend on it.
 TEST(DatasetGenerate, TexturedItemsDrawTheirSamplerFromTheList) {
     DatasetSpec spec = allFamilies(5);
     EXPECT_FALSE(spec.toJson().contains("samplers"));
@@ -192,8 +193,10 @@ TEST(DatasetGenerate, TexturedItemsDrawTheirSamplerFromTheList) {
     ASSERT_EQ(after.size(), 6u);
     std::set<std::string> drawn;
     for (size_t i = 0; i < 6; ++i) {
-        drawn.insert(before[i]["sampler"].get<std::string>());
-        EXPECT_EQ(after[i]["sampler"], "fourier");
+        const bool textured = after[i]["family"] == "textures";
+        if (textured) drawn.insert(before[i]["sampler"].get<std::string>());
+        EXPECT_EQ(after[i]["sampler"], textured ? "fourier" : "none");
+        EXPECT_EQ(before[i]["sampler"] == "none", !textured);
         EXPECT_EQ(after[i]["camera"], before[i]["camera"]);
         EXPECT_EQ(after[i]["light"], before[i]["light"]);
         if (after[i]["family"] == "shapes") {  // no texture: the same frames
