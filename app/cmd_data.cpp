@@ -237,6 +237,12 @@ void registerDataCommand(CLI::App& app) {
         }
         std::printf("%d items; aliased PSNR median %.2f dB\n", s["items"].get<int>(),
                     s["aliased_psnr"]["median"].get<double>());
+        if (const nlohmann::json& samplers = s["samplers"]; !samplers.empty()) {
+            std::string list;
+            for (const auto& [name, n] : samplers.items())
+                list += (list.empty() ? "" : ", ") + name + " " + std::to_string(n.get<int>());
+            std::printf("textured items by sampler: %s\n", list.c_str());
+        }
         if (s.contains("motion")) {
             std::printf("\n%-13s %9s %10s %10s %9s %11s %5s\n", "sequences", "count", "px/frame", "max px",
                         "moving", "disoccluded", "cuts");

@@ -1036,9 +1036,14 @@ json datasetStats(const std::string& folder) {
     };
     std::map<std::string, MotionTally> motion;
     MotionTally allMotion;
+    // The texture samplers the items' scenes read with (records without textures say "none").
+    std::map<std::string, std::map<std::string, int>> samplers;
+    std::map<std::string, int> allSamplers;
     for (const json& r : records) {
         const std::string family = r["family"], split = r["split"];
         ++counts[family][split];
+        if (const auto it = r.find("sampler"); it != r.end() && it->is_string() && *it != "none")
+            ++samplers[family][it->get<std::string>()], ++allSamplers[it->get<std::string>()];
         if (r.contains("sequence")) motion[family].add(r), allMotion.add(r);
         if (r["aliased_psnr"].get<double>() >= kFlatItemPsnr)
             flat.push_back(
@@ -1066,12 +1071,14 @@ json datasetStats(const std::string& folder) {
                                    {"edge_fraction", edges[family] / total},
                                    {"aliased_psnr", summary(psnr[family])}};
         if (motion.count(family)) out["families"][family]["motion"] = motion[family].toJson();
+        if (samplers.count(family)) out["families"][family]["samplers"] = samplers[family];
         all.insert(all.end(), psnr[family].begin(), psnr[family].end());
     }
     out["items"] = records.size();
     out["splits"] = splits;
     out["aliased_psnr"] = summary(all);
     out["flat_items"] = flat;
+    out["samplers"] = allSamplers;
     if (allMotion.sequences > 0) out["motion"] = allMotion.toJson();
     return out;
 }

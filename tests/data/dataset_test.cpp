@@ -207,6 +207,11 @@ TEST(DatasetGenerate, TexturedItemsDrawTheirSamplerFromTheList) {
         }
     }
     EXPECT_FALSE(drawn.count("fourier"));
+    // data stats counts the samplers of textured items only.
+    const nlohmann::json stats = datasetStats(dir.file("fourier"));
+    EXPECT_EQ(stats["samplers"], nlohmann::json({{"fourier", 3}}));
+    EXPECT_EQ(stats["families"]["textures"]["samplers"]["fourier"].get<int>(), 3);
+    EXPECT_FALSE(stats["families"]["shapes"].contains("samplers"));
     // A dataset is resumed only with the list it was made with.
     EXPECT_NE(run(recipe + dir.file("fourier") + "' --samplers trilinear", &err), 0);
 }
