@@ -117,6 +117,16 @@ vec4 fourierSample(vec2 uv) {
     int m = level - min(level - s, uFourierProbeLevels);
     int probes = 1 << (level - m);
     vec2 probeStep = vec2(cos(angle), sin(angle)) * (exp2(lod) / uFourierSize / float(probes));
+    int row = (level * (level + 1) / 2 + s) * 4 + orientation;
+    if (m > 0 && texelFetch(uDetail, ivec2(2 * uFourierFrequencies, row), 0).x < uFourierMinCaptured) {
+        // The sum would ring: the texture's box MIP chain instead, trilinear at each probe.
+        vec4 mipmapped = vec4(0.0);
+        for (int i = 0; i < probes; ++i) {
+            vec2 p = uv + (float(i) + 0.5 - 0.5 * float(probes)) * probeStep;
+            mipmapped += mix(textureLod(uOriginal, p, float(m)), textureLod(uOriginal, p, float(m + 1)), f);
+        }
+        return mipmapped / float(probes);
+    }
     // Band m + 1 is OpenGL level m of uBands; band 0 is the texture itself.
     vec4 colour = vec4(0.0);
     for (int i = 0; i < probes; ++i) {
@@ -125,18 +135,6 @@ vec4 fourierSample(vec2 uv) {
         colour += mix(lower, textureLod(uBands, p, float(m)), f);
     }
     colour /= float(probes);
-    int row = (level * (level + 1) / 2 + s) * 4 + orientation;
-    if (m > 0 && texelFetch(uDetail, ivec2(2 * uFourierFrequencies, row), 0).x < uFourierMinCaptured) {
-        // The sum would ring: the texture's box MIP chain instead, trilinear at each probe.
-        int j = min(m, uFourierLevels - 2);
-        float t = float(m) + f - float(j);
-        vec4 mipmapped = vec4(0.0);
-        for (int i = 0; i < probes; ++i) {
-            vec2 p = uv + (float(i) + 0.5 - 0.5 * float(probes)) * probeStep;
-            mipmapped += mix(textureLod(uOriginal, p, float(j)), textureLod(uOriginal, p, float(j + 1)), t);
-        }
-        return mipmapped / float(probes);
-    }
     float cut = m == 0 ? 1e30 : uFourierCutoff * 0.5 * uFourierSize / exp2(float(m));
     float unit = kTau / uFourierSize, spread2 = 0.5 * uFourierSigma * uFourierSigma;
     vec2 at = fract(uv);
